@@ -1,0 +1,1 @@
+"""Benchmarks: `python -m searchrl.bench world [--json]`."""

@@ -1,0 +1,146 @@
+"""World configuration: every constant of the search world, validated before any work.
+
+Values the paper fixes (λ, Γ, Table 1 rewards, 256 steps, the training ranges of §4.1) are defaults here;
+values it leaves open (k, ξ, τ, η, ρ bound, variance floor, obstacle density, observation scaling) are fields
+with a default and a reason in the README's "Deviations and choices".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+from searchrl.world.footprint import GAMMA
+
+
+class ConfigError(ValueError):
+    """A configuration value outside its allowed range; the message names the field."""
+
+
+def _need(ok: bool, name: str, value: object, allowed: str) -> None:
+    if not ok:
+        raise ConfigError(f"{name}={value!r} is not allowed: {allowed}")
+
+
+def _check_range(name: str, rng: tuple, low: float, high: float | None = None) -> None:
+    _need(
+        isinstance(rng, (tuple, list)) and len(rng) == 2,
+        name,
+        rng,
+        "expected a pair (low, high)",
+    )
+    lo, hi = rng
+    upper = "" if high is None else f" and high <= {high}"
+    _need(low <= lo <= hi and (high is None or hi <= high), name, rng, f"need {low} <= low <= high{upper}")
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """All constants of one search world. Ranges are inclusive (low, high) pairs drawn per world at reset."""
+
+    # --- scenario (§4.1): a world draws its side, Gaussian count and target count from these ranges
+    world_size: tuple[int, int] = (20, 128)  # n, §4.1.2
+    n_distributions: tuple[int, int] = (16, 32)  # m, §4.1.3
+    n_targets: tuple[int, int] = (8, 16)  # j, §4.1.4
+    n_agents: int = 8  # N, fixed during training (§4.1.2)
+    prob_variance_scale: float = 10.0  # σ² drawn in [variance_floor, 10 n) for p (§4.1.3)
+    unc_variance_scale: float = 20.0  # σ² drawn in [variance_floor, 20 n) for u (§4.1.3)
+    variance_floor: float = 1.0  # paper: (0, ·); a floor of one cell keeps every Gaussian visible on the grid
+    rho_max: float = 0.8  # ρ drawn in (-rho_max, rho_max): bounded away from ±1 so eq. 6 stays finite
+    eta: float = 0.1  # baseline share of probability spread evenly over cells (eq. 7)
+    obstacle_density: float = 0.0  # share of cells that are obstacles (not in the paper's experiments)
+
+    # --- sensing (§3.1): Δp = λ k Γ p
+    lam: float = 0.001  # λ, paper value
+    k: float = 1000.0  # λk = 1 makes sensing the Bayesian non-detection update p <- p (1 - Γ)
+
+    # --- agent model (§3.2, §6.1.2): Φ and communication distinguish models A, B, C
+    explicit_area: int = 5  # Φ side: 11 (model A) or 5 (B, C, diagonal)
+    fov: int = 11  # Θ side of the observation window
+    communication: bool = True  # min-merge of beliefs with neighbours (§5); off for A and C
+    comm_range: int = 5  # side of the square communication area (the 5x5 of Γ, §5.1)
+    diagonal: bool = False  # 9 actions instead of 5
+
+    # --- rewards (Table 1, eq. 5, eq. 17)
+    step_reward: float = -0.05
+    collision_reward: float = -0.2
+    target_reward: float = 10.0
+    xi: float = 0.05  # ξ of eq. 5; 2ξ/λ = 100 is the whole map's worth of information
+    tau: float = 0.01  # τ of eq. 17
+
+    max_steps: int = 256  # episode length (§4.1.1)
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    @property
+    def n_actions(self) -> int:
+        return 9 if self.diagonal else 5
+
+    @property
+    def halo(self) -> int:
+        """Padding around every map so windows (FOV, Φ, Γ, communication) never leave the array."""
+        return max(self.fov, self.explicit_area, self.comm_range, GAMMA.shape[0]) // 2
+
+    def validate(self) -> None:
+        _check_range("world_size", self.world_size, 5)
+        _check_range("n_distributions", self.n_distributions, 1)
+        _check_range("n_targets", self.n_targets, 1)
+        _need(1 <= self.n_agents <= 4096, "n_agents", self.n_agents, "1 <= n_agents <= 4096")
+        _need(self.prob_variance_scale > 0, "prob_variance_scale", self.prob_variance_scale, "> 0")
+        _need(self.unc_variance_scale > 0, "unc_variance_scale", self.unc_variance_scale, "> 0")
+        _need(
+            0 < self.variance_floor < self.prob_variance_scale * self.world_size[0],
+            "variance_floor",
+            self.variance_floor,
+            "0 < variance_floor < prob_variance_scale * smallest world size",
+        )
+        _need(0 <= self.rho_max < 1, "rho_max", self.rho_max, "0 <= rho_max < 1")
+        _need(0 <= self.eta <= 1, "eta", self.eta, "0 <= eta <= 1")
+        _need(0 <= self.obstacle_density < 1, "obstacle_density", self.obstacle_density, "0 <= density < 1")
+        _need(self.lam > 0, "lam", self.lam, "> 0")
+        _need(self.k > 0, "k", self.k, "> 0")
+        _need(
+            self.lam * self.k * float(GAMMA.max()) <= 1.0 + 1e-12,
+            "k",
+            self.k,
+            f"lam * k * max(Γ) <= 1 so no cell loses more than it holds (here lam * k = {self.lam * self.k})",
+        )
+        for name in ("fov", "explicit_area", "comm_range"):
+            v = getattr(self, name)
+            _need(isinstance(v, int) and v >= 1 and v % 2 == 1, name, v, "an odd positive integer")
+        _need(
+            self.explicit_area <= self.fov,
+            "explicit_area",
+            self.explicit_area,
+            f"Φ must fit inside the field of view (fov={self.fov})",
+        )
+        _need(self.max_steps >= 1, "max_steps", self.max_steps, ">= 1")
+        _need(self.xi >= 0, "xi", self.xi, ">= 0")
+        _need(self.tau >= 0, "tau", self.tau, ">= 0")
+        # Agents need distinct free cells in the smallest world; obstacles are drawn per world so we
+        # require room even at the expected density, and re-check exactly at reset.
+        smallest = self.world_size[0] ** 2
+        free = int(smallest * (1.0 - self.obstacle_density))
+        _need(
+            self.n_agents <= free,
+            "n_agents",
+            self.n_agents,
+            f"at most {free} agents fit on the free cells of the smallest world (n={self.world_size[0]})",
+        )
+        _need(
+            self.n_agents + self.n_targets[1] <= free,
+            "n_targets",
+            self.n_targets,
+            f"agents and targets start on distinct cells: n_agents + max targets <= {free} free cells"
+            f" of the smallest world (n={self.world_size[0]})",
+        )
+
+    @classmethod
+    def from_dict(cls, values: dict) -> WorldConfig:
+        """Build from a plain mapping (Hydra, JSON); unknown keys are an error naming them."""
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ConfigError(f"unknown world config field(s) {unknown}; allowed: {sorted(known)}")
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+        return cls(**kw)

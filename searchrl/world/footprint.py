@@ -1,0 +1,22 @@
+"""The sensor footprint Γ of §3.1 and the move table of §3.2.2."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def make_footprint(radius: int = 2) -> np.ndarray:
+    """Γ[dy + r, dx + r] = exp(-(dx² + dy²) / 2) on the disc dx² + dy² <= r², 0 outside. Shape (2r+1, 2r+1)."""
+    d = np.arange(-radius, radius + 1)
+    d2 = d[:, None] ** 2 + d[None, :] ** 2
+    return np.where(d2 <= radius**2, np.exp(-d2 / 2.0), 0.0)
+
+
+GAMMA: np.ndarray = make_footprint(2)  # (5, 5) float64; the paper prints it to 4 decimals
+
+# Moves as (d_row, d_col); row grows southwards, col eastwards. First 5 are the cardinal mode.
+MOVES: np.ndarray = np.array(
+    [(0, 0), (-1, 0), (0, 1), (1, 0), (0, -1), (-1, 1), (1, 1), (1, -1), (-1, -1)],
+    dtype=np.int64,
+)
+ACTION_NAMES: tuple[str, ...] = ("stay", "N", "E", "S", "W", "NE", "SE", "SW", "NW")

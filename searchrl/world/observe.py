@@ -1,0 +1,37 @@
+"""Agent observations (§3.2.1): a (5, fov, fov) field of view and a 3-vector, per agent."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from searchrl.world import kernels
+from searchrl.world.config import WorldConfig
+from searchrl.world.state import WorldState
+
+N_CHANNELS = 5  # other agents, obstacles/out of bounds, found targets, belief p, belief u
+VECTOR_SIZE = 3  # col / n, row / n, remaining targets / targets
+
+
+def observation_buffers(config: WorldConfig, n_worlds: int) -> tuple[np.ndarray, np.ndarray]:
+    """Empty (maps (K, N, 5, fov, fov), vector (K, N, 3)) float32 buffers for `observe(..., out=...)`."""
+    shape = (n_worlds, config.n_agents)
+    return (
+        np.empty((*shape, N_CHANNELS, config.fov, config.fov), np.float32),
+        np.empty((*shape, VECTOR_SIZE), np.float32),
+    )
+
+
+def observe(
+    config: WorldConfig, state: WorldState, out: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Observations of every agent: maps (K, N, 5, fov, fov) float32 and vector (K, N, 3) float32.
+
+    p and u are scaled by 1 / max of the world's prior map, so the prior peaks at 1 in every world whatever
+    its size (the raw maps sum to 1 and shrink as 1/n²). Pass `out` to reuse buffers.
+    """
+    maps, vec = observation_buffers(config, state.n_worlds) if out is None else out
+    kernels.observe_into(
+        state.occupant, state.blocked, state.found_grid, state.belief, state.obs_scale, state.pos,
+        state.size, state.n_targets, state.n_found, state.halo, maps, vec,
+    )  # fmt: skip
+    return maps, vec

@@ -1,0 +1,102 @@
+"""The batched world state: K worlds × N agents as plain numpy arrays.
+
+Layout. Every map is padded by `h = config.halo` cells on each side and sized for the largest world the config
+can draw, so windows (Γ, Φ, FOV, communication) never need bounds checks: cell (row, col) of world k lives at
+`[k, row + h, col + h]`. Cells outside a world (the halo and, for a world smaller than the allocation, the
+cells beyond its side n) have p = u = 0 and are marked `blocked`, which is also what the observation shows
+as "obstacle or out of bounds". Positions are stored unpadded.
+
+The arrays are updated in place by `searchrl.world.step` (copying a (K, N, 2, S, S) belief per step would
+cost more than the step itself).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from searchrl.world.config import WorldConfig
+
+
+@dataclass
+class WorldState:
+    """State of K worlds with N agents. S = largest side + 2·halo, T = largest target count."""
+
+    size: np.ndarray  # (K,) int64, side n of each world
+    t: np.ndarray  # (K,) int64, steps taken in the current episode
+    p: np.ndarray  # (K, S, S) float32, true probability map
+    u: np.ndarray  # (K, S, S) float32, true uncertainty map
+    blocked: np.ndarray  # (K, S, S) bool, obstacle or outside the world
+    belief: np.ndarray  # (K, N, 2, S, S) float32, each agent's (p, u) map
+    # Bounding box (r0, r1, c0, c1), inclusive, padded, of the cells where an agent's belief may differ from
+    # the prior; empty when r0 > r1. A neighbour can only lower cells inside its box, so the merge scans the
+    # union of the neighbours' boxes instead of the whole map.
+    belief_box: np.ndarray  # (K, N, 4) int64
+    pos: np.ndarray  # (K, N, 2) int64, agent (row, col), unpadded
+    occupant: np.ndarray  # (K, S, S) int32, index of the agent on a cell or -1
+    target_pos: np.ndarray  # (K, T, 2) int64, target (row, col), unpadded
+    target_valid: np.ndarray  # (K, T) bool, slot holds a target this episode
+    target_found: np.ndarray  # (K, T) bool
+    found_grid: np.ndarray  # (K, S, S) bool, cells holding a found target
+    n_targets: np.ndarray  # (K,) int64
+    n_found: np.ndarray  # (K,) int64
+    obs_scale: np.ndarray  # (K, 2) float32, 1 / max of the prior p and u (observation scaling)
+    # Episode accumulators (team totals), read by `episode_metrics`.
+    ep_return: np.ndarray  # (K,) float64, sum of all agents' rewards
+    ep_comm_pairs: np.ndarray  # (K,) int64, F: neighbour pairs summed over steps
+    ep_info: np.ndarray  # (K,) float64, Σ over steps and agents of M_p + M_u
+    ep_collisions: np.ndarray  # (K,) int64, blocked moves
+    halo: int  # padding h on each side of every map
+
+    @property
+    def n_worlds(self) -> int:
+        return self.size.shape[0]
+
+    @property
+    def n_agents(self) -> int:
+        return self.pos.shape[1]
+
+    def copy(self) -> WorldState:
+        """A deep copy (tests and oracles compare against it)."""
+        return WorldState(
+            **{
+                f.name: np.copy(v) if isinstance(v := getattr(self, f.name), np.ndarray) else v
+                for f in fields(self)
+            }
+        )
+
+
+def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
+    """Zeroed arrays for `n_worlds` worlds; `reset_worlds` fills them. Memory is dominated by the beliefs:
+    K · N · 2 · S² · 4 bytes."""
+    if n_worlds < 1:
+        raise ValueError(f"n_worlds={n_worlds!r} is not allowed: need at least 1 world")
+    k, n = n_worlds, config.n_agents
+    h = config.halo
+    side = config.world_size[1] + 2 * h
+    t_max = config.n_targets[1]
+    state = WorldState(
+        size=np.zeros(k, np.int64),
+        t=np.zeros(k, np.int64),
+        p=np.zeros((k, side, side), np.float32),
+        u=np.zeros((k, side, side), np.float32),
+        blocked=np.ones((k, side, side), bool),
+        belief=np.zeros((k, n, 2, side, side), np.float32),
+        belief_box=np.tile(np.array([side, -1, side, -1], np.int64), (k, n, 1)),
+        pos=np.zeros((k, n, 2), np.int64),
+        occupant=np.full((k, side, side), -1, np.int32),
+        target_pos=np.zeros((k, t_max, 2), np.int64),
+        target_valid=np.zeros((k, t_max), bool),
+        target_found=np.zeros((k, t_max), bool),
+        found_grid=np.zeros((k, side, side), bool),
+        n_targets=np.zeros(k, np.int64),
+        n_found=np.zeros(k, np.int64),
+        obs_scale=np.ones((k, 2), np.float32),
+        ep_return=np.zeros(k, np.float64),
+        ep_comm_pairs=np.zeros(k, np.int64),
+        ep_info=np.zeros(k, np.float64),
+        ep_collisions=np.zeros(k, np.int64),
+        halo=h,
+    )
+    return state
