@@ -75,9 +75,7 @@ def run(seconds: float = 3.0, log: TextIO | None = None) -> list[dict]:
     for name, n, n_agents, n_worlds in CASES:
         config = case_config(n, n_agents)
         buffers = observation_buffers(config, n_worlds)  # reused, as SearchWorld does
-        engine = measure(
-            config, n_worlds, step, lambda c, s, b=buffers: observe(c, s, b), seconds, min_steps=20
-        )
+        engine = measure(config, n_worlds, step, lambda c, s, b=buffers: observe(c, s, b), seconds, min_steps=20)
         rows.append({"case": name, "engine": "batched", "agent_steps_per_s": round(engine, 1)})
         line = f"{name:>14}: batched {engine:>12,.0f} agent-steps/s"
         if oracle is not None:

@@ -254,9 +254,7 @@ def communicate(belief, belief_box, occupant, pos, radius, h, merge, comm_pairs,
 
 
 @njit(cache=_CACHE)
-def observe_into(
-    occupant, blocked, found_grid, belief, obs_scale, pos, size, n_targets, n_found, h, maps, vec
-):
+def observe_into(occupant, blocked, found_grid, belief, obs_scale, pos, size, n_targets, n_found, h, maps, vec):
     """Observation of §3.2.1 into maps (K,N,5,F,F) float32 and vec (K,N,3) float32 (see SPEC.md).
 
     Written channel by channel so every inner loop runs over contiguous memory. (A numba `prange` over agents

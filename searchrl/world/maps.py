@@ -25,8 +25,7 @@ def gaussian_mixture(
         dx[:, None, :] ** 2 + dy[:, :, None] ** 2 - 2.0 * rho[:, None, None] * dx[:, None, :] * dy[:, :, None]
     )  # (m, n_y, n_x)
     dens = (
-        np.exp(-quad / (2.0 * one_minus[:, None, None]))
-        / (2.0 * np.pi * sx * sy * np.sqrt(one_minus))[:, None, None]
+        np.exp(-quad / (2.0 * one_minus[:, None, None])) / (2.0 * np.pi * sx * sy * np.sqrt(one_minus))[:, None, None]
     )
     return dens.sum(axis=0)
 

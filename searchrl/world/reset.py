@@ -11,9 +11,7 @@ from searchrl.world.state import WorldState
 _MAX_TARGET_ROUNDS = 1_000
 
 
-def place_targets(
-    p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-) -> np.ndarray:
+def place_targets(p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
     """Two-stage placement of §4.1.4 on distinct free cells.
 
     A tentative cell is drawn from p over the free cells, then kept when a uniform draw is below 1 - u/max(u):

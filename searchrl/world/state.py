@@ -60,10 +60,7 @@ class WorldState:
     def copy(self) -> WorldState:
         """A deep copy (tests and oracles compare against it)."""
         return WorldState(
-            **{
-                f.name: np.copy(v) if isinstance(v := getattr(self, f.name), np.ndarray) else v
-                for f in fields(self)
-            }
+            **{f.name: np.copy(v) if isinstance(v := getattr(self, f.name), np.ndarray) else v for f in fields(self)}
         )
 
 

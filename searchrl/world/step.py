@@ -58,9 +58,7 @@ def check_actions(config: WorldConfig, state: WorldState, actions: np.ndarray) -
     if not np.issubdtype(actions.dtype, np.integer):
         raise ValueError(f"actions have dtype {actions.dtype}; expected integers in [0, {config.n_actions})")
     if actions.size and (actions.min() < 0 or actions.max() >= config.n_actions):
-        raise ValueError(
-            f"actions range over [{actions.min()}, {actions.max()}]; allowed [0, {config.n_actions - 1}]"
-        )
+        raise ValueError(f"actions range over [{actions.min()}, {actions.max()}]; allowed [0, {config.n_actions - 1}]")
     return actions.astype(np.int64, copy=False)
 
 
@@ -74,9 +72,7 @@ def step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.ra
     detect = rng.random(state.target_valid.shape)  # one uniform per target slot
 
     collided = np.empty((k, n), np.bool_)
-    kernels.move_agents(
-        state.pos, state.occupant, state.blocked, actions, priority, MOVES, h, claim, collided
-    )
+    kernels.move_agents(state.pos, state.occupant, state.blocked, actions, priority, MOVES, h, claim, collided)
 
     targets_found = np.empty((k, n), np.int64)
     kernels.detect_targets(
@@ -90,9 +86,7 @@ def step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.ra
         surv, fsum, removed, done, info,
     )  # fmt: skip
 
-    kernels.refresh_beliefs(
-        state.belief, state.belief_box, state.p, state.u, state.pos, config.explicit_area // 2, h
-    )
+    kernels.refresh_beliefs(state.belief, state.belief_box, state.p, state.u, state.pos, config.explicit_area // 2, h)
 
     comm_pairs = np.empty(k, np.int64)
     comm_gain = np.empty((k, n), np.float64)
