@@ -1,1 +1,1 @@
-"""Benchmarks: `python -m searchrl.bench world [--json]`."""
+"""Benchmarks: `python -m searchrl.bench {world,memory} [--json]`."""

@@ -1,4 +1,4 @@
-"""`python -m searchrl.bench {world} [--json]`: throughput benchmarks measured in one run."""
+"""`python -m searchrl.bench {world,memory} [--json]`: benchmarks measured in one run."""
 
 from __future__ import annotations
 
@@ -6,9 +6,10 @@ import argparse
 import json
 import sys
 
+from searchrl.bench import memory as memory_bench
 from searchrl.bench import world as world_bench
 
-SUITES = {"world": world_bench.run}
+SUITES = {"world": world_bench.run, "memory": memory_bench.run}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -4,7 +4,6 @@ on the issue's two cases, measured in one run so their ratio is meaningful on th
 from __future__ import annotations
 
 import importlib.util
-import resource
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -85,8 +84,6 @@ def run(seconds: float = 3.0, log: TextIO | None = None) -> list[dict]:
         if log:
             print(line, file=log, flush=True)
     if log:
-        rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-        print(f"peak resident memory of this process: {rss:,.0f} MB", file=log)
         if oracle is None:
             print("oracle not found (tests/oracle.py): run from a source checkout for the ratio", file=log)
     return rows

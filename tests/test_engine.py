@@ -1,0 +1,117 @@
+"""SearchWorld: auto-reset per world, final observations, episode metrics, determinism; the bench CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from searchrl.bench.__main__ import main as bench_main
+from searchrl.world.config import WorldConfig
+from searchrl.world.engine import SearchWorld
+from searchrl.world.step import check_actions
+
+
+def _rollout(seed: int, steps: int, config: WorldConfig, k: int = 4):
+    world = SearchWorld(config, n_worlds=k, seed=seed)
+    maps, vec = world.reset()
+    out = [(maps.copy(), vec.copy())]
+    act_rng = np.random.default_rng(seed + 100)
+    for _ in range(steps):
+        tr = world.step(act_rng.integers(0, config.n_actions, size=(k, config.n_agents)))
+        out.append((tr.maps.copy(), tr.vector.copy(), tr.result.reward.copy(), tr.result.done.copy()))
+    return out
+
+
+def test_same_seed_same_trajectory_different_seed_differs():
+    config = WorldConfig(world_size=(12, 20), n_targets=(2, 4), n_agents=5, max_steps=30)
+    a, b, c = _rollout(3, 70, config), _rollout(3, 70, config), _rollout(4, 70, config)
+    for x, y in zip(a, b, strict=True):
+        for u, v in zip(x, y, strict=True):
+            np.testing.assert_array_equal(u, v)
+    assert any(not np.array_equal(x[0], y[0]) for x, y in zip(a, c, strict=True))
+
+
+def test_finished_worlds_reset_alone_with_final_observation_and_metrics():
+    config = WorldConfig(world_size=(10, 14), n_targets=(1, 3), n_agents=3, max_steps=7)
+    world = SearchWorld(config, n_worlds=3, seed=0)
+    world.reset()
+    rng = np.random.default_rng(0)
+    for t in range(1, 8):
+        before = world.state.copy()
+        tr = world.step(rng.integers(0, config.n_actions, size=(3, 3)))
+        done = tr.result.done
+        # Every world is truncated at max_steps unless it terminated earlier.
+        assert (tr.result.truncated == ((before.t + 1 >= 7) & ~tr.result.terminated)).all()
+        if done.any():
+            m = tr.metrics
+            assert ((m["L"][done] >= 1) & (m["L"][done] <= 7)).all()
+            assert ((m["found_fraction"][done] >= 0) & (m["found_fraction"][done] <= 1)).all()
+            assert (m["found_fraction"][tr.result.terminated] == 1.0).all()
+            assert (world.state.t[done] == 0).all()  # reset
+            # The final observation's vector shows the remaining targets at the end, not after reset.
+            remaining = (before.n_targets - before.n_found)[done]
+            assert (tr.final_vector[done][:, :, 2] <= remaining[:, None] / before.n_targets[done][:, None]).all()
+        assert (world.state.t[~done] == before.t[~done] + 1).all()
+    assert t == 7
+
+
+def test_metrics_accumulate_team_totals():
+    config = WorldConfig(world_size=(8, 12), n_targets=(1, 3), n_agents=4, max_steps=9)
+    world = SearchWorld(config, n_worlds=3, seed=1)
+    world.reset()
+    rng = np.random.default_rng(1)
+    total_r, total_info = np.zeros(3), np.zeros(3)
+    total_pairs, found = np.zeros(3, np.int64), np.zeros(3, np.int64)
+    checked = 0
+    for _ in range(40):
+        n_targets = world.state.n_targets.copy()  # read before a reset redraws them
+        tr = world.step(rng.integers(0, 5, size=(3, 4)))
+        total_r += tr.result.reward.astype(np.float64).sum(axis=1)
+        total_info += tr.result.info_collected.sum(axis=1)
+        total_pairs += tr.result.comm_pairs
+        found += tr.result.targets_found.sum(axis=1)
+        for k in np.flatnonzero(tr.result.done):
+            m = {name: v[k] for name, v in tr.metrics.items()}
+            assert m["R"] == pytest.approx(total_r[k], rel=1e-5)
+            assert m["M_bar"] * m["L"] == pytest.approx(total_info[k], rel=1e-9)
+            assert m["F"] == total_pairs[k]
+            assert m["found_fraction"] == found[k] / n_targets[k]
+            total_r[k] = total_info[k] = total_pairs[k] = found[k] = 0
+            checked += 1
+    assert checked >= 3
+
+
+@pytest.mark.parametrize(
+    "actions, message",
+    [
+        (np.zeros((2, 3), np.int64), "shape"),
+        (np.zeros((2, 4), np.float32), "dtype"),
+        (np.full((2, 4), 5), "allowed"),
+        (np.full((2, 4), -1), "allowed"),
+    ],
+)
+def test_bad_actions_are_rejected_before_any_work(actions, message):
+    config = WorldConfig(world_size=(10, 10), n_agents=4)
+    world = SearchWorld(config, n_worlds=2, seed=0)
+    world.reset()
+    before = world.state.copy()
+    with pytest.raises(ValueError, match=message):
+        check_actions(config, world.state, actions)
+    with pytest.raises(ValueError, match=message):
+        world.step(actions)
+    np.testing.assert_array_equal(world.state.pos, before.pos)
+    assert (world.state.t == before.t).all()
+
+
+def test_bench_json_rows(capsys):
+    assert bench_main(["memory", "--json"]) == 0
+    rows = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert rows and {"case", "engine", "peak_rss_mb"} <= rows[0].keys()
+
+
+def test_bench_rejects_bad_arguments(capsys):
+    with pytest.raises(SystemExit):
+        bench_main(["world", "--seconds", "0"])
+    assert "--seconds=0.0 is not allowed" in capsys.readouterr().err

@@ -1,0 +1,114 @@
+"""World generation (§4.1): maps, targets, start positions, per-world reset and seeding."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from searchrl.world.config import WorldConfig
+from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
+from searchrl.world.reset import place_targets, reset_worlds
+from searchrl.world.state import allocate
+
+
+def _inner(state, k):
+    h, n = state.halo, int(state.size[k])
+    return (k, slice(h, h + n), slice(h, h + n))
+
+
+def test_maps_follow_eq_7_and_8():
+    rng = np.random.default_rng(0)
+    mix = gaussian_mixture(30, 20, 300.0, 1.0, 0.8, rng)
+    p, u = probability_map(mix, eta=0.1), uncertainty_map(mix)
+    assert p.shape == (30, 30)
+    assert p.sum() == pytest.approx(1.0) and u.sum() == pytest.approx(1.0)
+    assert p.min() >= 0.1 / 900 - 1e-15  # the η baseline: every cell keeps η / n²
+    assert u.min() >= 0.0
+
+
+def test_reset_writes_a_consistent_world():
+    config = WorldConfig(world_size=(20, 40), n_targets=(8, 16), n_agents=8)
+    state = allocate(config, 6)
+    reset_worlds(config, state, np.ones(6, bool), np.random.default_rng(1))
+    for k in range(6):
+        n, h = int(state.size[k]), state.halo
+        assert 20 <= n <= 40 and 8 <= state.n_targets[k] <= 16
+        assert state.p[_inner(state, k)].sum() == pytest.approx(1.0, rel=1e-5)
+        assert state.p[k].sum() == pytest.approx(1.0, rel=1e-5)  # nothing outside the world
+        assert state.blocked[k].sum() == state.blocked[k].size - n * n  # no obstacles at density 0
+        tp = state.target_pos[k, : state.n_targets[k]]
+        assert len({tuple(t) for t in tp}) == len(tp)  # distinct target cells
+        assert ((tp >= 0) & (tp < n)).all()
+        pos = state.pos[k]
+        assert len({tuple(a) for a in pos}) == 8 and ((pos >= 0) & (pos < n)).all()
+        assert not ({tuple(a) for a in pos} & {tuple(t) for t in tp})  # no agent starts on a target
+        assert (state.occupant[k, pos[:, 0] + h, pos[:, 1] + h] == np.arange(8)).all()
+        assert (state.occupant[k] >= 0).sum() == 8
+        assert (state.belief[k, :, 0] == state.p[k]).all() and (state.belief[k, :, 1] == state.u[k]).all()
+        assert state.obs_scale[k, 0] == pytest.approx(1.0 / state.p[k].max())
+    assert len(set(state.size.tolist())) > 1  # worlds in one batch draw their own side
+
+
+def test_targets_avoid_obstacles_and_follow_the_prior():
+    rng = np.random.default_rng(2)
+    n = 30
+    p = np.full((n, n), 1e-6)
+    p[5:10, 5:10] = 1.0  # nearly all probability in one block
+    p /= p.sum()
+    u = np.full((n, n), 1.0 / (n * n))
+    u[0, 0] = 1.0  # u peaks far from the block, so 1 - u/max(u) is about 1 inside it
+    free = np.ones((n, n), bool)
+    free[5:7, 5:10] = False
+    tp = place_targets(p, u / u.sum(), free, 10, rng)
+    assert free[tp[:, 0], tp[:, 1]].all()
+    assert ((tp[:, 0] >= 7) & (tp[:, 0] < 10) & (tp[:, 1] >= 5) & (tp[:, 1] < 10)).all()
+
+
+def test_uncertainty_rejects_targets():
+    """Where u is at its maximum, 1 - u/max(u) = 0: no target may be placed there."""
+    rng = np.random.default_rng(3)
+    n = 10
+    p = np.full((n, n), 1.0 / n**2)
+    u = np.zeros((n, n))
+    u[:, :5] = 1.0  # left half at max uncertainty
+    u[:, 5:] = 0.5
+    tp = place_targets(p, u / u.sum(), np.ones((n, n), bool), 20, rng)
+    assert (tp[:, 1] >= 5).all()
+
+
+def test_obstacles_are_blocked_and_free_of_agents_and_targets():
+    config = WorldConfig(world_size=(30, 30), obstacle_density=0.2, n_agents=16)
+    state = allocate(config, 2)
+    reset_worlds(config, state, np.ones(2, bool), np.random.default_rng(4))
+    h = state.halo
+    for k in range(2):
+        inner_blocked = state.blocked[_inner(state, k)]
+        assert 0.1 < inner_blocked.mean() < 0.3
+        assert not state.blocked[k, state.pos[k, :, 0] + h, state.pos[k, :, 1] + h].any()
+        tp = state.target_pos[k, : state.n_targets[k]]
+        assert not state.blocked[k, tp[:, 0] + h, tp[:, 1] + h].any()
+
+
+def test_reset_of_one_world_leaves_the_others_untouched():
+    config = WorldConfig(world_size=(20, 30))
+    state = allocate(config, 3)
+    rng = np.random.default_rng(5)
+    reset_worlds(config, state, np.ones(3, bool), rng)
+    before = state.copy()
+    reset_worlds(config, state, np.array([False, True, False]), rng)
+    for name, value in vars(state).items():
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(value[[0, 2]], getattr(before, name)[[0, 2]], err_msg=name)
+    assert not np.array_equal(state.p[1], before.p[1])
+
+
+def test_same_seed_same_world_and_table2_cells_are_expressible():
+    # The largest Table 2 cell: n = 160, 32 targets, 64 distributions, up to 256 agents.
+    config = WorldConfig(world_size=(160, 160), n_targets=(32, 32), n_distributions=(64, 64), n_agents=256)
+    a, b = allocate(config, 1), allocate(config, 1)
+    reset_worlds(config, a, np.ones(1, bool), np.random.default_rng(7))
+    reset_worlds(config, b, np.ones(1, bool), np.random.default_rng(7))
+    for name, value in vars(a).items():
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(value, getattr(b, name), err_msg=name)
+    assert a.n_targets[0] == 32 and a.size[0] == 160
