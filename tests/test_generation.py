@@ -84,6 +84,9 @@ def test_obstacles_are_blocked_and_free_of_agents_and_targets():
     for k in range(2):
         inner_blocked = state.blocked[_inner(state, k)]
         assert 0.1 < inner_blocked.mean() < 0.3
+        assert (state.p[_inner(state, k)][inner_blocked] == 0).all()  # obstacles hold no information
+        assert (state.u[_inner(state, k)][inner_blocked] == 0).all()
+        assert state.p[k].sum() == pytest.approx(1.0, rel=1e-5) and state.u[k].sum() == pytest.approx(1.0, rel=1e-5)
         assert not state.blocked[k, state.pos[k, :, 0] + h, state.pos[k, :, 1] + h].any()
         tp = state.target_pos[k, : state.n_targets[k]]
         assert not state.blocked[k, tp[:, 0] + h, tp[:, 1] + h].any()

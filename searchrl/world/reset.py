@@ -38,6 +38,14 @@ def place_targets(p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rn
     raise RuntimeError(f"could not place {count} targets in {_MAX_TARGET_ROUNDS} batches (maps too peaked?)")
 
 
+def _unit_scale(peak: np.float32) -> np.float32:
+    """The largest float32 s with peak·s <= 1 in float32, so scaled beliefs stay inside the [0, 1] Box."""
+    scale = np.float32(1.0) / np.float32(peak)
+    while np.float32(peak) * scale > np.float32(1.0):
+        scale = np.nextafter(scale, np.float32(0.0))
+    return scale
+
+
 def draw_scenario_sizes(config: WorldConfig, rng: np.random.Generator) -> tuple[int, int, int]:
     """(n, m, j) drawn uniformly from the inclusive config ranges."""
     n = int(rng.integers(config.world_size[0], config.world_size[1] + 1))
@@ -67,6 +75,9 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
             f"world {k}: {int(free.sum())} free cells cannot hold {n_agents} agents and {j} targets; "
             "lower obstacle_density"
         )
+    if obstacles is not None:  # no target can sit on an obstacle, so it carries no information
+        p, u = np.where(free, p, 0.0), np.where(free, u, 0.0)
+        p, u = p / p.sum(), u / u.sum()
     targets = place_targets(p, u, free, j, rng)
     free_for_agents = free.copy()
     free_for_agents[targets[:, 0], targets[:, 1]] = False
@@ -96,7 +107,7 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
     state.found_grid[k] = False
     state.n_targets[k] = j
     state.n_found[k] = 0
-    state.obs_scale[k] = (1.0 / state.p[inner].max(), 1.0 / state.u[inner].max())
+    state.obs_scale[k] = (_unit_scale(state.p[inner].max()), _unit_scale(state.u[inner].max()))
     state.ep_return[k] = 0.0
     state.ep_comm_pairs[k] = 0
     state.ep_info[k] = 0.0

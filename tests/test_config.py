@@ -1,0 +1,67 @@
+"""WorldConfig validation: every bad value raises ConfigError naming the offending field."""
+
+from __future__ import annotations
+
+import pytest
+
+from searchrl.world.config import ConfigError, WorldConfig
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"fov": 10}, "fov"),
+        ({"fov": 0}, "fov"),
+        ({"explicit_area": 4}, "explicit_area"),
+        ({"comm_range": 6}, "comm_range"),
+        ({"explicit_area": 13, "fov": 11}, "explicit_area"),  # Φ must fit inside the FOV
+        ({"lam": 0.002, "k": 1000.0}, "k"),  # λk·max Γ = 2 would remove more than a cell holds
+        ({"lam": 0.0}, "lam"),
+        ({"k": -1.0}, "k"),
+        ({"world_size": (-5, 10)}, "world_size"),
+        ({"world_size": (12, 10)}, "world_size"),
+        ({"world_size": (4, 10)}, "world_size"),
+        ({"n_targets": (0, 3)}, "n_targets"),
+        ({"n_distributions": (-1, 3)}, "n_distributions"),
+        ({"n_agents": 0}, "n_agents"),
+        ({"n_agents": -3}, "n_agents"),
+        ({"world_size": (5, 10), "n_agents": 26, "n_targets": (1, 1)}, "n_agents"),  # 25 cells for 26 agents
+        ({"world_size": (5, 10), "n_agents": 20, "n_targets": (1, 6)}, "n_targets"),  # 26 > 25 start cells
+        ({"obstacle_density": 1.0}, "obstacle_density"),
+        ({"max_steps": 0}, "max_steps"),
+        ({"xi": -0.1}, "xi"),
+        ({"tau": -0.1}, "tau"),
+        ({"eta": 1.5}, "eta"),
+        ({"rho_max": 1.0}, "rho_max"),
+    ],
+)
+def test_bad_values_raise_config_error_naming_the_field(kwargs: dict, field: str) -> None:
+    with pytest.raises(ConfigError, match=rf"^{field}="):
+        WorldConfig(**kwargs)
+
+
+def test_density_counts_against_room_for_agents() -> None:
+    # 5×5 at 50 % obstacles leaves int(12.5) = 12 free cells: 10 agents + 3 targets do not fit.
+    with pytest.raises(ConfigError, match=r"^n_targets="):
+        WorldConfig(world_size=(5, 5), obstacle_density=0.5, n_agents=10, n_targets=(1, 3))
+    WorldConfig(world_size=(5, 5), obstacle_density=0.5, n_agents=10, n_targets=(1, 2))
+
+
+def test_config_error_is_a_value_error_and_config_is_frozen() -> None:
+    assert issubclass(ConfigError, ValueError)
+    config = WorldConfig()
+    with pytest.raises(AttributeError):
+        config.fov = 7  # type: ignore[misc]
+
+
+def test_from_dict_rejects_unknown_keys_and_accepts_lists() -> None:
+    with pytest.raises(ConfigError, match="fovv"):
+        WorldConfig.from_dict({"fovv": 11})
+    assert WorldConfig.from_dict({"world_size": [20, 30]}).world_size == (20, 30)
+
+
+def test_derived_sizes() -> None:
+    assert WorldConfig(diagonal=False).n_actions == 5 and WorldConfig(diagonal=True).n_actions == 9
+    assert WorldConfig(fov=11, explicit_area=5, comm_range=5).halo == 5
+    assert WorldConfig(fov=7, explicit_area=3, comm_range=3).halo == 3
+    assert WorldConfig(fov=3, explicit_area=3, comm_range=3).halo == 2  # Γ's 5×5 still needs two cells

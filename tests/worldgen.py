@@ -1,0 +1,59 @@
+"""Shared test helpers: random small configurations (hypothesis) and exact/approximate state comparison."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import strategies as st
+
+from searchrl.world.config import WorldConfig
+from searchrl.world.state import WorldState
+
+# Discrete state (positions, occupancy, targets, counters) must be bit-exact between engine and oracle.
+DISCRETE_FIELDS = (
+    "size", "t", "pos", "occupant", "blocked", "target_pos", "target_valid", "target_found", "found_grid",
+    "n_targets", "n_found", "ep_comm_pairs", "ep_collisions",
+)  # fmt: skip
+# Float state: SPEC fixes the order of the products, but sums over cells and agents may be taken in any order,
+# so floats are compared to float32 rounding (rtol 1e-5) rather than bit for bit.
+FLOAT_FIELDS = ("p", "u", "belief", "obs_scale", "ep_return", "ep_info")
+RTOL, ATOL = 1e-5, 1e-7
+
+
+@st.composite
+def small_configs(draw: st.DrawFn, max_steps: tuple[int, int] = (3, 30)) -> WorldConfig:
+    """Small worlds, possibly of several sizes in one batch, with every switch of the agent model."""
+    lo = draw(st.integers(6, 12))
+    hi = draw(st.integers(lo, 14))
+    fov, phi = draw(st.sampled_from([(11, 5), (11, 11), (7, 3), (7, 5)]))
+    t_hi = draw(st.integers(1, 4))
+    return WorldConfig(
+        world_size=(lo, hi),
+        n_distributions=(1, 3),
+        n_targets=(draw(st.integers(1, t_hi)), t_hi),
+        n_agents=draw(st.integers(1, 6)),
+        obstacle_density=draw(st.sampled_from([0.0, 0.1])),
+        k=draw(st.sampled_from([1000.0, 500.0])),  # λk = 1 (paper's Bayesian update) or a partial one
+        explicit_area=phi,
+        fov=fov,
+        communication=draw(st.booleans()),
+        comm_range=draw(st.sampled_from([3, 5])),
+        diagonal=draw(st.booleans()),
+        max_steps=draw(st.integers(*max_steps)),
+    )
+
+
+def assert_states_match(got: WorldState, want: WorldState, where: str = "") -> None:
+    """Engine state `got` against oracle state `want`."""
+    assert got.halo == want.halo
+    for name in DISCRETE_FIELDS:
+        np.testing.assert_array_equal(getattr(got, name), getattr(want, name), err_msg=f"{name} {where}")
+    for name in FLOAT_FIELDS:
+        np.testing.assert_allclose(
+            getattr(got, name), getattr(want, name), rtol=RTOL, atol=ATOL, err_msg=f"{name} {where}"
+        )
+
+
+def count_pairs(pos: np.ndarray, r_c: int) -> int:
+    """Unordered agent pairs of one world within Chebyshev distance r_c; pos (N, 2)."""
+    d = np.abs(pos[:, None, :] - pos[None, :, :]).max(axis=2)
+    return int(((d <= r_c).sum() - len(pos)) // 2)
