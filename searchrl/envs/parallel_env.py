@@ -1,0 +1,93 @@
+"""`SearchParallelEnv`: one search world as a PettingZoo ParallelEnv, for RLlib, TorchRL, BenchMARL users.
+
+Same dynamics and observations as the batched engine (it is the engine with K = 1). All agents act at once and
+the episode ends for all of them together; then `agents` is empty until the next `reset`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+
+from searchrl.envs.spaces import action_space, observation_space
+from searchrl.world.config import WorldConfig
+from searchrl.world.metrics import episode_metrics
+from searchrl.world.observe import observation_buffers, observe
+from searchrl.world.render import world_frame
+from searchrl.world.reset import reset_worlds
+from searchrl.world.state import allocate
+from searchrl.world.step import step
+
+AgentID = str
+
+
+class SearchParallelEnv(ParallelEnv):
+    """PettingZoo parallel API over one world. `config` fixes the model (Φ, communication, actions)."""
+
+    metadata = {"name": "searchrl_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}  # noqa: RUF012
+
+    def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
+        self.config = config if config is not None else WorldConfig()
+        self.render_mode = render_mode
+        self.possible_agents: list[AgentID] = [f"agent_{i}" for i in range(self.config.n_agents)]
+        self.agents: list[AgentID] = []
+        self._observation_space = observation_space(self.config)
+        self._action_space = action_space(self.config)
+        self.world_state = allocate(self.config, 1)
+        self._buffers = observation_buffers(self.config, 1)
+        self._rng = np.random.default_rng()
+
+    def observation_space(self, agent: AgentID) -> spaces.Dict:
+        return self._observation_space
+
+    def action_space(self, agent: AgentID) -> spaces.Discrete:
+        return self._action_space
+
+    def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        if seed is not None:
+            self._rng = np.random.default_rng(seed)
+        reset_worlds(self.config, self.world_state, np.ones(1, bool), self._rng)
+        self.agents = list(self.possible_agents)
+        return self._observations(), {agent: {} for agent in self.agents}
+
+    def step(self, actions: dict[AgentID, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        if not self.agents:
+            raise RuntimeError("step() called on a finished episode: call reset() first")
+        missing = [agent for agent in self.agents if agent not in actions]
+        if missing:
+            raise KeyError(f"actions missing for {missing}: every live agent acts at every step")
+        joint = np.array([[int(actions[agent]) for agent in self.possible_agents]], np.int64)
+        result = step(self.config, self.world_state, joint, self._rng)
+        obs = self._observations()
+        terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
+        rewards = {agent: float(result.reward[0, i]) for i, agent in enumerate(self.agents)}
+        infos: dict[AgentID, dict] = {agent: {} for agent in self.agents}
+        if terminated or truncated:
+            metrics = {name: float(v[0]) for name, v in episode_metrics(self.world_state).items()}
+            for agent in self.agents:
+                infos[agent]["team_metrics"] = metrics
+        terminations = {agent: terminated for agent in self.agents}
+        truncations = {agent: truncated for agent in self.agents}
+        if terminated or truncated:
+            self.agents = []
+        return obs, rewards, terminations, truncations, infos
+
+    def _observations(self) -> dict[AgentID, dict[str, np.ndarray]]:
+        maps, vector = observe(self.config, self.world_state, self._buffers)
+        return {
+            agent: {"map": maps[0, i].copy(), "vector": vector[0, i].copy()}
+            for i, agent in enumerate(self.possible_agents)
+        }
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        return world_frame(self.world_state, 0)
+
+    def close(self) -> None:
+        pass

@@ -1,0 +1,25 @@
+"""Observation and action spaces shared by every env layer."""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+
+from searchrl.world.config import WorldConfig
+from searchrl.world.observe import N_CHANNELS, VECTOR_SIZE
+
+
+def observation_space(config: WorldConfig) -> spaces.Dict:
+    """{"map": (5, fov, fov), "vector": (3,)} float32 in [0, 1]: beliefs never exceed the prior, whose peak is
+    scaled to 1; positions are divided by n; remaining targets by their count."""
+    return spaces.Dict(
+        {
+            "map": spaces.Box(0.0, 1.0, (N_CHANNELS, config.fov, config.fov), np.float32),
+            "vector": spaces.Box(0.0, 1.0, (VECTOR_SIZE,), np.float32),
+        }
+    )
+
+
+def action_space(config: WorldConfig) -> spaces.Discrete:
+    """Stay, N, E, S, W (and NE, SE, SW, NW in diagonal mode)."""
+    return spaces.Discrete(config.n_actions)

@@ -1,0 +1,1 @@
+"""Policies: the paper's network as an SB3 features extractor."""

@@ -1,0 +1,1 @@
+"""Training app: `python -m searchrl.train +model=<a|b|c|diagonal>` (Hydra)."""

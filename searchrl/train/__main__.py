@@ -1,0 +1,129 @@
+"""`python -m searchrl.train +model=<a|b|c|diagonal> [algo=a2c|ppo] [network=small] [key=value ...]`
+
+Trains one shared policy for all agents (parameter sharing) and writes under the run directory: the resolved
+`config.yaml`, `progress.csv` and TensorBoard logs (team metrics, losses, validation), `checkpoints/`, and
+`model.zip` at the end, every file written atomically. `resume=<run dir>` continues a killed run from its last
+checkpoint with step count and optimiser state intact.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import hydra
+import torch
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig, OmegaConf
+from stable_baselines3.common.callbacks import CallbackList
+from stable_baselines3.common.logger import Logger, TensorBoardOutputFormat
+
+from searchrl.atomic import write_atomic, write_text_atomic
+from searchrl.train.build import (
+    TRAINABLE_MODELS,
+    check_config,
+    load_algorithm,
+    make_algorithm,
+    make_vec_env,
+    world_config,
+)
+from searchrl.train.callbacks import (
+    AtomicCheckpointCallback,
+    TeamMetricsCallback,
+    ValidationCallback,
+    latest_checkpoint,
+)
+from searchrl.train.csv_log import AppendingCSV
+from searchrl.train.schema import register_configs
+from searchrl.world.config import ConfigError
+
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+register_configs()
+
+
+def fail(message: str) -> None:
+    print(f"error: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
+def check_model(cfg: DictConfig) -> None:
+    models = sorted(p.stem for p in (CONF_DIR / "model").glob("*.yaml"))
+    trainable = [m for m in models if m in TRAINABLE_MODELS]
+    if cfg.model is None:
+        fail(f"choose a model to train with +model=<name>; trainable models: {', '.join(trainable)}")
+    if not cfg.model.trainable:
+        fail(
+            f"model {cfg.model.name!r} is a heuristic controller, not trainable: use "
+            f"`python -m searchrl.evaluate controller={cfg.model.name}`; trainable models: {', '.join(trainable)}"
+        )
+
+
+def resolve_run(cfg: DictConfig) -> tuple[DictConfig, Path, Path | None, int]:
+    """(config, run dir, checkpoint to resume or None, its agent-steps). A resumed run keeps its saved config."""
+    if cfg.resume is None:
+        return cfg, Path(HydraConfig.get().runtime.output_dir), None, 0
+    run_dir = Path(cfg.resume)
+    if not (run_dir / "config.yaml").exists():
+        fail(f"resume={cfg.resume!r} is not a run directory: it has no config.yaml")
+    found = latest_checkpoint(run_dir / "checkpoints")
+    if found is None:
+        fail(f"resume={cfg.resume!r} has no checkpoint under checkpoints/ to continue from")
+    saved = OmegaConf.load(run_dir / "config.yaml")
+    saved.resume = cfg.resume
+    saved.progress_bar = cfg.progress_bar
+    return saved, run_dir, found[0], found[1]
+
+
+def train(cfg: DictConfig) -> Path:
+    check_model(cfg)
+    cfg, run_dir, checkpoint, start_step = resolve_run(cfg)
+    try:
+        check_config(cfg)
+    except (ConfigError, ValueError) as err:
+        fail(str(err))
+    torch.set_num_threads(int(cfg.threads))
+    if cfg.resume is None:
+        write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+
+    # Environment and algorithm: fresh, or the checkpoint with its step count and optimiser state.
+    env = make_vec_env(cfg)
+    if checkpoint is None:
+        model = make_algorithm(cfg, env, tensorboard_log=None)
+    else:
+        model = load_algorithm(cfg, str(checkpoint), env)
+        model.set_random_seed(int(cfg.seed) + start_step)  # new scenarios, not a replay of the first ones
+        print(f"resuming {run_dir} from {checkpoint.name} at {model.num_timesteps} agent-steps", file=sys.stderr)
+
+    # Logs: one CSV across resumed segments, plus TensorBoard.
+    csv_writer = AppendingCSV(run_dir / "progress.csv", resume_step=start_step if checkpoint else None)
+    model.set_logger(Logger(str(run_dir), [csv_writer, TensorBoardOutputFormat(str(run_dir / "tensorboard"))]))
+
+    callbacks = [TeamMetricsCallback(), AtomicCheckpointCallback(run_dir / "checkpoints", int(cfg.checkpoint_every))]
+    if int(cfg.validation.every) > 0:
+        v = cfg.validation
+        callbacks.append(
+            ValidationCallback(world_config(cfg), int(v.every), int(v.n_worlds), int(v.seed), bool(v.deterministic))
+        )
+
+    remaining = int(cfg.total_timesteps) - model.num_timesteps
+    if remaining > 0:
+        model.learn(
+            total_timesteps=remaining,
+            callback=CallbackList(callbacks),
+            log_interval=int(cfg.log_interval),
+            reset_num_timesteps=checkpoint is None,
+            progress_bar=bool(cfg.progress_bar),
+        )
+    final = write_atomic(run_dir / "model.zip", lambda tmp: model.save(tmp))
+    print(f"trained {model.num_timesteps} agent-steps; model: {final}", file=sys.stderr)
+    env.close()
+    return final
+
+
+@hydra.main(version_base="1.3", config_path="../../conf", config_name="train")
+def main(cfg: DictConfig) -> None:
+    train(cfg)
+
+
+if __name__ == "__main__":
+    main()

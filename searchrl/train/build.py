@@ -1,0 +1,102 @@
+"""The one place where a composed config becomes objects: world config, VecEnv, SB3 algorithm."""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+from sb3_contrib import RecurrentPPO
+from stable_baselines3 import A2C, PPO
+from stable_baselines3.common.base_class import BaseAlgorithm
+
+from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.policies.extractor import SearchCNN
+from searchrl.world.config import ConfigError, WorldConfig
+
+ALGORITHMS: dict[str, tuple[type[BaseAlgorithm], str]] = {
+    "recurrent_ppo": (RecurrentPPO, "MultiInputLstmPolicy"),
+    "ppo": (PPO, "MultiInputPolicy"),
+    "a2c": (A2C, "MultiInputPolicy"),
+}
+TRAINABLE_MODELS = ("a", "b", "c", "diagonal")
+
+
+def world_config(cfg: DictConfig) -> WorldConfig:
+    """The validated engine config of `env.world` (model presets have already written Φ, comm, actions)."""
+    return WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
+
+
+def make_vec_env(cfg: DictConfig, seed: int | None = None) -> SearchVecEnv:
+    return SearchVecEnv(world_config(cfg), n_worlds=int(cfg.env.n_worlds), seed=seed)
+
+
+def _algo_kwargs(cfg: DictConfig) -> dict[str, Any]:
+    kwargs = OmegaConf.to_container(cfg.algo, resolve=True)
+    kwargs.pop("name")
+    return kwargs
+
+
+def policy_kwargs(cfg: DictConfig) -> dict[str, Any]:
+    net = cfg.network
+    kwargs: dict[str, Any] = {
+        "features_extractor_class": SearchCNN,
+        "features_extractor_kwargs": {
+            "conv_channels": list(net.conv_channels),
+            "vector_size": int(net.vector_size),
+            "fc_sizes": list(net.fc_sizes),
+        },
+        "net_arch": [],  # policy and value heads are linear on the features (or the LSTM output), as in PRIMAL
+    }
+    if cfg.algo.name == "recurrent_ppo":
+        kwargs["lstm_hidden_size"] = int(net.lstm_hidden_size)
+    return kwargs
+
+
+def check_config(cfg: DictConfig) -> None:
+    """Fail before any work with a message naming the bad value and what is allowed."""
+    if cfg.algo.name not in ALGORITHMS:
+        raise ConfigError(f"algo.name={cfg.algo.name!r} is not allowed: one of {sorted(ALGORITHMS)}")
+    world = world_config(cfg)  # raises ConfigError naming the field
+    positive = {
+        "env.n_worlds": cfg.env.n_worlds,
+        "total_timesteps": cfg.total_timesteps,
+        "checkpoint_every": cfg.checkpoint_every,
+        "threads": cfg.threads,
+        "algo.n_steps": cfg.algo.n_steps,
+        "log_interval": cfg.log_interval,
+    }
+    for name, value in positive.items():
+        if int(value) < 1:
+            raise ConfigError(f"{name}={value!r} is not allowed: must be >= 1")
+    if int(cfg.validation.every) < 0 or int(cfg.validation.n_worlds) < 1:
+        raise ConfigError(f"validation={dict(cfg.validation)!r} is not allowed: every >= 0 and n_worlds >= 1")
+    rollout = int(cfg.algo.n_steps) * int(cfg.env.n_worlds) * world.n_agents
+    batch = cfg.algo.get("batch_size")
+    if batch is not None and not 1 <= int(batch) <= rollout:
+        raise ConfigError(f"algo.batch_size={batch!r} is not allowed: 1 <= batch_size <= rollout size {rollout}")
+    SearchCNN.check_sizes(list(cfg.network.conv_channels), int(cfg.network.vector_size), list(cfg.network.fc_sizes))
+
+
+def make_algorithm(cfg: DictConfig, env: SearchVecEnv, tensorboard_log: str | None) -> BaseAlgorithm:
+    algo_class, policy = ALGORITHMS[cfg.algo.name]
+    return algo_class(
+        policy,
+        env,
+        seed=int(cfg.seed),
+        device=cfg.device,
+        policy_kwargs=policy_kwargs(cfg),
+        tensorboard_log=tensorboard_log,
+        verbose=0,
+        **_algo_kwargs(cfg),
+    )
+
+
+def load_algorithm(cfg: DictConfig, path: str, env: SearchVecEnv) -> BaseAlgorithm:
+    """Load a checkpoint with its step count and optimiser state, attached to `env`."""
+    algo_class, _ = ALGORITHMS[cfg.algo.name]
+    return algo_class.load(path, env=env, device=cfg.device)
+
+
+def world_config_dict(world: WorldConfig) -> dict[str, Any]:
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(world).items()}

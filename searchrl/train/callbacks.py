@@ -1,0 +1,102 @@
+"""SB3 callbacks of the training app: team metrics, atomic checkpoints, validation on fixed worlds."""
+
+from __future__ import annotations
+
+import re
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
+
+from searchrl.atomic import write_atomic
+from searchrl.train.validation import run_episodes
+from searchrl.world.config import WorldConfig
+
+CHECKPOINT_RE = re.compile(r"step_(\d+)\.zip$")
+
+
+class TeamMetricsCallback(BaseCallback):
+    """Logs the mean of each team metric (L, R, F, M̄, found fraction, collisions) over the world episodes that
+    ended during a rollout, as `team/<name>`, once per world episode (the VecEnv reports each on one slot)."""
+
+    def _on_rollout_start(self) -> None:
+        self._values: dict[str, list[float]] = defaultdict(list)
+
+    def _on_step(self) -> bool:
+        for info in self.locals["infos"]:
+            metrics = info.get("team_metrics")
+            if metrics:
+                for name, value in metrics.items():
+                    self._values[name].append(value)
+        return True
+
+    def _on_rollout_end(self) -> None:
+        for name, values in self._values.items():
+            self.logger.record(f"team/{name}", float(np.mean(values)))
+        if self._values:
+            self.logger.record("team/episodes", len(next(iter(self._values.values()))))
+
+
+class AtomicCheckpointCallback(BaseCallback):
+    """Saves `checkpoints/step_<agent-steps>.zip` every `every` agent-steps and at the end of training, each
+    written atomically (model weights, optimiser state and step count in SB3's zip)."""
+
+    def __init__(self, directory: Path, every: int) -> None:
+        super().__init__()
+        self.directory, self.every = Path(directory), every
+        self._next = 0
+
+    def _init_callback(self) -> None:
+        self._next = (self.num_timesteps // self.every + 1) * self.every
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self._next:
+            self.save()
+            self._next = (self.num_timesteps // self.every + 1) * self.every
+        return True
+
+    def _on_training_end(self) -> None:
+        self.save()
+
+    def save(self) -> Path:
+        path = self.directory / f"step_{self.num_timesteps}.zip"
+        return write_atomic(path, lambda tmp: self.model.save(tmp))
+
+
+def latest_checkpoint(directory: Path) -> tuple[Path, int] | None:
+    """(path, agent-steps) of the newest complete checkpoint in `directory`, or None."""
+    found = [(int(m.group(1)), p) for p in Path(directory).glob("step_*.zip") if (m := CHECKPOINT_RE.search(p.name))]
+    if not found:
+        return None
+    step, path = max(found)
+    return path, step
+
+
+class ValidationCallback(BaseCallback):
+    """Every `every` agent-steps, runs the policy on fixed validation worlds and logs `val/<metric>`; the
+    random-walk level on the same worlds is logged once as `val/random_<metric>` for reference."""
+
+    def __init__(self, world_config: WorldConfig, every: int, n_worlds: int, seed: int, deterministic: bool) -> None:
+        super().__init__()
+        self.world_config, self.every, self.n_worlds, self.seed = world_config, every, n_worlds, seed
+        self.deterministic = deterministic
+        self._next = 0
+        self.random_level: dict[str, float] = {}
+
+    def _init_callback(self) -> None:
+        self._next = (self.num_timesteps // self.every + 1) * self.every
+        self.random_level = run_episodes(self.world_config, self.n_worlds, self.seed, None)
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self._next:
+            self._next = (self.num_timesteps // self.every + 1) * self.every
+            self.validate()
+        return True
+
+    def validate(self) -> dict[str, float]:
+        metrics = run_episodes(self.world_config, self.n_worlds, self.seed, self.model, self.deterministic)
+        for name, value in metrics.items():
+            self.logger.record(f"val/{name}", value)
+        self.logger.record("val/random_found_fraction", self.random_level["found_fraction"])
+        return metrics

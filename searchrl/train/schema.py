@@ -1,0 +1,119 @@
+"""Hydra schemas: one dataclass per config group, registered in the ConfigStore and named by the YAML files in
+`conf/` (`defaults: [<group>_schema]`). They live outside `__main__` so submitit can unpickle them.
+
+conf/env       -> EnvConfig     (world: WorldConfig, the engine's own validated dataclass)
+conf/model     -> ModelConfig   (a model preset also writes Φ, communication, actions into env.world)
+conf/algo      -> RecurrentPPOConfig | PPOConfig | A2CConfig
+conf/network   -> NetworkConfig
+conf/train.yaml-> TrainConfig
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, DictConfig, OmegaConf
+
+from searchrl.world.config import WorldConfig
+
+
+def _world_node() -> DictConfig:
+    """WorldConfig as a typed node (types and unknown keys are checked at composition). The dataclass is
+    frozen, which OmegaConf would turn into a read-only node, so the flag is lifted; values are validated
+    again by WorldConfig itself when the run builds it."""
+    node = OmegaConf.structured(WorldConfig)
+    OmegaConf.set_readonly(node, False)
+    return node
+
+
+@dataclass
+class EnvConfig:
+    world: Any = field(default_factory=_world_node)
+    n_worlds: int = 16  # K worlds per VecEnv: K·N slots share the policy
+
+
+@dataclass
+class ModelConfig:
+    name: str = MISSING  # a, b, c, diagonal (trainable) or a heuristic (surfing, coverage, random)
+    trainable: bool = True
+
+
+@dataclass
+class NetworkConfig:
+    conv_channels: list[int] = field(default_factory=lambda: [32, 64, 128])  # three conv pairs
+    vector_size: int = 32  # FC on the 3-vector
+    fc_sizes: list[int] = field(default_factory=lambda: [256, 256])  # FC after concatenation
+    lstm_hidden_size: int = 256  # recurrent algorithms only
+
+
+@dataclass
+class AlgoConfig:
+    name: str = MISSING
+    learning_rate: float = 3e-4
+    n_steps: int = 32  # steps per slot per rollout (rollout = n_steps · K · N agent-steps)
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    ent_coef: float = 0.01  # σ_H of eq. 12
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+
+
+@dataclass
+class RecurrentPPOConfig(AlgoConfig):
+    name: str = "recurrent_ppo"
+    batch_size: int = 1024
+    n_epochs: int = 4
+    clip_range: float = 0.2
+
+
+@dataclass
+class PPOConfig(AlgoConfig):
+    name: str = "ppo"
+    batch_size: int = 1024
+    n_epochs: int = 4
+    clip_range: float = 0.2
+
+
+@dataclass
+class A2CConfig(AlgoConfig):
+    name: str = "a2c"  # the synchronous A3C of §4.2
+    learning_rate: float = 7e-4
+    n_steps: int = 8
+
+
+@dataclass
+class ValidationConfig:
+    every: int = 250_000  # agent-steps between validations; 0 disables
+    n_worlds: int = 32  # fixed validation worlds, N = env.world.n_agents each
+    seed: int = 1_000_000  # disjoint from training seeds (small integers)
+    deterministic: bool = False  # argmax actions can deadlock against walls and other agents; sample instead
+
+
+@dataclass
+class TrainConfig:
+    env: EnvConfig = field(default_factory=EnvConfig)
+    model: ModelConfig | None = None  # chosen with +model=<name>
+    algo: Any = MISSING
+    network: NetworkConfig = field(default_factory=NetworkConfig)
+    validation: ValidationConfig = field(default_factory=ValidationConfig)
+    seed: int = 0
+    total_timesteps: int = 18_400_000  # agent-steps; the paper's ≈ 9000 episodes × 8 agents × 256 steps
+    checkpoint_every: int = 500_000  # agent-steps
+    resume: str | None = None  # a run directory to continue
+    threads: int = 2  # torch threads (1 makes a run bit-reproducible)
+    device: str = "cpu"
+    progress_bar: bool = True
+    log_interval: int = 1  # rollouts between log rows
+
+
+def register_configs() -> None:
+    cs = ConfigStore.instance()
+    cs.store(name="train_schema", node=TrainConfig)
+    cs.store(group="env", name="env_schema", node=EnvConfig)
+    cs.store(group="model", name="model_schema", node=ModelConfig)
+    cs.store(group="network", name="network_schema", node=NetworkConfig)
+    cs.store(group="algo", name="recurrent_ppo_schema", node=RecurrentPPOConfig)
+    cs.store(group="algo", name="ppo_schema", node=PPOConfig)
+    cs.store(group="algo", name="a2c_schema", node=A2CConfig)
