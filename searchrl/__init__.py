@@ -1,0 +1,18 @@
+"""searchrl: decentralized multi-agent search with deep reinforcement learning."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from searchrl.envs.parallel_env import SearchParallelEnv
+
+
+def parallel_env(config: Any = None, render_mode: str | None = None, **world: Any) -> SearchParallelEnv:
+    """A PettingZoo ParallelEnv over one search world: pass a `WorldConfig`, or its fields as keywords."""
+    from searchrl.envs.parallel_env import SearchParallelEnv
+    from searchrl.world.config import WorldConfig
+
+    if config is not None and world:
+        raise TypeError("pass either a WorldConfig or its fields as keywords, not both")
+    return SearchParallelEnv(config if config is not None else WorldConfig(**world), render_mode=render_mode)

@@ -58,25 +58,39 @@ def check_model(cfg: DictConfig) -> None:
         )
 
 
-def resolve_run(cfg: DictConfig) -> tuple[DictConfig, Path, Path | None, int]:
-    """(config, run dir, checkpoint to resume or None, its agent-steps). A resumed run keeps its saved config."""
+RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar")
+
+
+def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tuple[DictConfig, Path, Path | None, int]:
+    """(config, run dir, checkpoint to resume or None, its agent-steps).
+
+    A resumed run keeps its saved config; only RESUME_OVERRIDES may be changed on the command line (say
+    `total_timesteps=` to train longer).
+    """
     if cfg.resume is None:
-        return cfg, Path(HydraConfig.get().runtime.output_dir), None, 0
+        return cfg, output_dir, None, 0
     run_dir = Path(cfg.resume)
     if not (run_dir / "config.yaml").exists():
         fail(f"resume={cfg.resume!r} is not a run directory: it has no config.yaml")
     found = latest_checkpoint(run_dir / "checkpoints")
     if found is None:
         fail(f"resume={cfg.resume!r} has no checkpoint under checkpoints/ to continue from")
+    keys = [o.split("=", 1)[0].lstrip("+~") for o in overrides]
+    other = [k for k in keys if k not in (*RESUME_OVERRIDES, "resume") and not k.startswith("hydra")]
+    if other:
+        fail(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
     saved = OmegaConf.load(run_dir / "config.yaml")
     saved.resume = cfg.resume
-    saved.progress_bar = cfg.progress_bar
+    for key in keys:
+        if key in RESUME_OVERRIDES:
+            saved[key] = cfg[key]
     return saved, run_dir, found[0], found[1]
 
 
-def train(cfg: DictConfig) -> Path:
+def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None) -> Path:
+    """Run (or resume) one training run; returns the path of the final model.zip."""
+    cfg, run_dir, checkpoint, start_step = resolve_run(cfg, Path(output_dir), overrides or [])
     check_model(cfg)
-    cfg, run_dir, checkpoint, start_step = resolve_run(cfg)
     try:
         check_config(cfg)
     except (ConfigError, ValueError) as err:
@@ -122,7 +136,8 @@ def train(cfg: DictConfig) -> Path:
 
 @hydra.main(version_base="1.3", config_path="../../conf", config_name="train")
 def main(cfg: DictConfig) -> None:
-    train(cfg)
+    hydra_cfg = HydraConfig.get()
+    train(cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
 
 
 if __name__ == "__main__":

@@ -40,7 +40,10 @@ class TeamMetricsCallback(BaseCallback):
 
 class AtomicCheckpointCallback(BaseCallback):
     """Saves `checkpoints/step_<agent-steps>.zip` every `every` agent-steps and at the end of training, each
-    written atomically (model weights, optimiser state and step count in SB3's zip)."""
+    written atomically (model weights, optimiser state and step count in SB3's zip).
+
+    Saves happen when a rollout starts, i.e. after the previous rollout has been trained on: a checkpoint taken
+    mid-rollout would count steps whose update it does not hold, and a resumed run would skip that update."""
 
     def __init__(self, directory: Path, every: int) -> None:
         super().__init__()
@@ -50,10 +53,12 @@ class AtomicCheckpointCallback(BaseCallback):
     def _init_callback(self) -> None:
         self._next = (self.num_timesteps // self.every + 1) * self.every
 
-    def _on_step(self) -> bool:
+    def _on_rollout_start(self) -> None:
         if self.num_timesteps >= self._next:
             self.save()
             self._next = (self.num_timesteps // self.every + 1) * self.every
+
+    def _on_step(self) -> bool:
         return True
 
     def _on_training_end(self) -> None:

@@ -1,0 +1,144 @@
+"""The training app: tiny runs of every model, reload and predict, resume after a kill, errors, sweeps."""
+
+from __future__ import annotations
+
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from sb3_contrib import RecurrentPPO
+
+from searchrl.train.__main__ import CONF_DIR, train
+from searchrl.train.build import load_algorithm, make_vec_env
+
+ROOT = Path(__file__).resolve().parents[1]
+# A few thousand agent-steps: 2 worlds × 4 agents × 32 steps = 256 agent-steps per rollout.
+TINY = [
+    "total_timesteps=1024",
+    "env.n_worlds=2",
+    "env.world.n_agents=4",
+    "env.world.world_size=[12,20]",
+    "env.world.n_targets=[2,4]",
+    "env.world.n_distributions=[4,8]",
+    "network=small",
+    "algo.batch_size=128",
+    "checkpoint_every=512",
+    "validation.every=512",
+    "validation.n_worlds=2",
+    "progress_bar=false",
+    "threads=1",
+]
+
+
+def _compose(overrides: list[str]):
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        return compose(config_name="train", overrides=overrides)
+
+
+def _run(tmp_path: Path, overrides: list[str]) -> Path:
+    return train(_compose(overrides), tmp_path, overrides)
+
+
+@pytest.mark.parametrize("model", ["a", "b", "c", "diagonal"])
+def test_tiny_run_trains_saves_reloads_and_predicts(tmp_path, model):
+    final = _run(tmp_path, [f"+model={model}", *TINY])
+    assert final == tmp_path / "model.zip" and final.exists()
+    assert sorted(p.name for p in (tmp_path / "checkpoints").glob("*.zip")) == ["step_1024.zip", "step_512.zip"]
+    assert (tmp_path / "config.yaml").exists() and any((tmp_path / "tensorboard").iterdir())
+    rows = list(csv.DictReader(open(tmp_path / "progress.csv")))
+    assert [int(r["time/total_timesteps"]) for r in rows] == [256, 512, 768, 1024]
+    assert rows[-1]["val/found_fraction"] and rows[-1]["train/value_loss"]
+    cfg = _compose([f"+model={model}", *TINY])
+    env = make_vec_env(cfg, seed=0)
+    loaded = load_algorithm(cfg, str(final), env)
+    assert loaded.num_timesteps == 1024
+    assert loaded.action_space.n == (9 if model == "diagonal" else 5)
+    obs = env.reset()
+    actions, state = loaded.predict(obs, episode_start=np.ones(env.num_envs, bool))
+    assert actions.shape == (8,) and ((actions >= 0) & (actions < loaded.action_space.n)).all()
+    assert state[0].shape == (1, 8, 128)  # (layers, slots, lstm_hidden_size) of network=small
+
+
+@pytest.mark.parametrize("algo", ["a2c", "ppo"])
+def test_other_algorithms_train(tmp_path, algo):
+    tiny = [o for o in TINY if algo != "a2c" or "batch_size" not in o]  # A2C has no minibatches
+    final = _run(tmp_path, ["+model=c", f"algo={algo}", *tiny])
+    assert final.exists()
+
+
+def test_same_seed_same_run_on_one_thread(tmp_path):
+    params = []
+    for name in ("one", "two"):
+        final = _run(tmp_path / name, ["+model=b", *TINY, "validation.every=0"])
+        params.append(RecurrentPPO.load(final).policy.state_dict())
+    for key, value in params[0].items():
+        torch.testing.assert_close(value, params[1][key], rtol=0, atol=0)
+
+
+def _adam_steps(path: Path) -> int:
+    optimizer = RecurrentPPO.load(path).policy.optimizer
+    return int(next(iter(optimizer.state.values()))["step"])
+
+
+def test_resume_after_kill_loses_nothing(tmp_path):
+    run_dir = tmp_path / "run"
+    cmd = [sys.executable, "-m", "searchrl.train", "+model=b", *TINY, "total_timesteps=1000000",
+           "checkpoint_every=1024", "validation.every=0", f"hydra.run.dir={run_dir}"]  # fmt: skip
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not (run_dir / "checkpoints" / "step_2048.zip").exists():
+        assert proc.poll() is None, proc.stderr.read().decode()
+        assert time.monotonic() < deadline, "no checkpoint within 120 s"
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (run_dir / "model.zip").exists()
+    assert not list((run_dir / "checkpoints").glob(".*"))  # no partial file where a checkpoint should be
+
+    final = _run(tmp_path / "unused", [f"resume={run_dir}", "total_timesteps=4096"])
+    assert final == run_dir / "model.zip"
+    resumed = RecurrentPPO.load(final)
+    assert resumed.num_timesteps == 4096
+    # 4096 / 256 = 16 rollouts, each 4 epochs × 2 minibatches of 128: optimiser state carried across the kill.
+    assert _adam_steps(final) == 16 * 4 * 2
+    steps = [int(r["time/total_timesteps"]) for r in csv.DictReader(open(run_dir / "progress.csv"))]
+    assert steps == list(range(256, 4097, 256))  # no gap and no duplicate row
+
+
+def test_bad_input_fails_before_work(tmp_path):
+    def run(*args: str) -> subprocess.CompletedProcess:
+        cmd = [sys.executable, "-m", "searchrl.train", *args, f"hydra.run.dir={tmp_path}/x"]
+        return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
+
+    out = run()
+    assert out.returncode == 2 and "trainable models: a, b, c, diagonal" in out.stderr
+    out = run("+model=surfing")
+    assert out.returncode == 2 and "not trainable" in out.stderr and "searchrl.evaluate" in out.stderr
+    out = run("+model=c", "env.world.fov=4")
+    assert out.returncode == 2 and "fov=4" in out.stderr
+    out = run("+model=c", "algo.batch_size=0")
+    assert out.returncode == 2 and "algo.batch_size=0" in out.stderr
+    out = run("+model=c", f"resume={tmp_path}")
+    assert out.returncode == 2 and "no config.yaml" in out.stderr
+    assert not (tmp_path / "x" / "config.yaml").exists()
+
+
+@pytest.mark.parametrize("launcher", ["local", "submitit_local"])
+def test_multirun_sweeps(tmp_path, launcher):
+    cmd = [sys.executable, "-m", "searchrl.train", "-m", f"hydra/launcher={launcher}", "+model=a,c", *TINY,
+           "total_timesteps=256", "validation.every=0", f"hydra.sweep.dir={tmp_path}"]  # fmt: skip
+    if launcher == "submitit_local":
+        cmd += ["hydra.launcher.timeout_min=5", "hydra.launcher.cpus_per_task=1"]
+    out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    models = sorted(tmp_path.glob("*/model.zip"))
+    assert len(models) == 2, [str(p) for p in tmp_path.rglob("*")][:40]
+    assert [p.parent.name for p in models] == ["0_a_seed0", "1_c_seed0"]

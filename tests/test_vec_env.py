@@ -1,0 +1,107 @@
+"""SearchVecEnv honours SB3's VecEnv contract (as DummyVecEnv does) with K worlds × N agents as K·N slots."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from stable_baselines3.common.vec_env import VecMonitor
+
+from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.world.config import WorldConfig
+
+CONFIG = WorldConfig(world_size=(10, 16), n_targets=(2, 4), n_agents=3, max_steps=6)
+
+
+def _env(**kw) -> SearchVecEnv:
+    return SearchVecEnv(CONFIG, n_worlds=4, seed=0, **kw)
+
+
+def test_spaces_and_shapes():
+    env = _env()
+    assert env.num_envs == 12
+    obs = env.reset()
+    assert obs["map"].shape == (12, 5, 11, 11) and obs["map"].dtype == np.float32
+    assert obs["vector"].shape == (12, 3)
+    assert env.observation_space["map"].contains(obs["map"][0])
+    assert env.action_space.n == 5
+    assert len(env.reset_infos) == 12
+
+
+def test_truncation_bootstraps_with_terminal_observation_and_team_metrics_once_per_world():
+    env = _env()
+    env.reset()
+    rng = np.random.default_rng(0)
+    episodes = 0
+    for _ in range(30):
+        obs, rewards, dones, infos = env.step(rng.integers(0, 5, size=12))
+        assert rewards.shape == (12,) and rewards.dtype == np.float32 and dones.shape == (12,)
+        for w in range(4):
+            slots = range(3 * w, 3 * w + 3)
+            assert len({bool(dones[s]) for s in slots}) == 1  # a world's agents finish together
+            if dones[3 * w]:
+                for s in slots:
+                    assert set(infos[s]) >= {"terminal_observation", "TimeLimit.truncated"}
+                    term = infos[s]["terminal_observation"]
+                    assert term["map"].shape == (5, 11, 11) and term["vector"].shape == (3,)
+                # metrics reported on the first slot only, so loggers count world episodes, not agents
+                assert "team_metrics" in infos[3 * w] and "episode" in infos[3 * w]
+                assert all("team_metrics" not in infos[s] and "episode" not in infos[s] for s in slots[1:])
+                truncated = infos[3 * w]["team_metrics"]["found_fraction"] < 1
+                assert infos[3 * w]["TimeLimit.truncated"] == truncated
+                assert infos[3 * w]["episode"]["l"] == infos[3 * w]["team_metrics"]["L"]
+                episodes += 1
+            else:
+                assert all(not infos[s] for s in slots)
+    assert episodes >= 4 * 4  # max_steps = 6: every world ends at least every 6 steps
+
+
+def test_terminal_observation_differs_from_the_reset_observation():
+    env = _env()
+    env.reset()
+    for _ in range(6):
+        obs, _, dones, infos = env.step(np.zeros(12, np.int64))
+    assert dones.all()
+    assert not np.array_equal(infos[0]["terminal_observation"]["map"], obs["map"][0])
+
+
+def test_seed_gives_the_same_rollout_and_observations_are_copies():
+    def rollout(seed):
+        env = _env()
+        env.seed(seed)
+        out = [env.reset()["map"]]
+        for t in range(8):
+            obs, r, _, _ = env.step(np.full(12, t % 5))
+            out += [obs["map"], r]
+        return out
+
+    a, b, c = rollout(5), rollout(5), rollout(6)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert not np.array_equal(a[0], c[0])
+    env = _env()
+    first = env.reset()
+    kept = first["map"].copy()
+    env.step(np.ones(12, np.int64))
+    assert np.array_equal(first["map"], kept)  # SB3 keeps _last_obs across a step
+
+
+def test_attribute_access_render_and_wrappers():
+    env = _env(render_mode="rgb_array")
+    env.reset()
+    assert env.get_attr("render_mode") == ["rgb_array"] * 12
+    assert env.get_attr("n_agents", indices=[0, 5]) == [3, 3]
+    env.set_attr("render_mode", "rgb_array")
+    with pytest.raises(ValueError, match="share one world"):
+        env.set_attr("render_mode", None, indices=[0])
+    assert env.env_method("get_attr", "n_agents", indices=[1, 2]) == [[3] * 12, [3] * 12]
+    assert env.env_is_wrapped(VecMonitor) == [False] * 12
+    frame = env.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
+    with pytest.raises(ValueError, match="render_mode"):
+        SearchVecEnv(CONFIG, 1, render_mode="human")
+
+
+def test_step_wait_without_actions_is_an_error():
+    env = _env()
+    env.reset()
+    with pytest.raises(RuntimeError, match="step_async"):
+        env.step_wait()
