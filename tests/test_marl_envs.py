@@ -39,7 +39,7 @@ def test_parallel_env_runs_the_same_world_as_the_batched_engine():
             np.testing.assert_array_equal(obs[agent]["map"], maps[0, i])
             np.testing.assert_array_equal(obs[agent]["vector"], vector[0, i])
         actions = rng.integers(0, 5, size=4)
-        obs, rewards, terms, truncs, infos = env.step(dict(zip(env.possible_agents, actions.tolist(), strict=True)))
+        obs, rewards, terms, _truncs, infos = env.step(dict(zip(env.possible_agents, actions.tolist(), strict=True)))
         tr = world.step(actions[None])
         np.testing.assert_array_equal([rewards[a] for a in env.possible_agents], tr.result.reward[0])
         if tr.result.done[0]:

@@ -33,7 +33,7 @@ def test_truncation_bootstraps_with_terminal_observation_and_team_metrics_once_p
     rng = np.random.default_rng(0)
     episodes = 0
     for _ in range(30):
-        obs, rewards, dones, infos = env.step(rng.integers(0, 5, size=12))
+        _obs, rewards, dones, infos = env.step(rng.integers(0, 5, size=12))
         assert rewards.shape == (12,) and rewards.dtype == np.float32 and dones.shape == (12,)
         for w in range(4):
             slots = range(3 * w, 3 * w + 3)
