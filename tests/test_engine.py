@@ -110,6 +110,12 @@ def test_bench_json_rows(capsys):
     assert rows and {"case", "engine", "peak_rss_mb"} <= rows[0].keys()
 
 
+def test_bench_train_reports_fps_and_env_share(capsys):
+    assert bench_main(["train", "--updates", "1", "--threads", "1", "--network", "small", "--json"]) == 0
+    (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert row["agent_steps_per_s"] > 0 and 0 < row["env_share"] < 1
+
+
 def test_bench_rejects_bad_arguments(capsys):
     with pytest.raises(SystemExit):
         bench_main(["world", "--seconds", "0"])

@@ -1,4 +1,4 @@
-"""`python -m searchrl.bench {world,memory} [--json]`: benchmarks measured in one run."""
+"""`python -m searchrl.bench {world,memory,train} [--json]`: benchmarks whose figures are measured in one run."""
 
 from __future__ import annotations
 
@@ -6,21 +6,33 @@ import argparse
 import json
 import sys
 
-from searchrl.bench import memory as memory_bench
-from searchrl.bench import world as world_bench
-
-SUITES = {"world": world_bench.run, "memory": memory_bench.run}
-
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m searchrl.bench", description=__doc__)
-    parser.add_argument("suite", choices=sorted(SUITES), help="what to measure")
+    parser.add_argument("suite", choices=["world", "memory", "train"], help="what to measure")
     parser.add_argument("--json", action="store_true", help="print one JSON object per case")
-    parser.add_argument("--seconds", type=float, default=3.0, help="time budget per engine per case (> 0)")
+    parser.add_argument("--seconds", type=float, default=3.0, help="world: time budget per engine per case (> 0)")
+    parser.add_argument("--updates", type=int, default=4, help="train: timed rollouts+updates (>= 1)")
+    parser.add_argument("--threads", type=int, default=2, help="train: torch threads (>= 1)")
+    parser.add_argument("--network", choices=["paper", "small"], default="paper", help="train: network config")
     args = parser.parse_args(argv)
     if not args.seconds > 0:
         parser.error(f"--seconds={args.seconds} is not allowed: must be > 0")
-    rows = SUITES[args.suite](seconds=args.seconds, log=None if args.json else sys.stdout)
+    if args.updates < 1 or args.threads < 1:
+        parser.error(f"--updates={args.updates}, --threads={args.threads} are not allowed: both must be >= 1")
+    log = None if args.json else sys.stdout
+    if args.suite == "world":
+        from searchrl.bench import world
+
+        rows = world.run(seconds=args.seconds, log=log)
+    elif args.suite == "memory":
+        from searchrl.bench import memory
+
+        rows = memory.run(log=log)
+    else:
+        from searchrl.bench import train
+
+        rows = train.run(updates=args.updates, threads=args.threads, network=args.network, log=log)
     if args.json:
         for row in rows:
             print(json.dumps(row))

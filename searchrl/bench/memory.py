@@ -13,7 +13,7 @@ from searchrl.world.engine import SearchWorld
 LIMIT_MB = 500.0
 
 
-def run(seconds: float = 3.0, log: TextIO | None = None) -> list[dict]:
+def run(log: TextIO | None = None) -> list[dict]:
     """Build the world, run 64 random steps, report peak RSS (MB) of the process and the state's array bytes."""
     config = case_config(160, 256)
     world = SearchWorld(config, n_worlds=1, seed=0)
