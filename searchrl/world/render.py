@@ -40,11 +40,11 @@ def world_frame(state: WorldState, k: int, belief_of: int | None = None, cell: i
 
 
 def world_frames(state: WorldState, cell: int = 4) -> list[np.ndarray]:
-    """One frame per world, padded with white to the largest side so they can be tiled."""
+    """One frame per world, padded with grey (not white, which means "no information") to the largest side."""
     frames = [world_frame(state, k, cell=cell) for k in range(state.n_worlds)]
     side = max(f.shape[0] for f in frames)
     out = []
     for f in frames:
         pad = side - f.shape[0]
-        out.append(np.pad(f, ((0, pad), (0, pad), (0, 0)), constant_values=255))
+        out.append(np.pad(f, ((0, pad), (0, pad), (0, 0)), constant_values=128))
     return out
