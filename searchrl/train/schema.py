@@ -61,19 +61,16 @@ class AlgoConfig:
 
 
 @dataclass
-class RecurrentPPOConfig(AlgoConfig):
-    name: str = "recurrent_ppo"
+class PPOConfig(AlgoConfig):
+    name: str = "ppo"
     batch_size: int = 1024
     n_epochs: int = 4
     clip_range: float = 0.2
 
 
 @dataclass
-class PPOConfig(AlgoConfig):
-    name: str = "ppo"
-    batch_size: int = 1024
-    n_epochs: int = 4
-    clip_range: float = 0.2
+class RecurrentPPOConfig(PPOConfig):
+    name: str = "recurrent_ppo"  # same hyperparameters; the LSTM size comes from the network group
 
 
 @dataclass
