@@ -52,6 +52,12 @@ def test_tiny_run_trains_saves_reloads_and_predicts(tmp_path, model):
     final = _run(tmp_path, [f"+model={model}", *TINY])
     assert final == tmp_path / "model.zip" and final.exists()
     assert sorted(p.name for p in (tmp_path / "checkpoints").glob("*.zip")) == ["step_1024.zip", "step_512.zip"]
+    if model == "a":  # retention: only the newest keep_checkpoints stay
+        _run(tmp_path / "keep", [f"+model={model}", *TINY, "checkpoint_every=256", "keep_checkpoints=2"])
+        assert sorted(p.name for p in (tmp_path / "keep" / "checkpoints").iterdir()) == [
+            "step_1024.zip",
+            "step_768.zip",
+        ]
     assert (tmp_path / "config.yaml").exists() and any((tmp_path / "tensorboard").iterdir())
     rows = list(csv.DictReader(open(tmp_path / "progress.csv")))
     assert [int(r["time/total_timesteps"]) for r in rows] == [256, 512, 768, 1024]

@@ -64,7 +64,7 @@ def check_model(cfg: DictConfig) -> None:
         )
 
 
-RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar")
+RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints")
 
 
 def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tuple[DictConfig, Path, Path | None, int]:
@@ -118,7 +118,10 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
     csv_writer = AppendingCSV(run_dir / "progress.csv", resume_step=start_step if checkpoint else None)
     model.set_logger(Logger(str(run_dir), [csv_writer, TensorBoardOutputFormat(str(run_dir / "tensorboard"))]))
 
-    callbacks = [TeamMetricsCallback(), AtomicCheckpointCallback(run_dir / "checkpoints", int(cfg.checkpoint_every))]
+    callbacks = [
+        TeamMetricsCallback(),
+        AtomicCheckpointCallback(run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints)),
+    ]
     if int(cfg.validation.every) > 0:
         v = cfg.validation
         callbacks.append(

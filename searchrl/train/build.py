@@ -65,6 +65,7 @@ def check_config(cfg: DictConfig) -> None:
         "threads": cfg.threads,
         "algo.n_steps": cfg.algo.n_steps,
         "log_interval": cfg.log_interval,
+        "keep_checkpoints": cfg.keep_checkpoints,
     }
     for name, value in positive.items():
         if int(value) < 1:

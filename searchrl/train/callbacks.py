@@ -13,7 +13,7 @@ from searchrl.atomic import write_atomic
 from searchrl.train.validation import run_episodes
 from searchrl.world.config import WorldConfig
 
-CHECKPOINT_RE = re.compile(r"step_(\d+)\.zip$")
+CHECKPOINT_RE = re.compile(r"^step_(\d+)\.zip$")
 
 
 class TeamMetricsCallback(BaseCallback):
@@ -45,9 +45,9 @@ class AtomicCheckpointCallback(BaseCallback):
     Saves happen when a rollout starts, i.e. after the previous rollout has been trained on: a checkpoint taken
     mid-rollout would count steps whose update it does not hold, and a resumed run would skip that update."""
 
-    def __init__(self, directory: Path, every: int) -> None:
+    def __init__(self, directory: Path, every: int, keep: int = 3) -> None:
         super().__init__()
-        self.directory, self.every = Path(directory), every
+        self.directory, self.every, self.keep = Path(directory), every, keep
         self._next = 0
 
     def _init_callback(self) -> None:
@@ -65,13 +65,21 @@ class AtomicCheckpointCallback(BaseCallback):
         self.save()
 
     def save(self) -> Path:
-        path = self.directory / f"step_{self.num_timesteps}.zip"
-        return write_atomic(path, lambda tmp: self.model.save(tmp))
+        """Write this step's checkpoint, then drop all but the newest `keep` (only once the new one is whole)."""
+        path = write_atomic(self.directory / f"step_{self.num_timesteps}.zip", lambda tmp: self.model.save(tmp))
+        for old in sorted(checkpoints(self.directory))[: -self.keep]:
+            old[1].unlink(missing_ok=True)
+        return path
+
+
+def checkpoints(directory: Path) -> list[tuple[int, Path]]:
+    """(agent-steps, path) of every complete checkpoint in `directory` (temporary files are hidden dot-files)."""
+    return [(int(m.group(1)), p) for p in Path(directory).glob("step_*.zip") if (m := CHECKPOINT_RE.match(p.name))]
 
 
 def latest_checkpoint(directory: Path) -> tuple[Path, int] | None:
     """(path, agent-steps) of the newest complete checkpoint in `directory`, or None."""
-    found = [(int(m.group(1)), p) for p in Path(directory).glob("step_*.zip") if (m := CHECKPOINT_RE.search(p.name))]
+    found = checkpoints(directory)
     if not found:
         return None
     step, path = max(found)

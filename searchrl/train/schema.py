@@ -98,6 +98,7 @@ class TrainConfig:
     seed: int = 0
     total_timesteps: int = 18_400_000  # agent-steps; the paper's ≈ 9000 episodes × 8 agents × 256 steps
     checkpoint_every: int = 500_000  # agent-steps
+    keep_checkpoints: int = 3  # newest checkpoints kept on disk
     resume: str | None = None  # a run directory to continue
     threads: int = 2  # torch threads (1 makes a run bit-reproducible)
     device: str = "cpu"

@@ -1,0 +1,40 @@
+"""The controller interface shared by trained policies and heuristics."""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from searchrl.world.config import WorldConfig
+from searchrl.world.state import WorldState
+
+
+class Controller(Protocol):
+    """Acts for all agents of K worlds at once.
+
+    `reset(state, mask)` is called after the worlds in `mask` (K,) were reset (all of them at the start), so
+    per-world memory (an LSTM state, a sweep plan) starts afresh there. `act` returns (K, N) int64 actions in
+    [0, config.n_actions) from the state and the agents' observations maps (K, N, 5, F, F), vector (K, N, 3).
+    Decentralised controllers read only what an agent may know: its observation, its own belief and position.
+    """
+
+    config: WorldConfig
+
+    def reset(self, state: WorldState, mask: np.ndarray) -> None: ...
+
+    def act(self, state: WorldState, maps: np.ndarray, vector: np.ndarray) -> np.ndarray: ...
+
+
+class RandomWalk:
+    """Uniformly random actions: the floor every controller should beat."""
+
+    def __init__(self, config: WorldConfig, seed: int = 0) -> None:
+        self.config = config
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self, state: WorldState, mask: np.ndarray) -> None:
+        pass
+
+    def act(self, state: WorldState, maps: np.ndarray, vector: np.ndarray) -> np.ndarray:
+        return self.rng.integers(0, self.config.n_actions, size=(state.n_worlds, state.n_agents))

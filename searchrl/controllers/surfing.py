@@ -1,0 +1,116 @@
+"""Information surfing (§6.1.3, after the lab's grid version): each agent climbs the gradient of the information
+in its own belief, pooled at several scales, pushed away from the agents it sees by a Coulomb-like force.
+
+Per agent: information I = w_p·p̂ + w_u·û of its belief (p̂, û scaled as in the observation). At each scale s the
+four blocks of side s centred s cells east, west, south and north are averaged (from a 3×3 grid of samples per
+block, so every scale costs the same), and the central difference gives a gradient, normalised to unit length.
+The unit gradients are averaged over scales; then `repulsion` × the unit vector of Σ (a_i − a_j)/|a_i − a_j|³
+over the agents in the field of view is added. The agent takes the move best aligned with the sum among moves to
+free cells it can see; with no gradient and no neighbour it moves at random.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from searchrl.world.config import WorldConfig
+from searchrl.world.footprint import MOVES
+from searchrl.world.state import WorldState
+
+
+@njit(cache=True)
+def _info(belief, k, i, r, c, sp, su, wp, wu):
+    side = belief.shape[3]
+    if r < 0 or c < 0 or r >= side or c >= side:
+        return 0.0
+    return wp * belief[k, i, 0, r, c] * sp + wu * belief[k, i, 1, r, c] * su
+
+
+@njit(cache=True)
+def _block_mean(belief, k, i, r, c, s, sp, su, wp, wu):
+    """Mean information of the s×s block centred at padded (r, c), from a 3×3 grid of samples."""
+    step = s // 3
+    total = 0.0
+    for a in range(-1, 2):
+        for b in range(-1, 2):
+            total += _info(belief, k, i, r + a * step, c + b * step, sp, su, wp, wu)
+    return total / 9.0
+
+
+@njit(cache=True)
+def surfing_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actions, scales, wp, wu, repulsion,
+                    view, fallback, out):  # fmt: skip
+    """out (K,N) int64 <- surfing actions. fallback (K,N): random moves used where there is nothing to follow."""
+    n_worlds, n_agents = pos.shape[0], pos.shape[1]
+    for k in range(n_worlds):
+        sp, su = obs_scale[k, 0], obs_scale[k, 1]
+        for i in range(n_agents):
+            r, c = pos[k, i, 0] + h, pos[k, i, 1] + h
+            gx, gy = 0.0, 0.0
+            for s in scales:
+                east = _block_mean(belief, k, i, r, c + s, s, sp, su, wp, wu)
+                west = _block_mean(belief, k, i, r, c - s, s, sp, su, wp, wu)
+                south = _block_mean(belief, k, i, r + s, c, s, sp, su, wp, wu)
+                north = _block_mean(belief, k, i, r - s, c, s, sp, su, wp, wu)
+                dx, dy = east - west, south - north
+                norm = math.sqrt(dx * dx + dy * dy)
+                if norm > 1e-12:
+                    gx += dx / norm / len(scales)
+                    gy += dy / norm / len(scales)
+            fx, fy = 0.0, 0.0
+            for a in range(-view, view + 1):
+                for b in range(-view, view + 1):
+                    j = occupant[k, r + a, c + b]
+                    if j >= 0 and j != i:
+                        d = math.sqrt(a * a + b * b)
+                        fx -= b / d**3
+                        fy -= a / d**3
+            fnorm = math.sqrt(fx * fx + fy * fy)
+            if fnorm > 0.0:
+                gx += repulsion * fx / fnorm
+                gy += repulsion * fy / fnorm
+            if gx * gx + gy * gy < 1e-24:
+                out[k, i] = fallback[k, i]
+                continue
+            best, best_score = 0, -1e300
+            for a in range(1, n_actions):
+                tr, tc = r + moves[a, 0], c + moves[a, 1]
+                if blocked[k, tr, tc] or occupant[k, tr, tc] >= 0:
+                    continue
+                mr, mc = moves[a, 0], moves[a, 1]
+                score = (mc * gx + mr * gy) / math.sqrt(mr * mr + mc * mc)
+                if score > best_score:
+                    best, best_score = a, score
+            out[k, i] = best
+
+
+class InformationSurfing:
+    """Batched information-surfing controller; parameters are config values of `controller=surfing`."""
+
+    def __init__(self, config: WorldConfig, scales: tuple[int, ...] = (1, 3, 9, 27), w_p: float = 0.6,
+                 w_u: float = 0.4, repulsion: float = 0.4, seed: int = 0) -> None:  # fmt: skip
+        if not scales or min(scales) < 1:
+            raise ValueError(f"scales={list(scales)!r} is not allowed: one or more positive block sizes")
+        if w_p < 0 or w_u < 0 or repulsion < 0:
+            raise ValueError(f"w_p={w_p}, w_u={w_u}, repulsion={repulsion} are not allowed: all must be >= 0")
+        self.config = config
+        self.scales = np.asarray(scales, np.int64)
+        self.w_p, self.w_u, self.repulsion = w_p, w_u, repulsion
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self, state: WorldState, mask: np.ndarray) -> None:
+        pass
+
+    def act(self, state: WorldState, maps: np.ndarray, vector: np.ndarray) -> np.ndarray:
+        k, n = state.n_worlds, state.n_agents
+        fallback = self.rng.integers(1, self.config.n_actions, size=(k, n))
+        out = np.empty((k, n), np.int64)
+        surfing_actions(
+            state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
+            self.config.n_actions, self.scales, self.w_p, self.w_u, self.repulsion, self.config.fov // 2,
+            fallback, out,
+        )  # fmt: skip
+        return out
