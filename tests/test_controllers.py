@@ -1,0 +1,106 @@
+"""Heuristic controllers do what defines them: surfing climbs information and avoids agents; coverage sweeps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from searchrl.controllers.base import RandomWalk
+from searchrl.controllers.coverage import GeometricCoverage, partition, sweep
+from searchrl.controllers.surfing import InformationSurfing
+from searchrl.world.config import WorldConfig
+from searchrl.world.engine import SearchWorld
+from searchrl.world.observe import observe
+from searchrl.world.state import allocate
+from searchrl.world.step import step
+
+E, W, N_, S = 2, 4, 1, 3
+
+
+def _world(n: int, positions: list[tuple[int, int]], config: WorldConfig):
+    """A hand-made world: no targets found yet, beliefs set by the caller."""
+    state = allocate(config, 1)
+    h = state.halo
+    state.size[0] = n
+    state.blocked[0] = True
+    state.blocked[0, h : h + n, h : h + n] = False
+    state.occupant[0] = -1
+    for i, (r, c) in enumerate(positions):
+        state.pos[0, i] = (r, c)
+        state.occupant[0, r + h, c + h] = i
+    state.n_targets[0] = 1
+    state.target_valid[0, 0] = True
+    state.obs_scale[0] = (1.0, 1.0)
+    return state
+
+
+@pytest.mark.parametrize("direction, action", [("east", E), ("west", W), ("south", S), ("north", N_)])
+def test_surfing_climbs_a_known_gradient(direction, action):
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(30, [(15, 15)], config)
+    h, ramp = state.halo, np.linspace(0.0, 1.0, 30, dtype=np.float32)
+    field = {"east": ramp[None, :], "west": ramp[::-1][None, :], "south": ramp[:, None], "north": ramp[::-1, None]}
+    state.belief[0, 0, :, h : h + 30, h : h + 30] = np.broadcast_to(field[direction], (30, 30))
+    ctrl = InformationSurfing(config)
+    maps, vector = observe(config, state)
+    assert ctrl.act(state, maps, vector)[0, 0] == action
+
+
+def test_surfing_moves_away_from_a_close_agent_on_flat_information():
+    config = WorldConfig(world_size=(30, 30), n_agents=2, n_targets=(1, 1))
+    state = _world(30, [(15, 15), (15, 13)], config)  # agent 1 two cells west of agent 0; beliefs all zero
+    ctrl = InformationSurfing(config)
+    actions = ctrl.act(state, *observe(config, state))
+    assert actions[0, 0] == E and actions[0, 1] == W
+
+
+def test_surfing_does_not_step_into_a_visible_agent():
+    config = WorldConfig(world_size=(30, 30), n_agents=2, n_targets=(1, 1))
+    state = _world(30, [(15, 15), (15, 16)], config)
+    h = state.halo
+    state.belief[0, 0, :, h : h + 30, h : h + 30] = np.linspace(0, 1, 30, dtype=np.float32)[None, :]
+    action = InformationSurfing(config, repulsion=0.0).act(state, *observe(config, state))[0, 0]
+    assert action != E and action != 0
+
+
+def test_partition_tiles_the_domain():
+    for n, agents in [(20, 1), (20, 3), (40, 7), (160, 256)]:
+        blocks = partition(n, agents)
+        assert len(blocks) == agents
+        cover = np.zeros((n, n), int)
+        for r0, r1, c0, c1 in blocks:
+            cover[r0:r1, c0:c1] += 1
+        assert (cover == 1).all()
+
+
+@pytest.mark.parametrize("n, agents, radius", [(12, 1, 1), (16, 4, 1), (20, 3, 2), (15, 2, 0)])
+def test_coverage_brings_every_cell_within_radius_inside_the_sweep_bound(n, agents, radius):
+    config = WorldConfig(world_size=(n, n), n_agents=agents, n_targets=(1, 1), max_steps=10_000)
+    world = SearchWorld(config, 1, seed=1)
+    maps, vector = world.reset()
+    state = world.state
+    ctrl = GeometricCoverage(config, radius=radius)
+    ctrl.reset(state, np.ones(1, bool))
+    # The bound the plan implies: walk to the first waypoint, then follow the waypoints (Manhattan lengths).
+    bound = 0
+    for i, block in enumerate(partition(n, agents)):
+        plan = sweep(block, tuple(state.pos[0, i]), radius)
+        legs = np.abs(np.diff(np.vstack([state.pos[0, i], plan]), axis=0)).sum()
+        bound = max(bound, int(legs))
+    seen = np.zeros((n, n), bool)
+    rng = np.random.default_rng(0)
+    for _ in range(bound):
+        for r, c in state.pos[0]:
+            seen[max(r - radius, 0) : r + radius + 1, max(c - radius, 0) : c + radius + 1] = True
+        # The functional step keeps going after the target is found: targets do not matter to a sweep.
+        step(config, state, ctrl.act(state, maps, vector), rng)
+    for r, c in state.pos[0]:
+        seen[max(r - radius, 0) : r + radius + 1, max(c - radius, 0) : c + radius + 1] = True
+    assert seen.all(), f"cells never within radius {radius}: {np.argwhere(~seen)[:5].tolist()}"
+
+
+def test_random_walk_is_uniform():
+    config = WorldConfig(world_size=(10, 10), n_agents=4, diagonal=True)
+    state = allocate(config, 50)
+    actions = RandomWalk(config, seed=0).act(state, None, None)
+    assert actions.shape == (50, 4) and set(np.unique(actions)) == set(range(9))
