@@ -7,6 +7,7 @@ the spec leaves the order of sums over cells and agents free.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -118,3 +119,21 @@ def test_engine_matches_oracle_crowded(n_agents: int, communication: bool, diago
         max_steps=12,
     )
     _run_both(config, 2, seed, 12, 1.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("explicit_area", [5, 11])
+@pytest.mark.parametrize("communication", [False, True])
+@pytest.mark.parametrize("diagonal", [False, True])
+@pytest.mark.parametrize("obstacle_density", [0.0, 0.1])
+def test_engine_matches_oracle_at_training_size(explicit_area, communication, diagonal, obstacle_density) -> None:
+    """Paper-sized worlds (n 20-40, N = 8, Table 2 target counts) for 120 steps: every model setting."""
+    config = WorldConfig(
+        world_size=(20, 40),
+        n_targets=(4, 8),
+        explicit_area=explicit_area,
+        communication=communication,
+        diagonal=diagonal,
+        obstacle_density=obstacle_density,
+    )
+    _run_both(config, 2, 7, 120, 0.9)

@@ -83,7 +83,7 @@ def test_other_algorithms_train(tmp_path, algo):
 def test_same_seed_same_run_on_one_thread(tmp_path):
     params = []
     for name in ("one", "two"):
-        final = _run(tmp_path / name, ["+model=b", *TINY, "validation.every=0"])
+        final = _run(tmp_path / name, ["+model=b", *TINY])  # validation on: it samples from torch's RNG too
         params.append(RecurrentPPO.load(final).policy.state_dict())
     for key, value in params[0].items():
         torch.testing.assert_close(value, params[1][key], rtol=0, atol=0)
@@ -108,6 +108,10 @@ def test_resume_after_kill_loses_nothing(tmp_path):
     proc.wait()
     assert not (run_dir / "model.zip").exists()
     assert not list((run_dir / "checkpoints").glob(".*"))  # no partial file where a checkpoint should be
+    # A run saved by an older version lacks newer fields: resume must fill them from the schema.
+    saved = (run_dir / "config.yaml").read_text()
+    (run_dir / "config.yaml").write_text("\n".join(x for x in saved.splitlines() if "keep_checkpoints" not in x))
+    before = (run_dir / "checkpoints" / "step_2048.zip").stat().st_mtime_ns
 
     final = _run(tmp_path / "unused", [f"resume={run_dir}", "total_timesteps=4096"])
     assert final == run_dir / "model.zip"
@@ -117,6 +121,9 @@ def test_resume_after_kill_loses_nothing(tmp_path):
     assert _adam_steps(final) == 16 * 4 * 2
     steps = [int(r["time/total_timesteps"]) for r in csv.DictReader(open(run_dir / "progress.csv"))]
     assert steps == list(range(256, 4097, 256))  # no gap and no duplicate row
+    assert (run_dir / "checkpoints" / "step_2048.zip").stat().st_mtime_ns == before  # not saved again
+    assert sorted(p.name for p in (run_dir / "checkpoints").glob("*.zip")) == [
+        "step_2048.zip", "step_3072.zip", "step_4096.zip"]  # fmt: skip
 
 
 def test_bad_input_fails_before_work(tmp_path):
@@ -148,3 +155,21 @@ def test_multirun_sweeps(tmp_path, launcher):
     models = sorted(tmp_path.glob("*/model.zip"))
     assert len(models) == 2, [str(p) for p in tmp_path.rglob("*")][:40]
     assert [p.parent.name for p in models] == ["0_a_seed0", "1_c_seed0"]
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("env.world.fov=3 env.world.explicit_area=3", "env.world.fov=3"),
+        ("env.world.unc_variance_scale=0.01", "variance_floor"),
+        ("algo.name=a2c", "algo.name='a2c' does not match"),
+        ("algo.n_epochs=0", "algo.n_epochs=0"),
+        ("network.lstm_hidden_size=0", "network.lstm_hidden_size=0"),
+        ("keep_checkpoints=0", "keep_checkpoints=0"),
+    ],
+)
+def test_check_config_names_the_bad_value(override, message):
+    from searchrl.train.build import check_config
+
+    with pytest.raises(ValueError, match=message.replace("(", r"\(")):
+        check_config(_compose(["+model=b", *override.split()]))

@@ -2,8 +2,8 @@
 
 Slot s is agent s % N of world s // N. A world's episode ends for all its agents at once; the world is then
 reset on its own. Team metrics (L, R, F, M̄, found fraction) are reported once per world episode, in the info
-of the world's first slot: `info["episode"] = {"r": R, "l": L, "t": seconds}` (what SB3's Monitor writes, so
-`rollout/ep_rew_mean` is the team return) and `info["team_metrics"]` with every metric.
+of the world's first slot: `info["episode"] = {"r": R, "l": L, "t": seconds since the env was created}` (what
+SB3's Monitor writes, so `rollout/ep_rew_mean` is the team return) and `info["team_metrics"]` with every metric.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ class SearchVecEnv(VecEnv):
         self.world = SearchWorld(config, n_worlds, seed=seed)
         self.n_agents = config.n_agents
         self._actions: np.ndarray | None = None
-        self._episode_start = np.full(n_worlds, time.monotonic())
+        self._t_start = time.time()
         super().__init__(n_worlds * config.n_agents, observation_space(config), action_space(config))
 
     # --- core contract -------------------------------------------------------------------------------------
@@ -47,7 +47,6 @@ class SearchVecEnv(VecEnv):
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = [{} for _ in range(self.num_envs)]
-        self._episode_start[:] = time.monotonic()
         return self._flat_obs(maps, vector)
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -62,7 +61,7 @@ class SearchVecEnv(VecEnv):
         done_world = result.done
         dones = np.repeat(done_world, self.n_agents)
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
-        now = time.monotonic()
+        now = round(time.time() - self._t_start, 6)
         for k in np.flatnonzero(done_world):
             bootstrap = bool(result.truncated[k] and not result.terminated[k])
             base = k * self.n_agents
@@ -77,9 +76,8 @@ class SearchVecEnv(VecEnv):
             infos[base]["episode"] = {
                 "r": metrics["R"],
                 "l": int(metrics["L"]),
-                "t": round(float(now - self._episode_start[k]), 6),
+                "t": now,
             }
-            self._episode_start[k] = now
         obs = self._flat_obs(tr.maps, tr.vector)
         return obs, result.reward.reshape(-1).copy(), dones, infos
 

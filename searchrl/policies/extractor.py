@@ -42,9 +42,9 @@ class SearchCNN(BaseFeaturesExtractor):
         vector_size: int = 32,
         fc_sizes: Sequence[int] = (256, 256),
     ) -> None:
-        self.check_sizes(conv_channels, vector_size, fc_sizes)
-        super().__init__(observation_space, features_dim=int(fc_sizes[-1]))
         c_in, fov, _ = observation_space["map"].shape
+        self.check_sizes(conv_channels, vector_size, fc_sizes, fov)
+        super().__init__(observation_space, features_dim=int(fc_sizes[-1]))
         c1, c2, c3 = conv_channels
         self.conv = nn.Sequential(
             *_conv_block(c_in, c1, pool=True),
@@ -63,8 +63,10 @@ class SearchCNN(BaseFeaturesExtractor):
         self.head = nn.Sequential(*layers)
 
     @staticmethod
-    def check_sizes(conv_channels: Sequence[int], vector_size: int, fc_sizes: Sequence[int]) -> None:
+    def check_sizes(conv_channels: Sequence[int], vector_size: int, fc_sizes: Sequence[int], fov: int = 11) -> None:
         """ValueError naming the bad size, before any network is built."""
+        if fov < 5:
+            raise ValueError(f"env.world.fov={fov!r} is too small for the network: two 2x2 max-pools need fov >= 5")
         if len(conv_channels) != 3 or min(conv_channels) < 1:
             raise ValueError(f"network.conv_channels={list(conv_channels)!r} is not allowed: three positive counts")
         if vector_size < 1:

@@ -21,8 +21,9 @@ import hydra
 import torch
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 from stable_baselines3.common.callbacks import CallbackList
-from stable_baselines3.common.logger import Logger, TensorBoardOutputFormat
+from stable_baselines3.common.logger import Logger
 
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.train.build import (
@@ -39,8 +40,8 @@ from searchrl.train.callbacks import (
     ValidationCallback,
     latest_checkpoint,
 )
-from searchrl.train.csv_log import AppendingCSV
-from searchrl.train.schema import register_configs
+from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
+from searchrl.train.schema import TrainConfig, register_configs
 from searchrl.world.config import ConfigError
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -85,7 +86,8 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     other = [k for k in keys if k not in (*RESUME_OVERRIDES, "resume") and not k.startswith("hydra")]
     if other:
         fail(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
-    saved = OmegaConf.load(run_dir / "config.yaml")
+    # Merged into the schema: a run saved by an older version gains new fields' defaults, and types are checked.
+    saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), OmegaConf.load(run_dir / "config.yaml"))
     saved.resume = cfg.resume
     for key in keys:
         if key in RESUME_OVERRIDES:
@@ -99,7 +101,7 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
     check_model(cfg)
     try:
         check_config(cfg)
-    except (ConfigError, ValueError) as err:
+    except (ConfigError, ValueError, OmegaConfBaseException) as err:
         fail(str(err))
     torch.set_num_threads(int(cfg.threads))
     if cfg.resume is None:
@@ -116,7 +118,8 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
 
     # Logs: one CSV across resumed segments, plus TensorBoard.
     csv_writer = AppendingCSV(run_dir / "progress.csv", resume_step=start_step if checkpoint else None)
-    model.set_logger(Logger(str(run_dir), [csv_writer, TensorBoardOutputFormat(str(run_dir / "tensorboard"))]))
+    tensorboard = ResumableTensorBoard(str(run_dir / "tensorboard"), purge_step=start_step + 1 if checkpoint else None)
+    model.set_logger(Logger(str(run_dir), [csv_writer, tensorboard]))
 
     callbacks = [
         TeamMetricsCallback(),

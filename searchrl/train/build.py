@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, fields
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
@@ -12,6 +12,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.extractor import SearchCNN
+from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig
 from searchrl.world.config import ConfigError, WorldConfig
 
 ALGORITHMS: dict[str, tuple[type[BaseAlgorithm], str]] = {
@@ -19,6 +20,7 @@ ALGORITHMS: dict[str, tuple[type[BaseAlgorithm], str]] = {
     "ppo": (PPO, "MultiInputPolicy"),
     "a2c": (A2C, "MultiInputPolicy"),
 }
+ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "ppo": PPOConfig, "a2c": A2CConfig}
 TRAINABLE_MODELS = ("a", "b", "c", "diagonal")
 
 
@@ -57,6 +59,12 @@ def check_config(cfg: DictConfig) -> None:
     """Fail before any work with a message naming the bad value and what is allowed."""
     if cfg.algo.name not in ALGORITHMS:
         raise ConfigError(f"algo.name={cfg.algo.name!r} is not allowed: one of {sorted(ALGORITHMS)}")
+    expected = {f.name for f in fields(ALGO_SCHEMAS[cfg.algo.name])}
+    if set(cfg.algo.keys()) != expected:
+        raise ConfigError(
+            f"algo.name={cfg.algo.name!r} does not match the algo group's settings {sorted(cfg.algo.keys())}: "
+            f"choose the algorithm with algo={cfg.algo.name}, not algo.name="
+        )
     world = world_config(cfg)  # raises ConfigError naming the field
     positive = {
         "env.n_worlds": cfg.env.n_worlds,
@@ -66,6 +74,8 @@ def check_config(cfg: DictConfig) -> None:
         "algo.n_steps": cfg.algo.n_steps,
         "log_interval": cfg.log_interval,
         "keep_checkpoints": cfg.keep_checkpoints,
+        "algo.n_epochs": cfg.algo.get("n_epochs", 1),
+        "network.lstm_hidden_size": cfg.network.lstm_hidden_size,
     }
     for name, value in positive.items():
         if int(value) < 1:
@@ -76,7 +86,8 @@ def check_config(cfg: DictConfig) -> None:
     batch = cfg.algo.get("batch_size")
     if batch is not None and not 1 <= int(batch) <= rollout:
         raise ConfigError(f"algo.batch_size={batch!r} is not allowed: 1 <= batch_size <= rollout size {rollout}")
-    SearchCNN.check_sizes(list(cfg.network.conv_channels), int(cfg.network.vector_size), list(cfg.network.fc_sizes))
+    net = cfg.network
+    SearchCNN.check_sizes(list(net.conv_channels), int(net.vector_size), list(net.fc_sizes), world.fov)
 
 
 def make_algorithm(cfg: DictConfig, env: SearchVecEnv, tensorboard_log: str | None) -> BaseAlgorithm:

@@ -33,9 +33,9 @@ class TeamMetricsCallback(BaseCallback):
 
     def _on_rollout_end(self) -> None:
         for name, values in self._values.items():
-            self.logger.record(f"team/{name}", float(np.mean(values)))
+            self.logger.record_mean(f"team/{name}", float(np.mean(values)))  # means over rollouts if log_interval > 1
         if self._values:
-            self.logger.record("team/episodes", len(next(iter(self._values.values()))))
+            self.logger.record_mean("team/episodes", len(next(iter(self._values.values()))))
 
 
 class AtomicCheckpointCallback(BaseCallback):
@@ -51,7 +51,8 @@ class AtomicCheckpointCallback(BaseCallback):
         self._next = 0
 
     def _init_callback(self) -> None:
-        self._next = (self.num_timesteps // self.every + 1) * self.every
+        # self.num_timesteps is only set once training starts; the model's count is right on resume too.
+        self._next = (self.model.num_timesteps // self.every + 1) * self.every
 
     def _on_rollout_start(self) -> None:
         if self.num_timesteps >= self._next:
@@ -98,7 +99,7 @@ class ValidationCallback(BaseCallback):
         self.random_level: dict[str, float] = {}
 
     def _init_callback(self) -> None:
-        self._next = (self.num_timesteps // self.every + 1) * self.every
+        self._next = (self.model.num_timesteps // self.every + 1) * self.every
         self.random_level = run_episodes(self.world_config, self.n_worlds, self.seed, None)
 
     def _on_step(self) -> bool:

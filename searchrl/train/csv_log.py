@@ -1,4 +1,4 @@
-"""An SB3 logger output that appends to one CSV across resumed segments of a run.
+"""SB3 logger outputs that survive a resume: one CSV appended across the segments of a run, and TensorBoard.
 
 SB3's own CSV output truncates its file when opened, so a resumed run would lose its history; this one keeps it,
 drops rows past the checkpoint it resumes from (they will be logged again), and widens the header when a new
@@ -11,7 +11,7 @@ import csv
 from pathlib import Path
 from typing import Any
 
-from stable_baselines3.common.logger import KVWriter
+from stable_baselines3.common.logger import KVWriter, TensorBoardOutputFormat
 
 STEP_KEY = "time/total_timesteps"
 
@@ -49,3 +49,16 @@ class AppendingCSV(KVWriter):
 
     def close(self) -> None:
         pass
+
+
+class ResumableTensorBoard(TensorBoardOutputFormat):
+    """SB3's TensorBoard output; on resume, events logged past the checkpoint by the killed segment are purged
+    (`purge_step`), so TensorBoard shows each step once, as the CSV does."""
+
+    def __init__(self, folder: str, purge_step: int | None = None) -> None:
+        super().__init__(folder)
+        if purge_step is not None:
+            from torch.utils.tensorboard import SummaryWriter
+
+            self.writer.close()
+            self.writer = SummaryWriter(log_dir=folder, purge_step=purge_step)

@@ -88,11 +88,12 @@ class WorldConfig:
         _need(1 <= self.n_agents <= 4096, "n_agents", self.n_agents, "1 <= n_agents <= 4096")
         _need(self.prob_variance_scale > 0, "prob_variance_scale", self.prob_variance_scale, "> 0")
         _need(self.unc_variance_scale > 0, "unc_variance_scale", self.unc_variance_scale, "> 0")
+        smallest_scale = min(self.prob_variance_scale, self.unc_variance_scale)
         _need(
-            0 < self.variance_floor < self.prob_variance_scale * self.world_size[0],
+            0 < self.variance_floor < smallest_scale * self.world_size[0],
             "variance_floor",
             self.variance_floor,
-            "0 < variance_floor < prob_variance_scale * smallest world size",
+            "0 < variance_floor < min(prob_variance_scale, unc_variance_scale) * smallest world size",
         )
         _need(0 <= self.rho_max < 1, "rho_max", self.rho_max, "0 <= rho_max < 1")
         _need(0 <= self.eta <= 1, "eta", self.eta, "0 <= eta <= 1")

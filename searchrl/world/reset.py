@@ -46,6 +46,19 @@ def _unit_scale(peak: np.float32) -> np.float32:
     return scale
 
 
+def _draw_obstacles(
+    density: float, n: int, room: int, rng: np.random.Generator, k: int
+) -> tuple[np.ndarray | None, np.ndarray]:
+    """(obstacles or None, free) (n, n): iid obstacles at `density`, redrawn until `room` cells stay free."""
+    if density <= 0:
+        return None, np.ones((n, n), bool)
+    for _ in range(100):
+        obstacles = rng.random((n, n)) < density
+        if (~obstacles).sum() >= room:
+            return obstacles, ~obstacles
+    raise RuntimeError(f"world {k}: 100 obstacle draws at density {density} left fewer than {room} free cells")
+
+
 def draw_scenario_sizes(config: WorldConfig, rng: np.random.Generator) -> tuple[int, int, int]:
     """(n, m, j) drawn uniformly from the inclusive config ranges."""
     n = int(rng.integers(config.world_size[0], config.world_size[1] + 1))
@@ -67,14 +80,8 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
     u = uncertainty_map(
         gaussian_mixture(n, m, config.unc_variance_scale * n, config.variance_floor, config.rho_max, rng)
     )
-    obstacles = rng.random((n, n)) < config.obstacle_density if config.obstacle_density > 0 else None
-    free = np.ones((n, n), bool) if obstacles is None else ~obstacles
+    obstacles, free = _draw_obstacles(config.obstacle_density, n, state.n_agents + j, rng, k)
     n_agents = state.n_agents
-    if free.sum() < n_agents + j:
-        raise RuntimeError(
-            f"world {k}: {int(free.sum())} free cells cannot hold {n_agents} agents and {j} targets; "
-            "lower obstacle_density"
-        )
     if obstacles is not None:  # no target can sit on an obstacle, so it carries no information
         p, u = np.where(free, p, 0.0), np.where(free, u, 0.0)
         p, u = p / p.sum(), u / u.sum()
