@@ -1,0 +1,127 @@
+"""`python -m searchrl.evaluate controller=<surfing|coverage|random> [+model=...]` or `checkpoint=<model.zip>`
+
+Runs the controller on the Table 2/3 grid and writes one parquet file per cell, `<out_dir>/cells/<cell>.parquet`
+(one row per episode), atomically; cells already written are skipped, so a rerun resumes and `shard=` /
+`num_shards=` split the grid across multirun jobs. Load the results with `searchrl.evaluate.results.load`.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # see searchrl/train/__main__.py
+
+import sys
+import time
+from pathlib import Path
+
+import hydra
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+from tqdm import tqdm
+
+from searchrl.atomic import write_atomic
+from searchrl.controllers.base import RandomWalk
+from searchrl.controllers.coverage import GeometricCoverage
+from searchrl.controllers.policy import PolicyController, checkpoint_config
+from searchrl.controllers.surfing import InformationSurfing
+from searchrl.evaluate.grid import table2_cells
+from searchrl.evaluate.runner import run_cell
+from searchrl.evaluate.schema import register_configs
+from searchrl.world.config import ConfigError, WorldConfig
+
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+register_configs()
+
+
+def fail(message: str) -> None:
+    print(f"error: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
+def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, object, bool]:
+    """(world settings, controller name, model name, factory(config) -> controller, needs observations)."""
+    if cfg.checkpoint is not None:
+        world_dict, _ = checkpoint_config(cfg.checkpoint)
+        world = WorldConfig.from_dict(world_dict)
+        run_name = Path(cfg.checkpoint).resolve().parent.name
+        policy = PolicyController(cfg.checkpoint, world, deterministic=bool(cfg.deterministic))
+        model_name = _model_of(cfg.checkpoint)
+
+        def policy_factory(config: WorldConfig) -> PolicyController:
+            policy.config = config  # the same loaded model serves every cell
+            return policy
+
+        return world, f"policy:{run_name}", model_name, policy_factory, True
+    world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
+    model_name = cfg.model.name if cfg.model is not None else "b"
+    c = cfg.controller
+    if c.name == "surfing":
+        factory = lambda config: InformationSurfing(  # noqa: E731
+            config, tuple(c.scales), c.w_p, c.w_u, c.repulsion, seed=int(cfg.seed)
+        )
+    elif c.name == "coverage":
+        factory = lambda config: GeometricCoverage(config, radius=int(c.radius))  # noqa: E731
+    elif c.name == "random":
+        factory = lambda config: RandomWalk(config, seed=int(cfg.seed))  # noqa: E731
+    else:
+        fail(f"controller={c.name!r} is not allowed: surfing, coverage, random, or checkpoint=<model.zip>")
+    factory(world)  # validates the controller's parameters before any work
+    return world, c.name, model_name, factory, False
+
+
+def _model_of(checkpoint: str) -> str:
+    path = Path(checkpoint)
+    for folder in (path.parent, path.parent.parent):
+        if (folder / "config.yaml").exists():
+            return str(OmegaConf.load(folder / "config.yaml").model.name)
+    return "unknown"
+
+
+def evaluate(cfg: DictConfig) -> Path:
+    """Evaluate every cell of this shard that has no result yet; returns the output directory."""
+    try:
+        world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
+        cells = table2_cells(
+            list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
+            list(cfg.grid.max_agents),
+        )  # fmt: skip
+        for name in ("maps_per_cell", "repeats"):
+            if int(cfg.grid[name]) < 1:
+                raise ConfigError(f"grid.{name}={cfg.grid[name]!r} is not allowed: must be >= 1")
+        if not 0 <= int(cfg.shard) < int(cfg.num_shards):
+            raise ConfigError(f"shard={cfg.shard!r} is not allowed: 0 <= shard < num_shards={cfg.num_shards}")
+    except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException) as err:
+        fail(str(err))
+    import torch
+
+    torch.set_num_threads(int(cfg.threads))
+    out_dir = Path(cfg.out_dir or f"runs/eval/{controller_name.replace(':', '_')}")
+    mine = [(i, c) for i, c in enumerate(cells) if i % int(cfg.num_shards) == int(cfg.shard)]
+    todo = [(i, c) for i, c in mine if not (out_dir / "cells" / f"{c.key}.parquet").exists()]
+    maps, repeats = int(cfg.grid.maps_per_cell), int(cfg.grid.repeats)
+    total = sum(maps * repeats * world.max_steps * c.n_agents for _, c in todo)
+    print(f"{controller_name}: {len(todo)} of {len(mine)} cells to run into {out_dir}", file=sys.stderr)
+    start, done_steps = time.perf_counter(), 0
+    with tqdm(total=total, unit="agent-step", unit_scale=True, disable=not cfg.progress_bar) as bar:
+        for index, cell in todo:
+            frame = run_cell(factory, world, cell, index, maps, repeats, int(cfg.seed), float(cfg.batch_mb),
+                             needs_obs, on_steps=bar.update)  # fmt: skip
+            frame.insert(0, "model", model_name)
+            frame.insert(0, "controller", controller_name)
+            write_atomic(out_dir / "cells" / f"{cell.key}.parquet", lambda tmp, f=frame: f.to_parquet(tmp))
+            done_steps += int(((frame["L"]) * cell.n_agents).sum())
+    elapsed = time.perf_counter() - start
+    if todo:
+        print(f"done in {elapsed:.1f} s; {done_steps / max(elapsed, 1e-9):,.0f} agent-steps/s "
+              f"(steps up to each episode's end)", file=sys.stderr)  # fmt: skip
+    return out_dir
+
+
+@hydra.main(version_base="1.3", config_path="../../conf", config_name="evaluate")
+def main(cfg: DictConfig) -> None:
+    evaluate(cfg)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,73 @@
+"""Hydra schemas of the evaluation app (conf/evaluate.yaml, conf/controller/)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING
+
+from searchrl.train.schema import EnvConfig, ModelConfig
+from searchrl.train.schema import register_configs as register_train_configs
+
+
+@dataclass
+class ControllerConfig:
+    name: str = MISSING
+
+
+@dataclass
+class SurfingConfig(ControllerConfig):
+    name: str = "surfing"
+    scales: list[int] = field(default_factory=lambda: [1, 3, 9, 27])  # block sides of the pooled gradients
+    w_p: float = 0.6  # weight of probability in the information surfed
+    w_u: float = 0.4  # weight of uncertainty
+    repulsion: float = 0.4  # weight of the unit Coulomb push away from visible agents
+
+
+@dataclass
+class CoverageConfig(ControllerConfig):
+    name: str = "coverage"
+    radius: int = 1  # lanes 2·radius + 1 rows apart
+
+
+@dataclass
+class RandomConfig(ControllerConfig):
+    name: str = "random"
+
+
+@dataclass
+class GridConfig:
+    world_sizes: list[int] = field(default_factory=lambda: [20, 40, 80, 160])  # Table 2
+    n_targets: list[int] = field(default_factory=lambda: [4, 8, 16, 32])
+    n_distributions: list[int] = field(default_factory=lambda: [8, 16, 32, 64])
+    max_agents: list[int] = field(default_factory=lambda: [32, 64, 128, 256])  # §6.3's density limits
+    maps_per_cell: int = 100  # 30 cells × 100 = 3000 maps
+    repeats: int = 5
+
+
+@dataclass
+class EvaluateConfig:
+    env: EnvConfig = field(default_factory=EnvConfig)  # world settings of heuristics (+model=a|b|c|diagonal)
+    model: ModelConfig | None = None
+    controller: Any = MISSING
+    checkpoint: str | None = None  # a trained model.zip: evaluated instead of the controller, with its own settings
+    deterministic: bool = False  # policies: argmax instead of sampled actions
+    grid: GridConfig = field(default_factory=GridConfig)
+    seed: int = 7_000_000  # evaluation map seeds: base + 100000·cell + map, disjoint from training and validation
+    shard: int = 0  # this job evaluates cells shard, shard + num_shards, …
+    num_shards: int = 1
+    out_dir: str | None = None  # default runs/eval/<controller or checkpoint run>
+    batch_mb: float = 1024.0  # memory budget of one batch of worlds
+    threads: int = 2
+    progress_bar: bool = True
+
+
+def register_configs() -> None:
+    register_train_configs()  # env and model groups are shared with training
+    cs = ConfigStore.instance()
+    cs.store(name="evaluate_schema", node=EvaluateConfig)
+    cs.store(group="controller", name="surfing_schema", node=SurfingConfig)
+    cs.store(group="controller", name="coverage_schema", node=CoverageConfig)
+    cs.store(group="controller", name="random_schema", node=RandomConfig)

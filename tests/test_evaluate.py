@@ -1,0 +1,101 @@
+"""The evaluation app on small slices of the Table 2 grid: rows, seeds, reruns, shards, checkpoints, errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from hydra import compose, initialize_config_dir
+
+from searchrl.evaluate.__main__ import CONF_DIR, evaluate
+from searchrl.evaluate.grid import table2_cells
+from searchrl.evaluate.results import load
+from searchrl.evaluate.runner import COLUMNS
+
+ROOT = Path(__file__).resolve().parents[1]
+SLICE = ["grid.world_sizes=[20,40]", "grid.n_targets=[4,8]", "grid.n_distributions=[8,16]", "grid.max_agents=[2,1]",
+         "grid.maps_per_cell=3", "grid.repeats=2", "progress_bar=false", "threads=1"]  # fmt: skip
+
+
+def _evaluate(out: Path, *overrides: str) -> pd.DataFrame:
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose(config_name="evaluate", overrides=[*SLICE, f"out_dir={out}", *overrides])
+    return load(evaluate(cfg))
+
+
+def test_table2_grid_has_the_papers_30_cells():
+    cells = table2_cells([20, 40, 80, 160], [4, 8, 16, 32], [8, 16, 32, 64], [32, 64, 128, 256])
+    assert len(cells) == 30
+    assert [c.n_agents for c in cells if c.n == 160] == [1, 2, 4, 8, 16, 32, 64, 128, 256]
+
+
+@pytest.mark.parametrize("controller", ["surfing", "coverage", "random"])
+def test_slice_rows_and_rerun_skips_done_cells(tmp_path, controller, capsys):
+    frame = _evaluate(tmp_path, f"controller={controller}")
+    assert list(frame.columns) == COLUMNS
+    assert len(frame) == 3 * 3 * 2  # cells (20,1) (20,2) (40,1) × 3 maps × 2 repeats
+    assert set(zip(frame.n, frame.N, strict=True)) == {(20, 1), (20, 2), (40, 1)}
+    assert frame.found_fraction.between(0, 1).all() and frame.L.between(1, 256).all()
+    assert (frame.controller == controller).all() and (frame.model == "b").all()
+    # Repeats of a map share its seed; maps differ.
+    assert frame.groupby(["n", "N", "map_seed"]).size().eq(2).all()
+    files = {p: p.stat().st_mtime_ns for p in (tmp_path / "cells").iterdir()}
+    capsys.readouterr()
+    _evaluate(tmp_path, f"controller={controller}")
+    assert "0 of 3 cells to run" in capsys.readouterr().err
+    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "cells").iterdir()} == files
+
+
+def test_same_seed_same_results_and_model_presets(tmp_path):
+    a = _evaluate(tmp_path / "a", "+model=a")
+    b = _evaluate(tmp_path / "b", "+model=a")
+    pd.testing.assert_frame_equal(a, b)
+    assert (a.model == "a").all()
+    c = _evaluate(tmp_path / "c", "+model=a", "seed=123")
+    assert not a.map_seed.equals(c.map_seed)
+
+
+def test_shards_split_the_cells(tmp_path):
+    out = tmp_path / "sharded"
+    first = _evaluate(out, "shard=0", "num_shards=2")
+    both = _evaluate(out, "shard=1", "num_shards=2")
+    assert set(zip(first.n, first.N, strict=True)) == {(20, 1), (40, 1)}
+    assert len(both) == 18
+    whole = _evaluate(tmp_path / "whole")
+    pd.testing.assert_frame_equal(
+        both.sort_values(["n", "N", "map_seed", "repeat"]).reset_index(drop=True),
+        whole.sort_values(["n", "N", "map_seed", "repeat"]).reset_index(drop=True),
+    )
+
+
+def test_checkpoint_settings_come_from_its_run(tmp_path):
+    from tests.test_train import TINY, _run
+
+    model = _run(tmp_path / "run", ["+model=diagonal", *TINY, "total_timesteps=256", "validation.every=0"])
+    frame = _evaluate(tmp_path / "eval", f"checkpoint={model}", "+model=a")  # +model ignored: the run decides
+    assert (frame.model == "diagonal").all() and frame.controller.str.startswith("policy:").all()
+    assert len(frame) == 18
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("grid.max_agents=[2]", "grid lists differ"),
+        ("shard=2", "shard=2"),
+        ("grid.repeats=0", "grid.repeats=0"),
+        ("checkpoint=/nonexistent/model.zip", "does not exist"),
+        ("controller.radius=-1", "radius=-1"),
+    ],
+)
+def test_bad_input_fails_before_work(tmp_path, override, message):
+    cmd = [sys.executable, "-m", "searchrl.evaluate", *SLICE, f"out_dir={tmp_path}", override]
+    if "radius" in override:
+        cmd.append("controller=coverage")
+        cmd.remove(override)
+        cmd.append(override)
+    out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and message in out.stderr, out.stderr[-2000:]
+    assert not (tmp_path / "cells").exists()
