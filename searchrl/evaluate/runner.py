@@ -83,7 +83,7 @@ def run_cell(
                 finished |= result.done
             if on_steps:
                 on_steps(int((~finished | first).sum()) * config.n_agents)
-        for w, (m, r) in enumerate(chunk):
+        for w, (_, r) in enumerate(chunk):
             rows.append(
                 {"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "map_seed": seeds[w], "repeat": r,
                  **{name: final[name][w] for name in ("found_fraction", "L", "R", "F", "M_bar")}}
