@@ -1,1 +1,1 @@
-"""Benchmarks: `python -m searchrl.bench {world,memory} [--json]`."""
+"""Benchmarks: `python -m searchrl.bench {world,memory,train,eval} [--json]`."""

@@ -31,6 +31,7 @@ from searchrl.evaluate.schema import register_configs
 from searchrl.world.config import ConfigError, WorldConfig
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+CONTROLLERS = {"surfing": InformationSurfing, "coverage": GeometricCoverage, "random": RandomWalk}
 register_configs()
 
 

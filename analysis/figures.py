@@ -1,0 +1,69 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
+
+# %% [markdown]
+# # Fig. 7 and Fig. 8: found fraction against team size
+#
+# Fig. 7: found fraction against N at n = 160, one line per controller or policy (95 % bootstrap CI bands), the
+# paper's four DRL models dashed. Fig. 8: every world size, DRL policies against information surfing and
+# coverage. Run from the repository root: `python analysis/figures.py`; inputs as in `table3.py`.
+
+# %%
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+from searchrl.analysis.stats import paper_table3, summarize
+from searchrl.evaluate.results import load
+
+ROOT = Path.cwd()
+EVAL_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_EVAL_DIRS", "").split(",") if d] or sorted(
+    p for p in (ROOT / "runs" / "eval").glob("*") if (p / "cells").is_dir()
+)
+OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
+OUT.mkdir(parents=True, exist_ok=True)
+summary = summarize(load(*EVAL_DIRS))
+paper = paper_table3(ROOT / "analysis" / "paper_table3.csv")
+summary["label"] = summary["controller"] + " (" + summary["model"] + ")"
+
+# %% [markdown]
+# ## Fig. 7: n = 160
+
+# %%
+fig, ax = plt.subplots(figsize=(6, 4))
+for label, group in summary[summary.n == 160].groupby("label"):
+    group = group.sort_values("N")
+    ax.plot(group.N, group["mean"], marker="o", label=label)
+    ax.fill_between(group.N, group["low"], group["high"], alpha=0.2)
+for model, group in paper[paper.n == 160].groupby("model"):
+    ax.plot(group.N, group.found_fraction, linestyle="--", linewidth=1, label=f"paper {model}")
+ax.set(xscale="log", xlabel="agents N", ylabel="found fraction", title="n = 160", ylim=(0, 1.02))
+ax.set_xticks(sorted(summary[summary.n == 160].N.unique()), labels=sorted(summary[summary.n == 160].N.unique()))
+ax.legend(fontsize=7)
+fig.tight_layout()
+fig.savefig(OUT / "fig7_n160.png", dpi=120)
+
+# %% [markdown]
+# ## Fig. 8: every world size
+
+# %%
+sizes = sorted(summary.n.unique())
+fig, axes = plt.subplots(1, len(sizes), figsize=(3.2 * len(sizes), 3.2), sharey=True, squeeze=False)
+for ax, n in zip(axes[0], sizes, strict=True):
+    for label, group in summary[summary.n == n].groupby("label"):
+        group = group.sort_values("N")
+        ax.errorbar(group.N, group["mean"], yerr=[group["mean"] - group["low"], group["high"] - group["mean"]],
+                    marker="o", markersize=3, capsize=2, label=label)  # fmt: skip
+    ax.set(xscale="log", xlabel="agents N", title=f"n = {n}", ylim=(0, 1.02))
+axes[0][0].set_ylabel("found fraction")
+axes[0][-1].legend(fontsize=7)
+fig.tight_layout()
+fig.savefig(OUT / "fig8_all_sizes.png", dpi=120)
+print(f"wrote {OUT / 'fig7_n160.png'} and {OUT / 'fig8_all_sizes.png'}")

@@ -1,0 +1,54 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
+
+# %% [markdown]
+# # Table 3: fraction of targets found in 256 steps, per cell
+#
+# Loads evaluation results (`python -m searchrl.evaluate ...`, one directory per controller or policy), averages
+# the repeats of each map, and bootstraps a 95 % confidence interval over maps. Writes `table3.csv` (tidy, with
+# CIs and the paper's number for the same model where there is one) and `table3.md` (the paper's layout: rows N,
+# columns n). Run as a script from the repository root:
+#
+#     python analysis/table3.py
+#
+# Inputs and outputs are set by environment variables: `SEARCHRL_EVAL_DIRS` (comma-separated evaluation
+# directories, default every directory under `runs/eval/`), `SEARCHRL_ANALYSIS_OUT` (default `analysis/out`).
+
+# %%
+import os
+from pathlib import Path
+
+from searchrl.analysis.stats import beside_paper, markdown, paper_table3, summarize, table3
+from searchrl.evaluate.results import load
+
+ROOT = Path.cwd()
+EVAL_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_EVAL_DIRS", "").split(",") if d] or sorted(
+    p for p in (ROOT / "runs" / "eval").glob("*") if (p / "cells").is_dir()
+)
+OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
+OUT.mkdir(parents=True, exist_ok=True)
+episodes = load(*EVAL_DIRS)
+print(f"{len(episodes)} episodes from {[d.name for d in EVAL_DIRS]}")
+
+# %% [markdown]
+# ## Per-cell means with 95 % bootstrap CIs, beside the paper
+#
+# Heuristics are evaluated with one model's world settings (`model` column); the paper's number shown beside a
+# heuristic is that of the DRL model with the same settings, for reference.
+
+# %%
+summary = summarize(episodes)
+compared = beside_paper(summary, paper_table3(ROOT / "analysis" / "paper_table3.csv"))
+compared.to_csv(OUT / "table3.csv", index=False)
+compared.head(12)
+
+# %% [markdown]
+# ## Table 3 layout: rows N, columns n
+
+# %%
+wide = table3(summary)
+(OUT / "table3.md").write_text(markdown(wide))
+print(markdown(wide))

@@ -1,0 +1,56 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
+
+# %% [markdown]
+# # Fig. 5 and Fig. 6: training curves of R, L, F, M̄ and the validation found fraction
+#
+# Reads `progress.csv` of training runs (`SEARCHRL_RUN_DIRS`, comma-separated; default every run under
+# `runs/train/`), smooths each team metric over a window of log rows, and writes `training_curves.png` and the
+# tidy `training_curves.csv`. Run from the repository root: `python analysis/training_curves.py`.
+
+# %%
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+from searchrl.analysis.stats import training_curves
+
+ROOT = Path.cwd()
+RUN_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_RUN_DIRS", "").split(",") if d] or sorted(
+    p.parent for p in (ROOT / "runs" / "train").glob("*/*/progress.csv")
+)
+OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
+OUT.mkdir(parents=True, exist_ok=True)
+curves = training_curves(RUN_DIRS)
+curves.to_csv(OUT / "training_curves.csv", index=False)
+print(f"{len(RUN_DIRS)} runs, {len(curves)} points")
+
+# %% [markdown]
+# ## Team metrics per world episode (smoothed over 5 log rows) and validation on fixed worlds
+#
+# The dotted line is the random walk on the same validation worlds.
+
+# %%
+METRICS = [("team/R", "reward R"), ("team/L", "search time L"), ("team/F", "communications F"),
+           ("team/M_bar", "information per step M̄"), ("val/found_fraction", "validation found fraction")]  # fmt: skip
+fig, axes = plt.subplots(1, len(METRICS), figsize=(3.3 * len(METRICS), 3.0))
+for ax, (metric, title) in zip(axes, METRICS, strict=True):
+    for (run, model), group in curves[curves.metric == metric].groupby(["run", "model"]):
+        group = group.sort_values("step")
+        smooth = group["value"].rolling(5 if metric.startswith("team") else 1, min_periods=1).mean()
+        ax.plot(group.step, smooth, label=f"{model} ({run})")
+    if metric == "val/found_fraction":
+        random = curves[curves.metric == "val/random_found_fraction"]
+        if len(random):
+            ax.axhline(random["value"].mean(), color="grey", linestyle=":", label="random walk")
+    ax.set(title=title, xlabel="agent-steps")
+axes[-1].legend(fontsize=6)
+fig.tight_layout()
+fig.savefig(OUT / "training_curves.png", dpi=120)

@@ -1,0 +1,92 @@
+"""Summaries with bootstrap confidence intervals, Table 3 layouts, and training curves."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from omegaconf import OmegaConf
+
+GROUP = ["controller", "model", "n", "N"]
+
+
+def bootstrap_mean_ci(
+    per_map: np.ndarray, n_boot: int = 2000, level: float = 0.95, seed: int = 0
+) -> tuple[float, float, float]:
+    """(mean, low, high) of the mean of `per_map` values (maps are the independent units), percentile bootstrap."""
+    values = np.asarray(per_map, float)
+    if values.size == 0:
+        raise ValueError("bootstrap of an empty sample")
+    rng = np.random.default_rng(seed)
+    means = values[rng.integers(0, values.size, size=(n_boot, values.size))].mean(axis=1)
+    tail = (1 - level) / 2
+    return float(values.mean()), float(np.quantile(means, tail)), float(np.quantile(means, 1 - tail))
+
+
+def summarize(episodes: pd.DataFrame, metric: str = "found_fraction", n_boot: int = 2000) -> pd.DataFrame:
+    """One row per (controller, model, n, N): mean of `metric` with a 95 % CI. Repeats of a map are averaged
+    first, so the bootstrap resamples maps, the independent units."""
+    per_map = episodes.groupby([*GROUP, "map_seed"], as_index=False)[metric].mean()
+    rows = []
+    for key, group in per_map.groupby(GROUP):
+        mean, low, high = bootstrap_mean_ci(group[metric].to_numpy(), n_boot)
+        rows.append({**dict(zip(GROUP, key, strict=True)), "mean": mean, "low": low, "high": high, "maps": len(group)})
+    return pd.DataFrame(rows)
+
+
+def table3(summary: pd.DataFrame, value: str = "mean") -> pd.DataFrame:
+    """Table 3 layout: rows N, columns n, one block per (controller, model)."""
+    return summary.pivot_table(index=["controller", "model", "N"], columns="n", values=value)
+
+
+def paper_table3(path: str | Path) -> pd.DataFrame:
+    """The paper's Table 3 as a tidy frame: model, n, N, found_fraction."""
+    frame = pd.read_csv(path)
+    return frame.rename(columns={"world_size": "n", "n_agents": "N"})
+
+
+def beside_paper(summary: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
+    """Our found fraction (with CI) beside the paper's for the same model and cell; `model` matched
+    case-insensitively (the paper's A, B, C, diagonal)."""
+    ours = summary.assign(key=summary["model"].str.lower())
+    theirs = paper.assign(key=paper["model"].str.lower()).rename(columns={"found_fraction": "paper"})
+    merged = ours.merge(theirs[["key", "n", "N", "paper"]], on=["key", "n", "N"], how="left").drop(columns="key")
+    return merged.assign(diff=merged["mean"] - merged["paper"])
+
+
+def training_curves(run_dirs: list[str | Path]) -> pd.DataFrame:
+    """Tidy frame (run, model, step, metric, value) of team metrics and validation from each run's progress.csv."""
+    frames = []
+    for run in map(Path, run_dirs):
+        progress = pd.read_csv(run / "progress.csv")
+        model = _model_name(run)
+        keep = [c for c in progress.columns if c.startswith(("team/", "val/"))]
+        long = progress.melt(id_vars=["time/total_timesteps"], value_vars=keep, var_name="metric").dropna()
+        frames.append(long.rename(columns={"time/total_timesteps": "step"}).assign(run=run.name, model=model))
+    if not frames:
+        raise FileNotFoundError("no run directories given")
+    return pd.concat(frames, ignore_index=True)
+
+
+def _model_name(run: Path) -> str:
+    config = run / "config.yaml"
+    if not config.exists():
+        return "unknown"
+    model = OmegaConf.load(config).get("model")
+    return str(model.name) if model else "unknown"
+
+
+def markdown(frame: pd.DataFrame, digits: int = 3) -> str:
+    """A pipe table of `frame` (index included), numbers rounded; NaN shown as an en dash."""
+    flat = frame.reset_index()
+    header = [str(c) if not isinstance(c, tuple) else " ".join(map(str, c)) for c in flat.columns]
+
+    def cell(v: object) -> str:
+        if isinstance(v, float):
+            return "–" if np.isnan(v) else f"{v:.{digits}f}"
+        return str(v)
+
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in flat.itertuples(index=False)]
+    return "\n".join(lines) + "\n"

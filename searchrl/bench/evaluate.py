@@ -1,0 +1,35 @@
+"""Evaluation throughput: a heuristic on every Table 2 cell with a few maps, agent-steps/s and the projected time
+of the full grid (3000 maps × 5 repeats). Smaller batches than the full run's make the projection pessimistic."""
+
+from __future__ import annotations
+
+import time
+from typing import TextIO
+
+from searchrl.evaluate.__main__ import CONTROLLERS
+from searchrl.evaluate.grid import table2_cells
+from searchrl.evaluate.runner import run_cell
+from searchrl.world.config import WorldConfig
+
+FULL_EPISODES_PER_CELL = 100 * 5
+
+
+def run(controller: str = "surfing", maps: int = 10, log: TextIO | None = None) -> list[dict]:
+    cells = table2_cells([20, 40, 80, 160], [4, 8, 16, 32], [8, 16, 32, 64], [32, 64, 128, 256])
+    factory = CONTROLLERS[controller]
+    world = WorldConfig()
+    run_cell(factory, world, cells[0], 0, 1, 1, 0, needs_observation=False)  # warm-up: numba cache
+    steps = [0]
+    start = time.perf_counter()
+    for index, cell in enumerate(cells):
+        run_cell(factory, world, cell, index, maps, 1, 7_000_000, needs_observation=False,
+                 on_steps=lambda s: steps.__setitem__(0, steps[0] + s))  # fmt: skip
+    elapsed = time.perf_counter() - start
+    rate = steps[0] / elapsed
+    projected = elapsed * FULL_EPISODES_PER_CELL / maps
+    row = {"case": f"{controller}_table2_{maps}maps", "engine": "evaluate", "agent_steps_per_s": round(rate, 1),
+           "projected_full_grid_s": round(projected, 1)}  # fmt: skip
+    if log:
+        print(f"{row['case']}: {rate:,.0f} agent-steps/s over {len(cells)} cells ({elapsed:.1f} s); full grid "
+              f"(3000 maps x 5 repeats) projected {projected / 60:.1f} min, limit 20 min", file=log)  # fmt: skip
+    return [row]

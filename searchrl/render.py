@@ -1,0 +1,106 @@
+"""`python -m searchrl.render [--controller surfing|coverage|random | --checkpoint model.zip] [--out episode.gif]`
+
+Writes one episode as an animated GIF in the paper's colours (Fig. 1, Fig. 4): left, the true maps with all agents
+(purple), hidden (green) and found (brown) targets; right, one agent's belief, the agent ringed in black.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+from searchrl.atomic import write_atomic
+from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world.observe import observe
+from searchrl.world.render import world_frame
+from searchrl.world.reset import reset_world
+from searchrl.world.state import WorldState, allocate
+from searchrl.world.step import step
+
+MODELS = {
+    "a": {"explicit_area": 11, "communication": False, "diagonal": False},
+    "b": {"explicit_area": 5, "communication": True, "diagonal": False},
+    "c": {"explicit_area": 5, "communication": False, "diagonal": False},
+    "diagonal": {"explicit_area": 5, "communication": True, "diagonal": True},
+}
+
+
+def frame(state: WorldState, agent: int, cell: int) -> np.ndarray:
+    """(H, 2W + gap, 3) uint8: the true world beside `agent`'s belief, with a caption line."""
+    truth = world_frame(state, 0, cell=cell)
+    belief = world_frame(state, 0, belief_of=agent, cell=cell)
+    r, c = state.pos[0, agent] * cell
+    belief[max(r - cell, 0) : r + 2 * cell, max(c - cell, 0) : c + 2 * cell][[0, -1]] = 0  # ring the agent
+    belief[max(r - cell, 0) : r + 2 * cell, max(c - cell, 0) : c + 2 * cell][:, [0, -1]] = 0
+    gap = np.full((truth.shape[0], 2 * cell, 3), 255, np.uint8)
+    image = Image.fromarray(np.concatenate([truth, gap, belief], axis=1))
+    canvas = Image.new("RGB", (image.width, image.height + 16), "white")
+    canvas.paste(image, (0, 16))
+    text = f"t={int(state.t[0])}  found {int(state.n_found[0])}/{int(state.n_targets[0])}   |   belief of agent {agent}"
+    ImageDraw.Draw(canvas).text((2, 2), text, fill="black")
+    return np.asarray(canvas)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m searchrl.render", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p.add_argument("--controller", choices=["surfing", "coverage", "random"], default="surfing")
+    p.add_argument("--checkpoint", help="a trained model.zip (its run's world settings are used)")
+    p.add_argument("--model", choices=sorted(MODELS), default="b", help="world settings for heuristics")
+    p.add_argument("--n", type=int, default=40, help="world side")
+    p.add_argument("--agents", type=int, default=8)
+    p.add_argument("--targets", type=int, default=8)
+    p.add_argument("--distributions", type=int, default=16)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--agent", type=int, default=0, help="whose belief is drawn")
+    p.add_argument("--cell", type=int, default=6, help="pixels per cell")
+    p.add_argument("--fps", type=float, default=10.0)
+    p.add_argument("--out", default="runs/render/episode.gif")
+    args = p.parse_args(argv)
+    if not args.out.endswith(".gif"):
+        p.error(f"--out={args.out!r} is not allowed: a .gif path")
+    if not 0 <= args.agent < args.agents or args.cell < 1 or args.fps <= 0:
+        p.error(f"--agent={args.agent} needs 0 <= agent < --agents={args.agents}; --cell >= 1; --fps > 0")
+    try:
+        if args.checkpoint:
+            from searchrl.controllers.policy import PolicyController, checkpoint_config
+
+            world = WorldConfig.from_dict(checkpoint_config(args.checkpoint)[0])
+        else:
+            world = WorldConfig(**MODELS[args.model])
+        config = replace(world, world_size=(args.n, args.n), n_agents=args.agents,
+                         n_targets=(args.targets, args.targets),
+                         n_distributions=(args.distributions, args.distributions))  # fmt: skip
+    except (ConfigError, FileNotFoundError, ValueError) as err:
+        p.error(str(err))
+    if args.checkpoint:
+        controller = PolicyController(args.checkpoint, config)
+    else:
+        from searchrl.evaluate.__main__ import CONTROLLERS
+
+        controller = CONTROLLERS[args.controller](config)
+    state = allocate(config, 1)
+    reset_world(config, state, 0, np.random.default_rng(args.seed))
+    controller.reset(state, np.ones(1, bool))
+    rng = np.random.default_rng(args.seed + 1)
+    frames = [frame(state, args.agent, args.cell)]
+    while True:
+        maps, vector = observe(config, state)
+        result = step(config, state, controller.act(state, maps, vector), rng)
+        frames.append(frame(state, args.agent, args.cell))
+        if result.done[0]:
+            break
+    images = [Image.fromarray(f) for f in frames]
+    write_atomic(Path(args.out), lambda tmp: images[0].save(tmp, format="GIF", save_all=True,
+                 append_images=images[1:], duration=int(1000 / args.fps), loop=0))  # fmt: skip
+    print(f"wrote {args.out}: {len(frames)} frames, found {int(state.n_found[0])}/{int(state.n_targets[0])}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

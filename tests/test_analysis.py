@@ -1,0 +1,109 @@
+"""Analysis notebooks run as scripts on a tiny fixture; statistics helpers; the episode renderer."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import jupytext
+import numpy as np
+import pandas as pd
+import pytest
+from PIL import Image
+
+from searchrl.analysis.stats import beside_paper, bootstrap_mean_ci, markdown, paper_table3, summarize, table3
+from searchrl.render import main as render_main
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
+
+
+@pytest.fixture(scope="module")
+def fixture_dirs(tmp_path_factory):
+    """Two tiny evaluations (surfing, coverage) and one tiny training run."""
+    from tests.test_evaluate import _evaluate
+    from tests.test_train import TINY, _run
+
+    base = tmp_path_factory.mktemp("analysis")
+    for controller in ("surfing", "coverage"):
+        _evaluate(base / "eval" / controller, f"controller={controller}", "grid.world_sizes=[20,160]",
+                  "grid.max_agents=[2,2]", "grid.n_targets=[4,32]", "grid.n_distributions=[8,64]")  # fmt: skip
+    _run(base / "run", ["+model=b", *TINY, "total_timesteps=768", "validation.every=256"])
+    return base
+
+
+@pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS])
+def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
+    env = {
+        **os.environ,
+        "SEARCHRL_EVAL_DIRS": f"{fixture_dirs}/eval/surfing,{fixture_dirs}/eval/coverage",
+        "SEARCHRL_RUN_DIRS": str(fixture_dirs / "run"),
+        "SEARCHRL_ANALYSIS_OUT": str(tmp_path),
+        "MPLBACKEND": "Agg",
+    }
+    out = subprocess.run([sys.executable, f"analysis/{notebook}"], cwd=ROOT, env=env, capture_output=True,
+                         text=True, timeout=300)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    expected = {
+        "table3.py": ["table3.csv", "table3.md"],
+        "figures.py": ["fig7_n160.png", "fig8_all_sizes.png"],
+        "training_curves.py": ["training_curves.png", "training_curves.csv"],
+    }[notebook]
+    for name in expected:
+        assert (tmp_path / name).stat().st_size > 0, name
+    if notebook == "table3.py":
+        table = pd.read_csv(tmp_path / "table3.csv")
+        assert set(table.controller) == {"surfing", "coverage"} and table["paper"].notna().all()
+        assert (table["low"] <= table["mean"]).all() and (table["mean"] <= table["high"]).all()
+
+
+@pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS])
+def test_notebooks_open_as_jupyter_notebooks(notebook):
+    nb = jupytext.read(ROOT / "analysis" / notebook)
+    kinds = {cell.cell_type for cell in nb.cells}
+    assert kinds == {"markdown", "code"} and len(nb.cells) >= 4
+
+
+def test_bootstrap_ci_covers_the_mean_and_shrinks_with_more_maps():
+    rng = np.random.default_rng(0)
+    small = bootstrap_mean_ci(rng.random(10))
+    large = bootstrap_mean_ci(rng.random(1000))
+    for mean, low, high in (small, large):
+        assert low <= mean <= high
+    assert large[2] - large[1] < small[2] - small[1]
+    assert bootstrap_mean_ci(np.full(5, 0.3))[1:] == pytest.approx((0.3, 0.3))
+
+
+def test_summary_averages_repeats_before_bootstrapping_maps():
+    episodes = pd.DataFrame({
+        "controller": "x", "model": "b", "n": 20, "N": 1, "map_seed": [1, 1, 2, 2],
+        "found_fraction": [0.0, 1.0, 1.0, 1.0],
+    })  # fmt: skip
+    row = summarize(episodes).iloc[0]
+    assert row["mean"] == pytest.approx(0.75) and row["maps"] == 2
+    assert row["low"] == pytest.approx(0.5) and row["high"] == pytest.approx(1.0)
+
+
+def test_paper_table_and_layouts():
+    paper = paper_table3(ROOT / "analysis" / "paper_table3.csv")
+    assert (
+        len(paper) == 4 * 30 and paper.query("model == 'B' and n == 160 and N == 256").found_fraction.item() == 0.9878
+    )
+    ours = pd.DataFrame({"controller": "x", "model": "b", "n": [160], "N": [256], "mean": [0.9], "low": [0.8],
+                         "high": [1.0], "maps": [3]})  # fmt: skip
+    merged = beside_paper(ours, paper)
+    assert merged["paper"].item() == 0.9878 and merged["diff"].item() == pytest.approx(0.9 - 0.9878)
+    md = markdown(table3(ours))
+    assert md.splitlines()[0].startswith("| controller | model | N | 160") and "0.900" in md
+
+
+def test_render_writes_an_episode_gif(tmp_path):
+    out = tmp_path / "episode.gif"
+    assert render_main(["--controller", "coverage", "--n", "12", "--agents", "3", "--targets", "2",
+                        "--distributions", "4", "--cell", "3", "--out", str(out)]) == 0  # fmt: skip
+    gif = Image.open(out)
+    assert 2 <= gif.n_frames <= 257 and gif.size[0] > 2 * gif.size[1] - 40
+    with pytest.raises(SystemExit):
+        render_main(["--out", str(tmp_path / "x.mp4")])
