@@ -11,8 +11,8 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.state import WorldState
 
 
-def checkpoint_config(path: str | Path) -> tuple[dict, str]:
-    """(world settings, algorithm name) from the run directory of a checkpoint: `<run>/model.zip` or
+def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
+    """(world settings, algorithm name, model name) from the run directory of a checkpoint: `<run>/model.zip` or
     `<run>/checkpoints/step_*.zip`, next to or above which the run's `config.yaml` lies."""
     path = Path(path)
     if not path.is_file():
@@ -20,7 +20,8 @@ def checkpoint_config(path: str | Path) -> tuple[dict, str]:
     for folder in (path.parent, path.parent.parent):
         if (folder / "config.yaml").exists():
             cfg = OmegaConf.load(folder / "config.yaml")
-            return OmegaConf.to_container(cfg.env.world, resolve=True), str(cfg.algo.name)
+            model = str(cfg.model.name) if cfg.get("model") else "unknown"
+            return OmegaConf.to_container(cfg.env.world, resolve=True), str(cfg.algo.name), model
     raise FileNotFoundError(f"checkpoint={str(path)!r} has no run config.yaml beside it or one folder up")
 
 
@@ -30,7 +31,7 @@ class PolicyController:
     def __init__(self, path: str | Path, config: WorldConfig, deterministic: bool = False, device: str = "cpu"):
         from searchrl.train.build import ALGORITHMS  # torch and SB3 only when a policy is used
 
-        _, algo = checkpoint_config(path)
+        _, algo, _ = checkpoint_config(path)
         algo_class, _ = ALGORITHMS[algo]
         self.model = algo_class.load(str(path), device=device)
         expected = self.model.action_space.n

@@ -43,11 +43,10 @@ def fail(message: str) -> None:
 def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, object, bool]:
     """(world settings, controller name, model name, factory(config) -> controller, needs observations)."""
     if cfg.checkpoint is not None:
-        world_dict, _ = checkpoint_config(cfg.checkpoint)
+        world_dict, _, model_name = checkpoint_config(cfg.checkpoint)
         world = WorldConfig.from_dict(world_dict)
         run_name = Path(cfg.checkpoint).resolve().parent.name
         policy = PolicyController(cfg.checkpoint, world, deterministic=bool(cfg.deterministic))
-        model_name = _model_of(cfg.checkpoint)
 
         def policy_factory(config: WorldConfig) -> PolicyController:
             policy.config = config  # the same loaded model serves every cell
@@ -69,14 +68,6 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         fail(f"controller={c.name!r} is not allowed: surfing, coverage, random, or checkpoint=<model.zip>")
     factory(world)  # validates the controller's parameters before any work
     return world, c.name, model_name, factory, False
-
-
-def _model_of(checkpoint: str) -> str:
-    path = Path(checkpoint)
-    for folder in (path.parent, path.parent.parent):
-        if (folder / "config.yaml").exists():
-            return str(OmegaConf.load(folder / "config.yaml").model.name)
-    return "unknown"
 
 
 def evaluate(cfg: DictConfig) -> Path:
