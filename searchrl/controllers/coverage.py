@@ -1,10 +1,12 @@
 """Geometric coverage (§6.3's baseline): the domain is split into N near-square blocks, one per agent (by index),
 and each agent sweeps its block in boustrophedon lanes, ignoring the prior.
 
-Lanes run east-west, `2·radius + 1` rows apart, so every cell passes within `radius` rows of a lane (radius 1:
-each cell is seen with Γ ≥ 0.37 three steps in a row). An agent first walks to the corner of its block nearest
-to its start, sweeps, then sweeps back in reverse, for as long as the episode lasts. Moves follow the larger
-offset to the next waypoint (diagonal when allowed and useful); a visibly occupied cell is sidestepped.
+Lanes run east-west from edge to edge of the block, `2·radius + 1` rows apart, so every cell passes within
+`radius` rows of a lane (radius 1: each cell is seen with Γ ≥ 0.37 three steps in a row). An agent first walks to
+the corner of its block nearest to its start, sweeps, then sweeps back in reverse, for as long as the episode
+lasts. Moves follow the larger offset to the next waypoint (diagonal when allowed and useful); when that cell is
+visibly occupied the agent tries the other axis, then keeps right (sidesteps to the right of its heading), so
+two agents meeting head-on pass each other instead of waiting forever.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ def sweep(block: tuple[int, int, int, int], start: tuple[int, int], radius: int)
     lanes = list(range(top, bottom + 1, spacing))
     if lanes[-1] < bottom:  # the last rows are covered by one more lane
         lanes.append(bottom)
-    left, right = min(c0 + radius, c1 - 1), max(c1 - 1 - radius, c0)
+    left, right = c0, c1 - 1  # edge to edge: the footprint reaches no further sideways than along the lane
     if abs(start[0] - lanes[-1]) < abs(start[0] - lanes[0]):
         lanes.reverse()
     ends = (left, right) if abs(start[1] - left) <= abs(start[1] - right) else (right, left)
@@ -69,11 +71,11 @@ def coverage_actions(pos, occupant, blocked, h, waypoints, n_points, index, diag
             dc = waypoints[k, i, index[k, i], 1] - c
             sr, sc = (dr > 0) - (dr < 0), (dc > 0) - (dc < 0)
             if diagonal and sr != 0 and sc != 0:
-                options = ((sr, sc), (sr, 0), (0, sc))
+                options = ((sr, sc), (sr, 0), (0, sc), (0, 0))
             elif abs(dr) >= abs(dc):
-                options = ((sr, 0), (0, sc), (0, 0))
+                options = ((sr, 0), (0, sc), (0, -sr), (0, 0))  # keep right of a north/south heading
             else:
-                options = ((0, sc), (sr, 0), (0, 0))
+                options = ((0, sc), (sr, 0), (sc, 0), (0, 0))  # keep right of an east/west heading
             out[k, i] = 0
             for o in options:
                 if o[0] == 0 and o[1] == 0:
