@@ -104,3 +104,22 @@ def test_random_walk_is_uniform():
     state = allocate(config, 50)
     actions = RandomWalk(config, seed=0).act(state, None, None)
     assert actions.shape == (50, 4) and set(np.unique(actions)) == set(range(9))
+
+
+def test_coverage_agents_meeting_head_on_pass_each_other():
+    """Two agents in one row heading for each other's cell: keeping right, both arrive (no deadlock)."""
+    config = WorldConfig(world_size=(10, 10), n_agents=2, n_targets=(1, 1), max_steps=10_000)
+    state = _world(10, [(5, 1), (5, 8)], config)
+    ctrl = GeometricCoverage(config)
+    ctrl.reset(state, np.ones(1, bool))
+    ctrl.waypoints[0, 0, :2] = [(5, 8), (5, 8)]
+    ctrl.waypoints[0, 1, :2] = [(5, 1), (5, 1)]
+    ctrl.n_points[:] = 2
+    ctrl.index[:] = 0
+    rng = np.random.default_rng(0)
+    reached = [False, False]
+    for _ in range(30):
+        step(config, state, ctrl.act(state, None, None), rng)
+        reached[0] |= tuple(state.pos[0, 0]) == (5, 8)
+        reached[1] |= tuple(state.pos[0, 1]) == (5, 1)
+    assert all(reached), state.pos[0].tolist()
