@@ -62,6 +62,8 @@ for ax, n in zip(axes[0], sizes, strict=True):
         ax.errorbar(group.N, group["mean"], yerr=[group["mean"] - group["low"], group["high"] - group["mean"]],
                     marker="o", markersize=3, capsize=2, label=label)  # fmt: skip
     ax.set(xscale="log", xlabel="agents N", title=f"n = {n}", ylim=(0, 1.02))
+    ticks = sorted(summary[summary.n == n].N.unique())
+    ax.set_xticks(ticks, labels=ticks)
 axes[0][0].set_ylabel("found fraction")
 axes[0][-1].legend(fontsize=7)
 fig.tight_layout()
