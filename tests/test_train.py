@@ -141,6 +141,11 @@ def test_bad_input_fails_before_work(tmp_path):
     assert out.returncode == 2 and "algo.batch_size=0" in out.stderr
     out = run("+model=c", f"resume={tmp_path}")
     assert out.returncode == 2 and "no config.yaml" in out.stderr
+    (tmp_path / "bad" / "checkpoints").mkdir(parents=True)
+    (tmp_path / "bad" / "config.yaml").write_text("seed: not-a-number\n")
+    (tmp_path / "bad" / "checkpoints" / "step_256.zip").write_bytes(b"")
+    out = run(f"resume={tmp_path / 'bad'}")
+    assert out.returncode == 2 and "does not fit the current schema" in out.stderr
     assert not (tmp_path / "x" / "config.yaml").exists()
 
 

@@ -87,7 +87,10 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     if other:
         fail(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
     # Merged into the schema: a run saved by an older version gains new fields' defaults, and types are checked.
-    saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), OmegaConf.load(run_dir / "config.yaml"))
+    try:
+        saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), OmegaConf.load(run_dir / "config.yaml"))
+    except OmegaConfBaseException as err:
+        fail(f"resume={cfg.resume!r}: its config.yaml does not fit the current schema: {err}")
     saved.resume = cfg.resume
     for key in keys:
         if key in RESUME_OVERRIDES:
