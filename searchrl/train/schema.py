@@ -106,7 +106,14 @@ class TrainConfig:
     log_interval: int = 1  # rollouts between log rows
 
 
+def run_dir(resume: str | None, model: str, seed: int, now: str) -> str:
+    """Hydra's output folder: a new run under runs/train/, or, on resume, a log folder inside the resumed run."""
+    return f"{resume}/resumed/{now}" if resume else f"runs/train/{model}/{now}_seed{seed}"
+
+
 def register_configs() -> None:
+    if not OmegaConf.has_resolver("searchrl_run_dir"):
+        OmegaConf.register_new_resolver("searchrl_run_dir", run_dir)
     cs = ConfigStore.instance()
     cs.store(name="train_schema", node=TrainConfig)
     cs.store(group="env", name="env_schema", node=EnvConfig)
