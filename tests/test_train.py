@@ -178,3 +178,9 @@ def test_check_config_names_the_bad_value(override, message):
 
     with pytest.raises(ValueError, match=message.replace("(", r"\(")):
         check_config(_compose(["+model=b", *override.split()]))
+
+
+def test_slurm_launcher_config_composes():
+    cmd = [sys.executable, "-m", "searchrl.train", "hydra/launcher=slurm", "+model=a", "--cfg", "hydra"]
+    out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and "SlurmLauncher" in out.stdout and "cpus_per_task: 8" in out.stdout
