@@ -20,9 +20,9 @@ from searchrl.train.__main__ import CONF_DIR, train
 from searchrl.train.build import load_algorithm, make_vec_env
 
 ROOT = Path(__file__).resolve().parents[1]
-# A few thousand agent-steps: 2 worlds × 4 agents × 32 steps = 256 agent-steps per rollout.
+# A few thousand agent-steps: 2048, in rollouts of 2 worlds × 4 agents × 32 steps = 256 agent-steps.
 TINY = [
-    "total_timesteps=1024",
+    "total_timesteps=2048",
     "env.n_worlds=2",
     "env.world.n_agents=4",
     "env.world.world_size=[12,20]",
@@ -30,8 +30,8 @@ TINY = [
     "env.world.n_distributions=[4,8]",
     "network=small",
     "algo.batch_size=128",
-    "checkpoint_every=512",
-    "validation.every=512",
+    "checkpoint_every=1024",
+    "validation.every=1024",
     "validation.n_worlds=2",
     "progress_bar=false",
     "threads=1",
@@ -51,21 +51,21 @@ def _run(tmp_path: Path, overrides: list[str]) -> Path:
 def test_tiny_run_trains_saves_reloads_and_predicts(tmp_path, model):
     final = _run(tmp_path, [f"+model={model}", *TINY])
     assert final == tmp_path / "model.zip" and final.exists()
-    assert sorted(p.name for p in (tmp_path / "checkpoints").glob("*.zip")) == ["step_1024.zip", "step_512.zip"]
+    assert sorted(p.name for p in (tmp_path / "checkpoints").glob("*.zip")) == ["step_1024.zip", "step_2048.zip"]
     if model == "a":  # retention: only the newest keep_checkpoints stay
         _run(tmp_path / "keep", [f"+model={model}", *TINY, "checkpoint_every=256", "keep_checkpoints=2"])
         assert sorted(p.name for p in (tmp_path / "keep" / "checkpoints").iterdir()) == [
-            "step_1024.zip",
-            "step_768.zip",
+            "step_1792.zip",
+            "step_2048.zip",
         ]
     assert (tmp_path / "config.yaml").exists() and any((tmp_path / "tensorboard").iterdir())
     rows = list(csv.DictReader(open(tmp_path / "progress.csv")))
-    assert [int(r["time/total_timesteps"]) for r in rows] == [256, 512, 768, 1024]
+    assert [int(r["time/total_timesteps"]) for r in rows] == list(range(256, 2049, 256))
     assert rows[-1]["val/found_fraction"] and rows[-1]["train/value_loss"]
     cfg = _compose([f"+model={model}", *TINY])
     env = make_vec_env(cfg, seed=0)
     loaded = load_algorithm(cfg, str(final), env)
-    assert loaded.num_timesteps == 1024
+    assert loaded.num_timesteps == 2048
     assert loaded.action_space.n == (9 if model == "diagonal" else 5)
     obs = env.reset()
     actions, state = loaded.predict(obs, episode_start=np.ones(env.num_envs, bool))
