@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, fields
+from dataclasses import fields
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
@@ -108,7 +108,3 @@ def load_algorithm(cfg: DictConfig, path: str, env: SearchVecEnv) -> BaseAlgorit
     """Load a checkpoint with its step count and optimiser state, attached to `env`."""
     algo_class, _ = ALGORITHMS[cfg.algo.name]
     return algo_class.load(path, env=env, device=cfg.device)
-
-
-def world_config_dict(world: WorldConfig) -> dict[str, Any]:
-    return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(world).items()}

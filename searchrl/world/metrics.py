@@ -6,8 +6,6 @@ import numpy as np
 
 from searchrl.world.state import WorldState
 
-METRIC_NAMES = ("L", "R", "F", "M_bar", "found_fraction", "collisions")
-
 
 def episode_metrics(state: WorldState) -> dict[str, np.ndarray]:
     """Per world (K,): search time L (steps taken; equals max_steps when targets remain), team return R,
