@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, FileNotFoundError, ValueError) as err:
         p.error(str(err))
     if args.checkpoint:
-        controller = PolicyController(args.checkpoint, config)
+        controller = PolicyController.load(args.checkpoint, config, seed=args.seed)
     else:
         from searchrl.evaluate.__main__ import CONTROLLERS
 

@@ -1,4 +1,4 @@
-"""`python -m searchrl.bench {world,memory,train,eval} [--json]`: benchmarks whose figures are measured in one run."""
+"""`python -m searchrl.bench {world,memory,train,eval,policy} [--json]`: figures measured in one run."""
 
 from __future__ import annotations
 
@@ -15,14 +15,15 @@ import sys
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m searchrl.bench", description=__doc__)
-    parser.add_argument("suite", choices=["world", "memory", "train", "eval"], help="what to measure")
+    parser.add_argument("suite", choices=["world", "memory", "train", "eval", "policy"], help="what to measure")
     parser.add_argument("--json", action="store_true", help="print one JSON object per case")
     parser.add_argument("--seconds", type=float, default=3.0, help="world: time budget per engine per case (> 0)")
     parser.add_argument("--updates", type=int, default=4, help="train: timed rollouts+updates (>= 1)")
-    parser.add_argument("--threads", type=int, default=2, help="train: torch threads (>= 1)")
+    parser.add_argument("--threads", type=int, default=2, help="train, eval, policy: torch threads (>= 1)")
     parser.add_argument("--network", choices=["paper", "small"], default="paper", help="train: network config")
     parser.add_argument("--controller", choices=["surfing", "coverage", "random"], default="surfing", help="eval")
     parser.add_argument("--maps", type=int, default=10, help="eval: maps per cell (>= 1)")
+    parser.add_argument("--checkpoint", help="eval: a policy model.zip instead of --controller; policy: required")
     args = parser.parse_args(argv)
     if not args.seconds > 0:
         parser.error(f"--seconds={args.seconds} is not allowed: must be > 0")
@@ -30,6 +31,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--maps={args.maps} is not allowed: must be >= 1")
     if args.updates < 1 or args.threads < 1:
         parser.error(f"--updates={args.updates}, --threads={args.threads} are not allowed: both must be >= 1")
+    if args.suite == "policy" and not args.checkpoint:
+        parser.error("policy needs --checkpoint=<model.zip>, e.g. runs/reference/b/model.zip")
+    if args.checkpoint and not os.path.isfile(args.checkpoint):
+        parser.error(f"--checkpoint={args.checkpoint!r} does not exist")
     log = None if args.json else sys.stdout
     if args.suite == "world":
         from searchrl.bench import world
@@ -42,7 +47,11 @@ def main(argv: list[str] | None = None) -> int:
     elif args.suite == "eval":
         from searchrl.bench import evaluate
 
-        rows = evaluate.run(controller=args.controller, maps=args.maps, log=log)
+        rows = evaluate.run(args.controller, args.maps, args.checkpoint, args.threads, log=log)
+    elif args.suite == "policy":
+        from searchrl.bench import policy
+
+        rows = policy.run(args.checkpoint, threads=args.threads, seconds=args.seconds, log=log)
     else:
         from searchrl.bench import train
 

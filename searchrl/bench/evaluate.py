@@ -1,11 +1,16 @@
-"""Evaluation throughput: a heuristic on every Table 2 cell with a few maps, agent-steps/s and the projected time
-of the full grid (3000 maps × 5 repeats). Smaller batches than the full run's make the projection pessimistic."""
+"""Evaluation throughput: a heuristic, or a policy checkpoint, on every Table 2 cell with a few maps; agent-steps/s
+and the projected time of the full grid (3000 maps × 5 repeats). Smaller batches than the full run's make the
+projection pessimistic."""
 
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import TextIO
 
+import torch
+
+from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor
 from searchrl.evaluate.__main__ import CONTROLLERS
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
@@ -14,15 +19,23 @@ from searchrl.world.config import WorldConfig
 FULL_EPISODES_PER_CELL = 100 * 5
 
 
-def run(controller: str = "surfing", maps: int = 10, log: TextIO | None = None) -> list[dict]:
+def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = None, threads: int = 2,
+        log: TextIO | None = None) -> list[dict]:  # fmt: skip
     cells = table2_cells([20, 40, 80, 160], [4, 8, 16, 32], [8, 16, 32, 64], [32, 64, 128, 256])
-    factory = CONTROLLERS[controller]
-    world = WorldConfig()
-    run_cell(factory, world, cells[0], 0, 1, 1, 0, needs_observation=False)  # warm-up: numba cache
+    if checkpoint:
+        torch.set_num_threads(threads)
+        world = WorldConfig.from_dict(checkpoint_config(checkpoint)[0])
+        actor = load_actor(checkpoint, world)
+        factory = lambda config: PolicyController(actor, config, seed=0)  # noqa: E731
+        controller = f"policy:{Path(checkpoint).parent.name}"
+    else:
+        factory, world = CONTROLLERS[controller], WorldConfig()
+    observed = checkpoint is not None
+    run_cell(factory, world, cells[0], 0, 1, 1, 0, needs_observation=observed)  # warm-up: numba cache
     steps = [0]
     start = time.perf_counter()
     for index, cell in enumerate(cells):
-        run_cell(factory, world, cell, index, maps, 1, 7_000_000, needs_observation=False,
+        run_cell(factory, world, cell, index, maps, 1, 7_000_000, needs_observation=observed,
                  on_steps=lambda s: steps.__setitem__(0, steps[0] + s))  # fmt: skip
     elapsed = time.perf_counter() - start
     rate = steps[0] / elapsed

@@ -16,6 +16,8 @@ class Controller(Protocol):
     `reset(state, mask)` is called after the worlds in `mask` (K,) were reset (all of them at the start), so
     per-world memory (an LSTM state, a sweep plan) starts afresh there. `act` returns (K, N) int64 actions in
     [0, config.n_actions) from the state and the agents' observations maps (K, N, 5, F, F), vector (K, N, 3).
+    `active` (K,) bool, when given, marks the worlds whose actions count; a controller may skip the others
+    (an expensive policy does; the heuristics act everywhere so their random draws do not depend on it).
     Decentralised controllers read only what an agent may know: its observation, its own belief and position.
     """
 
@@ -23,7 +25,9 @@ class Controller(Protocol):
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None: ...
 
-    def act(self, state: WorldState, maps: np.ndarray, vector: np.ndarray) -> np.ndarray: ...
+    def act(
+        self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
+    ) -> np.ndarray: ...
 
 
 class RandomWalk:
@@ -36,5 +40,7 @@ class RandomWalk:
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         pass
 
-    def act(self, state: WorldState, maps: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    def act(
+        self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
+    ) -> np.ndarray:
         return self.rng.integers(0, self.config.n_actions, size=(state.n_worlds, state.n_agents))

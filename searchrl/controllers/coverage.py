@@ -136,7 +136,9 @@ class GeometricCoverage:
                 self.n_points[w, i] = len(plan)
                 self.index[w, i] = 0
 
-    def act(self, state: WorldState, maps: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    def act(
+        self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
+    ) -> np.ndarray:
         out = np.empty((state.n_worlds, state.n_agents), np.int64)
         coverage_actions(state.pos, state.occupant, state.blocked, state.halo, self.waypoints, self.n_points,
                          self.index, self.config.diagonal, out)  # fmt: skip

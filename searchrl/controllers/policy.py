@@ -7,6 +7,8 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
+from searchrl.policies.actor import Actor, sample_actions
+from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.world.config import WorldConfig
 from searchrl.world.state import WorldState
 
@@ -25,39 +27,59 @@ def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
     raise FileNotFoundError(f"checkpoint={str(path)!r} has no run config.yaml beside it or one folder up")
 
 
+def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> Actor:
+    """The actor of a saved RecurrentPPO / PPO / A2C model.zip; ValueError if it acts in another action set."""
+    _, algo, _ = checkpoint_config(path)
+    algo_class, _ = ALGORITHMS[algo]
+    model = algo_class.load(str(path), device="cpu")
+    actor = Actor(model.policy, optimize=optimize)
+    if actor.n_actions != config.n_actions:
+        raise ValueError(
+            f"checkpoint={str(path)!r} acts with {actor.n_actions} actions but the world has {config.n_actions}"
+        )
+    return actor
+
+
 class PolicyController:
-    """Acts with a saved RecurrentPPO / PPO / A2C model; `deterministic=False` samples from the policy."""
+    """Acts with a trained actor: actions sampled from the policy with its own generator (`seed`), or argmax
+    when `deterministic`. The LSTM state of each of the K·N slots is carried across steps and zeroed where
+    `reset` marks a new episode. Rows of worlds outside `active` are skipped (their actions are 0)."""
 
-    def __init__(self, path: str | Path, config: WorldConfig, deterministic: bool = False, device: str = "cpu"):
-        from searchrl.train.build import ALGORITHMS  # torch and SB3 only when a policy is used
-
-        _, algo, _ = checkpoint_config(path)
-        algo_class, _ = ALGORITHMS[algo]
-        self.model = algo_class.load(str(path), device=device)
-        expected = self.model.action_space.n
-        if expected != config.n_actions:
-            raise ValueError(f"checkpoint acts with {expected} actions but the world has {config.n_actions}")
+    def __init__(self, actor: Actor, config: WorldConfig, deterministic: bool = False, seed: int = 0) -> None:
+        self.actor = actor
         self.config = config
-        self.deterministic = deterministic
-        self.recurrent = algo == "recurrent_ppo"
-        self._lstm = None
-        self._start: np.ndarray | None = None
+        self.rng = None if deterministic else np.random.default_rng(seed)
+        self._state: np.ndarray | None = None  # (2, layers, K·N, hidden)
+        self._start = np.zeros(0, bool)  # (K·N,) slots whose next step begins an episode
+
+    @classmethod
+    def load(cls, path: str | Path, config: WorldConfig, deterministic: bool = False, seed: int = 0):
+        return cls(load_actor(path, config), config, deterministic, seed)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
-        n = state.n_agents
-        if self._start is None or self._start.shape[0] != state.n_worlds * n:
-            self._start = np.ones(state.n_worlds * n, bool)
-            self._lstm = None
-        self._start |= np.repeat(np.asarray(mask, bool), n)
+        slots = state.n_worlds * state.n_agents
+        if self._start.shape[0] != slots:
+            self._start = np.ones(slots, bool)
+            self._state = self.actor.initial_state(slots)
+        self._start |= np.repeat(np.asarray(mask, bool), state.n_agents)
 
-    def act(self, state: WorldState, maps: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    def act(
+        self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
+    ) -> np.ndarray:
         k, n = state.n_worlds, state.n_agents
-        obs = {"map": maps.reshape(k * n, *maps.shape[2:]), "vector": vector.reshape(k * n, -1)}
-        if self.recurrent:
-            actions, self._lstm = self.model.predict(
-                obs, state=self._lstm, episode_start=self._start, deterministic=self.deterministic
-            )
+        maps, vector = maps.reshape(k * n, *maps.shape[2:]), vector.reshape(k * n, -1)
+        actions = np.zeros(k * n, np.int64)
+        if active is None or active.all():
+            rows = slice(None)
         else:
-            actions, _ = self.model.predict(obs, deterministic=self.deterministic)
-        self._start[:] = False
-        return np.asarray(actions, np.int64).reshape(k, n)
+            rows = np.flatnonzero(np.repeat(active, n))
+            maps, vector = maps[rows], vector[rows]
+        lstm = None
+        if self._state is not None:
+            lstm = self._state[:, :, rows] * ~self._start[rows][None, None, :, None]
+        logits, lstm = self.actor.logits(maps, vector, lstm)
+        if lstm is not None:
+            self._state[:, :, rows] = lstm
+        actions[rows] = sample_actions(logits, self.rng)
+        self._start[rows] = False
+        return actions.reshape(k, n)

@@ -104,7 +104,9 @@ class InformationSurfing:
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         pass
 
-    def act(self, state: WorldState, maps: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    def act(
+        self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
+    ) -> np.ndarray:
         k, n = state.n_worlds, state.n_agents
         fallback = self.rng.integers(1, self.config.n_actions, size=(k, n))
         out = np.empty((k, n), np.int64)

@@ -23,7 +23,7 @@ from tqdm import tqdm
 from searchrl.atomic import write_atomic
 from searchrl.controllers.base import RandomWalk
 from searchrl.controllers.coverage import GeometricCoverage
-from searchrl.controllers.policy import PolicyController, checkpoint_config
+from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
@@ -46,11 +46,10 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         world_dict, _, model_name = checkpoint_config(cfg.checkpoint)
         world = WorldConfig.from_dict(world_dict)
         run_name = Path(cfg.checkpoint).resolve().parent.name
-        policy = PolicyController(cfg.checkpoint, world, deterministic=bool(cfg.deterministic))
+        actor = load_actor(cfg.checkpoint, world)  # loaded once, serves every cell
 
         def policy_factory(config: WorldConfig) -> PolicyController:
-            policy.config = config  # the same loaded model serves every cell
-            return policy
+            return PolicyController(actor, config, deterministic=bool(cfg.deterministic), seed=int(cfg.seed))
 
         return world, f"policy:{run_name}", model_name, policy_factory, True
     world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))

@@ -72,7 +72,7 @@ def run_cell(
         finished = np.zeros(k, bool)
         final: dict[str, np.ndarray] = {}
         while not finished.all():
-            result = step(config, state, controller.act(state, maps_obs, vector), rng)
+            result = step(config, state, controller.act(state, maps_obs, vector, active=~finished), rng)
             if needs_observation:
                 maps_obs, vector = observe(config, state, buffers)
             first = result.done & ~finished

@@ -6,20 +6,14 @@ from dataclasses import fields
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
-from sb3_contrib import RecurrentPPO
-from stable_baselines3 import A2C, PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
 from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig
 from searchrl.world.config import ConfigError, WorldConfig
 
-ALGORITHMS: dict[str, tuple[type[BaseAlgorithm], str]] = {
-    "recurrent_ppo": (RecurrentPPO, "MultiInputLstmPolicy"),
-    "ppo": (PPO, "MultiInputPolicy"),
-    "a2c": (A2C, "MultiInputPolicy"),
-}
 ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "ppo": PPOConfig, "a2c": A2CConfig}
 TRAINABLE_MODELS = ("a", "b", "c", "diagonal")
 

@@ -1,0 +1,98 @@
+"""The fast inference actor and the policy controller: same distribution as SB3, seeded sampling, skipped rows."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+
+from searchrl.controllers.policy import PolicyController
+from searchrl.policies.actor import Actor, sample_actions
+from searchrl.train.__main__ import CONF_DIR
+from searchrl.train.build import make_algorithm, make_vec_env, world_config
+from searchrl.world.observe import observe
+from searchrl.world.reset import reset_world
+from searchrl.world.state import allocate
+from searchrl.world.step import step
+
+SMALL = ["env.n_worlds=3", "env.world.n_agents=4", "env.world.world_size=[12,20]", "network=small", "threads=1",
+         "algo.batch_size=128"]  # fmt: skip
+
+
+def _model(algo: str, *overrides: str):
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose(config_name="train", overrides=["+model=b", f"algo={algo}", *SMALL, *overrides])
+    torch.manual_seed(0)
+    return cfg, make_algorithm(cfg, make_vec_env(cfg, seed=0), tensorboard_log=None)
+
+
+def _sb3_probs(policy, obs: dict, lstm, starts: np.ndarray):
+    """SB3's own action probabilities (and next LSTM state) for one step."""
+    with torch.no_grad():
+        tensors = {k: torch.as_tensor(v) for k, v in obs.items()}
+        if lstm is None:
+            return policy.get_distribution(tensors).distribution.probs.numpy(), None
+        dist, lstm = policy.get_distribution(tensors, lstm, torch.as_tensor(starts, dtype=torch.float32))
+        return dist.distribution.probs.numpy(), lstm
+
+
+@pytest.mark.parametrize("algo", ["recurrent_ppo", "ppo"])
+def test_actor_gives_the_policys_own_distribution(algo):
+    """Over an episode with resets inside it, the traced actor's softmax equals SB3's get_distribution."""
+    cfg, model = _model(algo)
+    policy = model.policy
+    policy.set_training_mode(False)
+    actor = Actor(policy)
+    assert isinstance(actor._extract, torch.jit.ScriptModule)  # the optimised path, not the eager fallback
+    env = make_vec_env(cfg, seed=1)
+    obs = env.reset()
+    slots = env.num_envs
+    rng = np.random.default_rng(0)
+    ours = actor.initial_state(slots)
+    theirs = None if ours is None else tuple(torch.zeros(ours.shape[1:]) for _ in range(2))
+    starts = np.ones(slots, bool)
+    for t in range(12):
+        expected, theirs = _sb3_probs(policy, obs, theirs, starts)
+        if ours is not None:
+            ours = ours * ~starts[None, None, :, None]
+        logits, ours = actor.logits(obs["map"], obs["vector"], ours)
+        probs = torch.softmax(torch.from_numpy(logits), 1).numpy()
+        np.testing.assert_allclose(probs, expected, rtol=1e-4, atol=1e-6)
+        obs, _, _, _ = env.step(rng.integers(0, 5, slots))
+        starts = rng.random(slots) < 0.2  # resets inside the sequence
+
+
+def test_sample_actions_follows_the_probabilities_and_the_seed():
+    logits = np.log(np.array([[0.1, 0.2, 0.3, 0.4, 1e-9]] * 40_000, np.float32))
+    actions = sample_actions(logits, np.random.default_rng(3))
+    freq = np.bincount(actions, minlength=5) / len(actions)
+    np.testing.assert_allclose(freq, [0.1, 0.2, 0.3, 0.4, 0.0], atol=0.01)
+    assert (sample_actions(logits[:100], np.random.default_rng(3)) == actions[:100]).all()
+    assert (sample_actions(logits[:3], None) == 3).all()
+
+
+def test_controller_skips_inactive_worlds_and_keeps_their_memory():
+    """Acting for a subset of worlds gives those worlds the same actions as acting for all, and leaves the
+    LSTM state of the skipped worlds as it was."""
+    cfg, model = _model("recurrent_ppo")
+    config = world_config(cfg)
+    actor = Actor(model.policy)
+    k = 3
+    state = allocate(config, k)
+    for w in range(k):
+        reset_world(config, state, w, np.random.default_rng(w))
+    full, part = (PolicyController(actor, config, deterministic=True) for _ in range(2))
+    for c in (full, part):
+        c.reset(state, np.ones(k, bool))
+    active = np.array([True, False, True])
+    rng = np.random.default_rng(0)
+    for t in range(5):
+        maps, vector = observe(config, state)
+        kept = part._state[:, :, 4:8].copy()
+        a_full = full.act(state, maps, vector)
+        a_part = part.act(state, maps, vector, active=active if t else None)
+        if t:
+            assert (a_part[active] == a_full[active]).all() and (a_part[~active] == 0).all()
+            np.testing.assert_array_equal(part._state[:, :, 4:8], kept)
+        step(config, state, a_full, rng)
