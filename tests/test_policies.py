@@ -52,7 +52,7 @@ def test_actor_gives_the_policys_own_distribution(algo):
     ours = actor.initial_state(slots)
     theirs = None if ours is None else tuple(torch.zeros(ours.shape[1:]) for _ in range(2))
     starts = np.ones(slots, bool)
-    for t in range(12):
+    for _ in range(12):
         expected, theirs = _sb3_probs(policy, obs, theirs, starts)
         if ours is not None:
             ours = ours * ~starts[None, None, :, None]

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import torch
 from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
 
 from searchrl.train.__main__ import CONF_DIR, train
@@ -122,6 +123,8 @@ def test_resume_after_kill_loses_nothing(tmp_path):
     steps = [int(r["time/total_timesteps"]) for r in csv.DictReader(open(run_dir / "progress.csv"))]
     assert steps == list(range(256, 4097, 256))  # no gap and no duplicate row
     assert (run_dir / "checkpoints" / "step_2048.zip").stat().st_mtime_ns == before  # not saved again
+    record = OmegaConf.load(run_dir / "config.yaml")  # the run's record holds the budget it was trained to
+    assert record.total_timesteps == 4096 and record.keep_checkpoints == 3 and record.resume is None
     assert sorted(p.name for p in (run_dir / "checkpoints").glob("*.zip")) == [
         "step_2048.zip", "step_3072.zip", "step_4096.zip"]  # fmt: skip
 

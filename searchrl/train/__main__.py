@@ -8,6 +8,7 @@ checkpoint with step count and optimiser state intact.
 
 from __future__ import annotations
 
+import copy
 import os
 
 # Sleep rather than spin when torch's OpenMP threads wait: with parallel sweeps or any other busy process on the
@@ -107,8 +108,10 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
     except (ConfigError, ValueError, OmegaConfBaseException) as err:
         fail(str(err))
     torch.set_num_threads(int(cfg.threads))
-    if cfg.resume is None:
-        write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(cfg, resolve=True))
+    # The run's record: a resume writes back what it changed (say total_timesteps) but never what it resumes from.
+    record = copy.deepcopy(cfg)
+    record.resume = None
+    write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(record, resolve=True))
 
     # Environment and algorithm: fresh, or the checkpoint with its step count and optimiser state.
     env = make_vec_env(cfg)
