@@ -13,7 +13,15 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from searchrl.analysis.stats import beside_paper, bootstrap_mean_ci, markdown, paper_table3, summarize, table3
+from searchrl.analysis.stats import (
+    beside_paper,
+    bootstrap_mean_ci,
+    markdown,
+    paired_margins,
+    paper_table3,
+    summarize,
+    table3,
+)
 from searchrl.render import main as render_main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -22,7 +30,7 @@ NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 
 @pytest.fixture(scope="module")
 def fixture_dirs(tmp_path_factory):
-    """Two tiny evaluations (surfing, coverage) and one tiny training run."""
+    """Three tiny evaluations (surfing, coverage, a tiny model B policy) and that tiny training run."""
     from tests.test_evaluate import _evaluate
     from tests.test_train import TINY, _run
 
@@ -30,7 +38,9 @@ def fixture_dirs(tmp_path_factory):
     for controller in ("surfing", "coverage"):
         _evaluate(base / "eval" / controller, f"controller={controller}", "grid.world_sizes=[20,160]",
                   "grid.max_agents=[2,2]", "grid.n_targets=[4,32]", "grid.n_distributions=[8,64]")  # fmt: skip
-    _run(base / "run", ["+model=b", *TINY, "total_timesteps=768", "validation.every=256"])
+    model = _run(base / "run", ["+model=b", *TINY, "total_timesteps=768", "validation.every=256"])
+    _evaluate(base / "eval" / "policy", f"checkpoint={model}", "grid.world_sizes=[20,160]", "grid.max_agents=[2,2]",
+              "grid.n_targets=[4,32]", "grid.n_distributions=[8,64]")  # fmt: skip
     return base
 
 
@@ -38,7 +48,7 @@ def fixture_dirs(tmp_path_factory):
 def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
     env = {
         **os.environ,
-        "SEARCHRL_EVAL_DIRS": f"{fixture_dirs}/eval/surfing,{fixture_dirs}/eval/coverage",
+        "SEARCHRL_EVAL_DIRS": ",".join(f"{fixture_dirs}/eval/{c}" for c in ("surfing", "coverage", "policy")),
         "SEARCHRL_RUN_DIRS": str(fixture_dirs / "run"),
         "SEARCHRL_ANALYSIS_OUT": str(tmp_path),
         "MPLBACKEND": "Agg",
@@ -50,13 +60,20 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "table3.py": ["table3.csv", "table3.md"],
         "figures.py": ["fig7_n160.png", "fig8_all_sizes.png"],
         "training_curves.py": ["training_curves.png", "training_curves.csv"],
+        "claims.py": ["margins.csv", "margins.md", "claims.md"],
     }[notebook]
     for name in expected:
         assert (tmp_path / name).stat().st_size > 0, name
     if notebook == "table3.py":
         table = pd.read_csv(tmp_path / "table3.csv")
-        assert set(table.controller) == {"surfing", "coverage"} and table["paper"].notna().all()
+        assert set(table.controller) == {"surfing", "coverage", "policy:run"} and table["paper"].notna().all()
         assert (table["low"] <= table["mean"]).all() and (table["mean"] <= table["high"]).all()
+    if notebook == "claims.py":
+        margins = pd.read_csv(tmp_path / "margins.csv")
+        pairs = set(zip(margins.controller, margins.baseline, strict=True))
+        assert pairs == {("policy:run", "surfing"), ("policy:run", "coverage")}
+        assert len(margins) == 2 * 4 and (margins.maps == 3).all()  # 4 cells, 3 maps each
+        assert "## 1. DRL beats information surfing" in (tmp_path / "claims.md").read_text()
 
 
 @pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS])
@@ -107,3 +124,20 @@ def test_render_writes_an_episode_gif(tmp_path):
     assert 2 <= gif.n_frames <= 257 and gif.size[0] > 2 * gif.size[1] - 40
     with pytest.raises(SystemExit):
         render_main(["--out", str(tmp_path / "x.mp4")])
+
+
+def test_paired_margins_compare_the_same_maps():
+    cell = {"model": "b", "n": 40, "N": 4}
+    rows = []
+    for seed, (a, b) in enumerate([(1.0, 0.5), (0.75, 0.5), (1.0, 0.75)]):
+        for _ in range(2):  # repeats
+            rows += [{**cell, "controller": "x", "map_seed": seed, "found_fraction": a},
+                     {**cell, "controller": "y", "map_seed": seed, "found_fraction": b}]  # fmt: skip
+    rows.append({**cell, "controller": "y", "map_seed": 99, "found_fraction": 0.0})  # unpaired: ignored
+    margins = paired_margins(pd.DataFrame(rows), "x", "y")
+    (row,) = margins.itertuples()
+    assert row.maps == 3 and row.diff == pytest.approx(1 / 3) and row.low > 0 and row.verdict == "better"
+    swapped = paired_margins(pd.DataFrame(rows), "y", "x")
+    assert swapped.verdict.item() == "worse" and swapped["diff"].item() == pytest.approx(-1 / 3)
+    with pytest.raises(ValueError, match="'z'"):
+        paired_margins(pd.DataFrame(rows), "x", "z")

@@ -35,6 +35,31 @@ def summarize(episodes: pd.DataFrame, metric: str = "found_fraction", n_boot: in
     return pd.DataFrame(rows)
 
 
+def paired_margins(
+    episodes: pd.DataFrame, mine: str, baseline: str, metric: str = "found_fraction", n_boot: int = 2000,
+    saturated: float = 0.995,
+) -> pd.DataFrame:  # fmt: skip
+    """Controller `mine` minus controller `baseline`, cell by cell, on the maps both ran (evaluation maps are
+    shared: their seeds depend only on the cell and map index). Repeats are averaged per map, the per-map
+    differences bootstrapped. `verdict`: "better" / "worse" when the 95 % CI excludes 0, "tie" otherwise, and
+    "saturated" for a tie where both means are at least `saturated` (nothing left to find)."""
+    per_map = episodes.groupby(["controller", "n", "N", "map_seed"], as_index=False)[metric].mean()
+    a, b = (per_map[per_map.controller == c].drop(columns="controller") for c in (mine, baseline))
+    if a.empty or b.empty:
+        raise ValueError(f"no episodes of controller {mine if a.empty else baseline!r} to compare")
+    joined = a.merge(b, on=["n", "N", "map_seed"], suffixes=("_mine", "_base"))
+    rows = []
+    for (n, agents), group in joined.groupby(["n", "N"]):
+        diff, low, high = bootstrap_mean_ci((group[f"{metric}_mine"] - group[f"{metric}_base"]).to_numpy(), n_boot)
+        ours, theirs = group[f"{metric}_mine"].mean(), group[f"{metric}_base"].mean()
+        verdict = "better" if low > 0 else "worse" if high < 0 else "tie"
+        if verdict == "tie" and min(ours, theirs) >= saturated:
+            verdict = "saturated"
+        rows.append({"controller": mine, "baseline": baseline, "n": n, "N": agents, "mine": ours, "base": theirs,
+                     "diff": diff, "low": low, "high": high, "maps": len(group), "verdict": verdict})  # fmt: skip
+    return pd.DataFrame(rows)
+
+
 def table3(summary: pd.DataFrame, value: str = "mean") -> pd.DataFrame:
     """Table 3 layout: rows N, columns n, one block per (controller, model)."""
     return summary.pivot_table(index=["controller", "model", "N"], columns="n", values=value)

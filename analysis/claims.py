@@ -1,0 +1,103 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
+
+# %% [markdown]
+# # The paper's claims, checked on this reproduction
+#
+# Every trained policy found in the evaluation directories (controller `policy:<run>`) is compared, on the same
+# maps, with information surfing and geometric coverage, and with the other policies: the paired difference in
+# found fraction per cell, with a 95 % bootstrap CI over maps. Then the paper's four claims:
+#
+# 1. DRL beats information surfing (here: on every cell with n ≥ 40 and N ≥ 4);
+# 2. model B beats model C (communication helps);
+# 3. model diagonal is best;
+# 4. communication helps most at large N (B − C grows with N).
+#
+# Writes `margins.csv` (tidy), `margins.md` (rows N, columns n) and `claims.md`. Run from the repository root:
+# `python analysis/claims.py`; inputs as in `table3.py` (`SEARCHRL_EVAL_DIRS`, `SEARCHRL_ANALYSIS_OUT`).
+
+# %%
+import os
+from pathlib import Path
+
+import pandas as pd
+
+from searchrl.analysis.stats import markdown, paired_margins
+from searchrl.evaluate.results import load
+
+ROOT = Path.cwd()
+EVAL_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_EVAL_DIRS", "").split(",") if d] or sorted(
+    p for p in (ROOT / "runs" / "eval").glob("*") if (p / "cells").is_dir()
+)
+OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
+OUT.mkdir(parents=True, exist_ok=True)
+episodes = load(*EVAL_DIRS)
+policy_rows = episodes[episodes.controller.str.startswith("policy:")][["model", "controller"]].drop_duplicates()
+policies = dict(zip(policy_rows.model, policy_rows.controller, strict=True))  # model name -> controller label
+baselines = [c for c in ("surfing", "coverage") if c in set(episodes.controller)]
+print(f"policies {policies}; baselines {baselines}")
+
+# %% [markdown]
+# ## Margins over the baselines, cell by cell
+
+# %%
+pairs = [(policies[m], base) for m in sorted(policies) for base in baselines]
+pairs += [(policies[x], policies[y]) for x, y in [("b", "c"), ("diagonal", "a"), ("diagonal", "b"), ("diagonal", "c")]
+          if x in policies and y in policies]  # fmt: skip
+margins = pd.concat([paired_margins(episodes, a, b) for a, b in pairs], ignore_index=True) if pairs else None
+sections = []
+if margins is not None:
+    margins.to_csv(OUT / "margins.csv", index=False)
+    labelled = margins.assign(
+        entry=[f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
+               zip(margins["diff"], margins.low, margins.high, margins.verdict, strict=True)]
+    )  # fmt: skip
+    for (mine, base), block in labelled.groupby(["controller", "baseline"], sort=False):
+        layout = block.pivot_table(index="N", columns="n", values="entry", aggfunc="first").fillna("–")
+        sections.append(f"### {mine} − {base}\n\n" + markdown(layout))
+    (OUT / "margins.md").write_text("\n".join(sections))
+print("\n".join(sections) or "no policy results to compare")
+
+# %% [markdown]
+# ## The claims
+
+
+# %%
+def verdicts(mine: str, base: str, region: pd.Series | None = None) -> str:
+    block = margins[(margins.controller == mine) & (margins.baseline == base)]
+    if region is not None:
+        block = block[region.loc[block.index]]
+    if block.empty:
+        return "no evaluated cell in this region"
+    counts = block.verdict.value_counts()
+    worst = block.loc[block["diff"].idxmin()]
+    return (f"better on {counts.get('better', 0)} of {len(block)} cells, tie {counts.get('tie', 0)}, saturated "
+            f"{counts.get('saturated', 0)}, worse {counts.get('worse', 0)}; smallest margin {worst['diff']:+.3f} "
+            f"[{worst.low:+.3f}, {worst.high:+.3f}] at n = {worst.n}, N = {worst.N}")  # fmt: skip
+
+
+lines = ["# Claims\n"]
+if margins is not None and "surfing" in baselines:
+    lines.append("## 1. DRL beats information surfing (cells with n ≥ 40 and N ≥ 4)\n")
+    region = (margins.n >= 40) & (margins.N >= 4)
+    lines += [f"- {m}: " + verdicts(policies[m], "surfing", region) for m in sorted(policies)]
+    lines.append("\nAll cells:\n")
+    lines += [f"- {m}: " + verdicts(policies[m], "surfing") for m in sorted(policies)]
+if margins is not None and "coverage" in baselines:
+    lines.append("\n## Against geometric coverage (all cells)\n")
+    lines += [f"- {m}: " + verdicts(policies[m], "coverage") for m in sorted(policies)]
+if "b" in policies and "c" in policies:
+    lines.append("\n## 2. B beats C\n")
+    lines.append("- b − c: " + verdicts(policies["b"], policies["c"]))
+    lines.append("\n## 4. Communication helps most at large N: mean of B − C over world sizes, by N\n")
+    by_n = margins[(margins.controller == policies["b"]) & (margins.baseline == policies["c"])]
+    lines.append(markdown(by_n.groupby("N")[["diff"]].mean()))
+if "diagonal" in policies:
+    lines.append("\n## 3. Diagonal is best\n")
+    lines += [f"- diagonal − {m}: " + verdicts(policies["diagonal"], policies[m]) for m in ("a", "b", "c")
+              if m in policies]  # fmt: skip
+(OUT / "claims.md").write_text("\n".join(lines) + "\n")
+print("\n".join(lines))
