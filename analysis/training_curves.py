@@ -20,7 +20,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from searchrl.analysis.stats import training_curves
+from searchrl.analysis.stats import markdown, training_curves
 
 ROOT = Path.cwd()
 RUN_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_RUN_DIRS", "").split(",") if d] or sorted(
@@ -54,3 +54,16 @@ for ax, (metric, title) in zip(axes, METRICS, strict=True):
 axes[-1].legend(fontsize=6)
 fig.tight_layout()
 fig.savefig(OUT / "training_curves.png", dpi=120)
+
+# %% [markdown]
+# ## Convergence: validation found fraction per million agent-steps
+#
+# The mean of the validation points in each window of 10⁶ agent-steps (window [k, k + 1) M, labelled k + 1), per
+# run; written to `training_convergence.md`. A flat tail is the evidence that a run stopped short of the paper's
+# 18.4M has converged.
+
+# %%
+val = curves[curves.metric == "val/found_fraction"].assign(window=lambda f: f.step // 1_000_000 + 1)
+convergence = val.pivot_table(index="window", columns=["model", "run"], values="value", aggfunc="mean")
+(OUT / "training_convergence.md").write_text(markdown(convergence))
+print(markdown(convergence))

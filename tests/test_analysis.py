@@ -59,7 +59,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
     expected = {
         "table3.py": ["table3.csv", "table3.md"],
         "figures.py": ["fig7_n160.png", "fig8_all_sizes.png"],
-        "training_curves.py": ["training_curves.png", "training_curves.csv"],
+        "training_curves.py": ["training_curves.png", "training_curves.csv", "training_convergence.md"],
         "claims.py": ["margins.csv", "margins.md", "claims.md"],
     }[notebook]
     for name in expected:
