@@ -53,7 +53,10 @@ class PolicyController:
         self._start = np.zeros(0, bool)  # (K·N,) slots whose next step begins an episode
 
     @classmethod
-    def load(cls, path: str | Path, config: WorldConfig, deterministic: bool = False, seed: int = 0):
+    def load(
+        cls, path: str | Path, config: WorldConfig, deterministic: bool = False, seed: int = 0
+    ) -> PolicyController:
+        """Load `path` (a model.zip of a run) and act with it."""
         return cls(load_actor(path, config), config, deterministic, seed)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
