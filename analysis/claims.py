@@ -36,6 +36,8 @@ OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
 OUT.mkdir(parents=True, exist_ok=True)
 episodes = load(*EVAL_DIRS)
 policy_rows = episodes[episodes.controller.str.startswith("policy:")][["model", "controller"]].drop_duplicates()
+if policy_rows.model.duplicated().any():
+    raise SystemExit(f"several policies per model in {EVAL_DIRS}: {policy_rows.values.tolist()}; pass one per model")
 policies = dict(zip(policy_rows.model, policy_rows.controller, strict=True))  # model name -> controller label
 baselines = [c for c in ("surfing", "coverage") if c in set(episodes.controller)]
 print(f"policies {policies}; baselines {baselines}")
@@ -75,7 +77,8 @@ def verdicts(mine: str, base: str, region: pd.Series | None = None) -> str:
     counts = block.verdict.value_counts()
     worst = block.loc[block["diff"].idxmin()]
     return (f"better on {counts.get('better', 0)} of {len(block)} cells, tie {counts.get('tie', 0)}, saturated "
-            f"{counts.get('saturated', 0)}, worse {counts.get('worse', 0)}; smallest margin {worst['diff']:+.3f} "
+            f"{counts.get('saturated', 0)}, worse {counts.get('worse', 0)}, too few maps "
+            f"{counts.get('too few maps', 0)}; smallest margin {worst['diff']:+.3f} "
             f"[{worst.low:+.3f}, {worst.high:+.3f}] at n = {worst.n}, N = {worst.N}")  # fmt: skip
 
 

@@ -134,10 +134,17 @@ def test_paired_margins_compare_the_same_maps():
             rows += [{**cell, "controller": "x", "map_seed": seed, "found_fraction": a},
                      {**cell, "controller": "y", "map_seed": seed, "found_fraction": b}]  # fmt: skip
     rows.append({**cell, "controller": "y", "map_seed": 99, "found_fraction": 0.0})  # unpaired: ignored
-    margins = paired_margins(pd.DataFrame(rows), "x", "y")
+    margins = paired_margins(pd.DataFrame(rows), "x", "y", min_maps=3)
     (row,) = margins.itertuples()
     assert row.maps == 3 and row.diff == pytest.approx(1 / 3) and row.low > 0 and row.verdict == "better"
-    swapped = paired_margins(pd.DataFrame(rows), "y", "x")
+    swapped = paired_margins(pd.DataFrame(rows), "y", "x", min_maps=3)
     assert swapped.verdict.item() == "worse" and swapped["diff"].item() == pytest.approx(-1 / 3)
+    assert paired_margins(pd.DataFrame(rows), "x", "y").verdict.item() == "too few maps"  # default min_maps=20
     with pytest.raises(ValueError, match="'z'"):
         paired_margins(pd.DataFrame(rows), "x", "z")
+    other_model = pd.DataFrame([*rows, {**cell, "model": "a", "controller": "y", "map_seed": 0, "found_fraction": 1}])
+    with pytest.raises(ValueError, match="several models"):
+        paired_margins(other_model, "x", "y")
+    other_maps = pd.DataFrame(rows).assign(map_seed=lambda f: f.map_seed + (f.controller == "y") * 1000)
+    with pytest.raises(ValueError, match="share no map"):
+        paired_margins(other_maps, "x", "y")

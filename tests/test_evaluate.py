@@ -80,8 +80,6 @@ def test_checkpoint_settings_come_from_its_run(tmp_path):
     assert len(frame) == 18
     again = _evaluate(tmp_path / "again", f"checkpoint={model}")  # sampled actions come from the eval seed
     pd.testing.assert_frame_equal(frame, again)
-    other = _evaluate(tmp_path / "other", f"checkpoint={model}", "seed=123")
-    assert not frame.L.equals(other.L) or not frame.found_fraction.equals(other.found_fraction)
 
 
 @pytest.mark.parametrize(

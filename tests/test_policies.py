@@ -24,7 +24,10 @@ def _model(algo: str, *overrides: str):
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose(config_name="train", overrides=["+model=b", f"algo={algo}", *SMALL, *overrides])
     torch.manual_seed(0)
-    return cfg, make_algorithm(cfg, make_vec_env(cfg, seed=0), tensorboard_log=None)
+    model = make_algorithm(cfg, make_vec_env(cfg, seed=0), tensorboard_log=None)
+    with torch.no_grad():  # SB3 initialises the head with gain 0.01: make the distribution peaked
+        model.policy.action_net.weight.mul_(2000)
+    return cfg, model
 
 
 def _sb3_probs(policy, obs: dict, lstm, starts: np.ndarray):
@@ -58,6 +61,7 @@ def test_actor_gives_the_policys_own_distribution(algo):
             ours = ours * ~starts[None, None, :, None]
         logits, ours = actor.logits(obs["map"], obs["vector"], ours)
         probs = torch.softmax(torch.from_numpy(logits), 1).numpy()
+        assert probs.max() > 0.5  # a peaked distribution, so a wrong input or state shows
         np.testing.assert_allclose(probs, expected, rtol=1e-4, atol=1e-6)
         obs, _, _, _ = env.step(rng.integers(0, 5, slots))
         starts = rng.random(slots) < 0.2  # resets inside the sequence
@@ -96,3 +100,35 @@ def test_controller_skips_inactive_worlds_and_keeps_their_memory():
             assert (a_part[active] == a_full[active]).all() and (a_part[~active] == 0).all()
             np.testing.assert_array_equal(part._state[:, :, 4:8], kept)
         step(config, state, a_full, rng)
+
+
+def test_controller_resets_only_the_marked_worlds_and_samples_by_seed():
+    cfg, model = _model("recurrent_ppo")
+    config = world_config(cfg)
+    actor = Actor(model.policy)
+    k = 3
+    state = allocate(config, k)
+    for w in range(k):
+        reset_world(config, state, w, np.random.default_rng(w))
+    controller = PolicyController(actor, config, deterministic=True)
+    controller.reset(state, np.ones(k, bool))
+    rng = np.random.default_rng(0)
+    for _ in range(4):  # build up LSTM state
+        step(config, state, controller.act(state, *observe(config, state)), rng)
+    before = controller._state.copy()
+    controller.reset(state, np.array([False, True, False]))
+    fresh = PolicyController(actor, config, deterministic=True)
+    fresh.reset(state, np.ones(k, bool))
+    maps, vector = observe(config, state)
+    acted, first = controller.act(state, maps, vector), fresh.act(state, maps, vector)
+    assert (acted[1] == first[1]).all()  # world 1 starts afresh: same as a new controller
+    np.testing.assert_array_equal(controller._state[:, :, 4:8], fresh._state[:, :, 4:8])
+    assert not np.allclose(controller._state[:, :, :4], fresh._state[:, :, :4])  # the others kept their memory
+    assert not np.array_equal(before[:, :, :4], controller._state[:, :, :4])  # and carried it forward
+
+    def sampled(seed: int) -> np.ndarray:
+        c = PolicyController(actor, config, seed=seed)
+        c.reset(state, np.ones(k, bool))
+        return np.stack([c.act(state, maps, vector) for _ in range(20)])
+
+    assert (sampled(5) == sampled(5)).all() and not (sampled(5) == sampled(6)).all()

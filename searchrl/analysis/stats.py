@@ -37,17 +37,27 @@ def summarize(episodes: pd.DataFrame, metric: str = "found_fraction", n_boot: in
 
 def paired_margins(
     episodes: pd.DataFrame, mine: str, baseline: str, metric: str = "found_fraction", n_boot: int = 2000,
-    saturated: float = 0.995,
+    saturated: float = 0.995, min_maps: int = 20,
 ) -> pd.DataFrame:  # fmt: skip
-    """Controller `mine` minus controller `baseline`, cell by cell, on the maps both ran (evaluation maps are
-    shared: their seeds depend only on the cell and map index). Repeats are averaged per map, the per-map
-    differences bootstrapped. `verdict`: "better" / "worse" when the 95 % CI excludes 0, "tie" otherwise, and
-    "saturated" for a tie where both means are at least `saturated` (nothing left to find)."""
-    per_map = episodes.groupby(["controller", "n", "N", "map_seed"], as_index=False)[metric].mean()
-    a, b = (per_map[per_map.controller == c].drop(columns="controller") for c in (mine, baseline))
-    if a.empty or b.empty:
-        raise ValueError(f"no episodes of controller {mine if a.empty else baseline!r} to compare")
-    joined = a.merge(b, on=["n", "N", "map_seed"], suffixes=("_mine", "_base"))
+    """Controller `mine` minus controller `baseline`, cell by cell, on the maps both ran (evaluations with the
+    same seed and grid share their maps: a seed depends only on the cell and map index; cells or maps only one
+    side ran are left out). Repeats are averaged per map, the per-map differences bootstrapped. `verdict`:
+    "better" / "worse" when the 95 % CI excludes 0, "tie" otherwise, "saturated" for a tie where both means are
+    at least `saturated` (nothing left to find), and "too few maps" below `min_maps` paired maps. The CIs are
+    per cell, not corrected for comparing many cells."""
+    per_map = episodes.groupby(["controller", "model", "n", "N", "map_seed"], as_index=False)[metric].mean()
+    sides = []
+    for name in (mine, baseline):
+        side = per_map[per_map.controller == name]
+        if side.empty:
+            raise ValueError(f"no episodes of controller {name!r} to compare")
+        if side.model.nunique() > 1:
+            raise ValueError(f"controller {name!r} was evaluated with several models {sorted(side.model.unique())}:"
+                             " pass episodes of one")  # fmt: skip
+        sides.append(side.drop(columns=["controller", "model"]))
+    joined = sides[0].merge(sides[1], on=["n", "N", "map_seed"], suffixes=("_mine", "_base"))
+    if joined.empty:
+        raise ValueError(f"{mine!r} and {baseline!r} share no map: were they evaluated with the same seed and grid?")
     rows = []
     for (n, agents), group in joined.groupby(["n", "N"]):
         diff, low, high = bootstrap_mean_ci((group[f"{metric}_mine"] - group[f"{metric}_base"]).to_numpy(), n_boot)
@@ -55,6 +65,8 @@ def paired_margins(
         verdict = "better" if low > 0 else "worse" if high < 0 else "tie"
         if verdict == "tie" and min(ours, theirs) >= saturated:
             verdict = "saturated"
+        if len(group) < min_maps:
+            verdict = "too few maps"
         rows.append({"controller": mine, "baseline": baseline, "n": n, "N": agents, "mine": ours, "base": theirs,
                      "diff": diff, "low": low, "high": high, "maps": len(group), "verdict": verdict})  # fmt: skip
     return pd.DataFrame(rows)
