@@ -92,6 +92,16 @@ if margins is not None and "surfing" in baselines:
 if margins is not None and "coverage" in baselines:
     lines.append("\n## Against geometric coverage (all cells)\n")
     lines += [f"- {m}: " + verdicts(policies[m], "coverage") for m in sorted(policies)]
+    # Why: coverage ignores the prior but never overlaps. Its lanes are 3 rows apart, so in 256 steps a team
+    # sweeps about N·256·3 cells; where that exceeds the n² of the domain, a sweep finds nearly everything.
+    lines.append("\nVerdicts against coverage by sweep capacity N·256·3 / n² (the share of the domain a team of N "
+                 "can sweep once in 256 steps):\n")  # fmt: skip
+    versus = margins[margins.baseline == "coverage"]
+    capacity = pd.cut(versus.N * 256 * 3 / versus.n**2, [0, 0.5, 1, float("inf")], labels=["< 0.5", "0.5-1", "≥ 1"])
+    tally = versus.assign(capacity=capacity).pivot_table(
+        index=["controller", "capacity"], columns="verdict", values="n", aggfunc="count", fill_value=0, observed=True
+    )
+    lines.append(markdown(tally))
 if "b" in policies and "c" in policies:
     lines.append("\n## 2. B beats C\n")
     lines.append("- b − c: " + verdicts(policies["b"], policies["c"]))
