@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import csv
 import json
+import subprocess
+import sys
 import zipfile
 from pathlib import Path
 
@@ -13,6 +15,7 @@ from omegaconf import OmegaConf
 
 from searchrl.controllers.policy import PolicyController, checkpoint_config
 from searchrl.evaluate.grid import Cell
+from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import cell_config
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observe
@@ -48,3 +51,16 @@ def test_shipped_policy_is_complete_and_acts(model):
     controller.reset(state, np.ones(2, bool))
     actions = controller.act(state, *observe(config, state))
     assert actions.shape == (2, 4) and ((actions >= 0) & (actions < config.n_actions)).all()
+
+
+@pytest.mark.skipif("b" not in SHIPPED, reason="reference B not shipped")
+def test_the_readme_evaluation_command_runs_on_reference_b(tmp_path):
+    """`python -m searchrl.evaluate checkpoint=runs/reference/b/model.zip`, on a two-cell slice of the grid."""
+    slice_ = ["grid.world_sizes=[20]", "grid.n_targets=[4]", "grid.n_distributions=[8]", "grid.max_agents=[2]",
+              "grid.maps_per_cell=2", "grid.repeats=1", "threads=1", "progress_bar=false"]  # fmt: skip
+    cmd = [sys.executable, "-m", "searchrl.evaluate", "checkpoint=runs/reference/b/model.zip", *slice_,
+           f"out_dir={tmp_path}", f"hydra.run.dir={tmp_path}/hydra"]  # fmt: skip
+    out = subprocess.run(cmd, cwd=REFERENCE.parents[1], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    frame = load(tmp_path)
+    assert len(frame) == 4 and set(frame.controller) == {"policy:b"} and set(frame.model) == {"b"}
