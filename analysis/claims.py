@@ -89,6 +89,16 @@ if margins is not None and "surfing" in baselines:
     lines += [f"- {m}: " + verdicts(policies[m], "surfing", region) for m in sorted(policies)]
     lines.append("\nAll cells:\n")
     lines += [f"- {m}: " + verdicts(policies[m], "surfing") for m in sorted(policies)]
+    # Where a policy trails surfing: does it leave the last targets (fewer complete episodes, longer L)?
+    behind = margins[(margins.baseline == "surfing") & (margins.verdict == "worse")][["controller", "n", "N"]]
+    if len(behind):
+        pairs_behind = pd.concat([behind, behind.assign(controller="surfing")]).drop_duplicates()
+        detail = episodes.merge(pairs_behind, on=["controller", "n", "N"]).groupby(["n", "N", "controller"]).agg(
+            found=("found_fraction", "mean"), complete=("found_fraction", lambda f: (f == 1).mean()),
+            mean_L=("L", "mean"),
+        )  # fmt: skip
+        lines.append("\nCells where a policy trails surfing: share of episodes that find every target, mean L:\n")
+        lines.append(markdown(detail))
 if margins is not None and "coverage" in baselines:
     lines.append("\n## Against geometric coverage (all cells)\n")
     lines += [f"- {m}: " + verdicts(policies[m], "coverage") for m in sorted(policies)]
