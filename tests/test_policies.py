@@ -76,16 +76,21 @@ def test_sample_actions_follows_the_probabilities_and_the_seed():
     assert (sample_actions(logits[:3], None) == 3).all()
 
 
+def _three_worlds():
+    """(world config, actor of an untrained recurrent policy, state of 3 freshly reset worlds)."""
+    cfg, model = _model("recurrent_ppo")
+    config = world_config(cfg)
+    state = allocate(config, 3)
+    for w in range(3):
+        reset_world(config, state, w, np.random.default_rng(w))
+    return config, Actor(model.policy), state
+
+
 def test_controller_skips_inactive_worlds_and_keeps_their_memory():
     """Acting for a subset of worlds gives those worlds the same actions as acting for all, and leaves the
     LSTM state of the skipped worlds as it was."""
-    cfg, model = _model("recurrent_ppo")
-    config = world_config(cfg)
-    actor = Actor(model.policy)
+    config, actor, state = _three_worlds()
     k = 3
-    state = allocate(config, k)
-    for w in range(k):
-        reset_world(config, state, w, np.random.default_rng(w))
     full, part = (PolicyController(actor, config, deterministic=True) for _ in range(2))
     for c in (full, part):
         c.reset(state, np.ones(k, bool))
@@ -103,13 +108,8 @@ def test_controller_skips_inactive_worlds_and_keeps_their_memory():
 
 
 def test_controller_resets_only_the_marked_worlds_and_samples_by_seed():
-    cfg, model = _model("recurrent_ppo")
-    config = world_config(cfg)
-    actor = Actor(model.policy)
+    config, actor, state = _three_worlds()
     k = 3
-    state = allocate(config, k)
-    for w in range(k):
-        reset_world(config, state, w, np.random.default_rng(w))
     controller = PolicyController(actor, config, deterministic=True)
     controller.reset(state, np.ones(k, bool))
     rng = np.random.default_rng(0)
