@@ -52,3 +52,17 @@ compared.head(12)
 wide = table3(summary)
 (OUT / "table3.md").write_text(markdown(wide))
 print(markdown(wide))
+
+# %% [markdown]
+# ## Each trained policy beside the paper: "ours (paper)" per cell
+#
+# Rows N, columns n, one block per model; written to `table3_vs_paper.md`.
+
+# %%
+policies = compared[compared.controller.str.startswith("policy:") & compared.paper.notna()]
+if len(policies):
+    entries = policies.assign(entry=[f"{o:.3f} ({p:.2f})" for o, p in zip(policies["mean"], policies.paper,
+                                                                          strict=True)])  # fmt: skip
+    side_by_side = entries.pivot_table(index=["model", "N"], columns="n", values="entry", aggfunc="first")
+    (OUT / "table3_vs_paper.md").write_text(markdown(side_by_side.fillna("–")))
+    print(markdown(side_by_side.fillna("–")))

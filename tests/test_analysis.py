@@ -57,7 +57,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                          text=True, timeout=300)  # fmt: skip
     assert out.returncode == 0, out.stderr[-3000:]
     expected = {
-        "table3.py": ["table3.csv", "table3.md"],
+        "table3.py": ["table3.csv", "table3.md", "table3_vs_paper.md"],
         "figures.py": ["fig7_n160.png", "fig8_all_sizes.png"],
         "training_curves.py": ["training_curves.png", "training_curves.csv", "training_convergence.md"],
         "claims.py": ["margins.csv", "margins.md", "claims.md"],
@@ -68,6 +68,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         table = pd.read_csv(tmp_path / "table3.csv")
         assert set(table.controller) == {"surfing", "coverage", "policy:run"} and table["paper"].notna().all()
         assert (table["low"] <= table["mean"]).all() and (table["mean"] <= table["high"]).all()
+        policy = table[table.controller == "policy:run"].iloc[0]
+        assert f"{policy['mean']:.3f} ({policy['paper']:.2f})" in (tmp_path / "table3_vs_paper.md").read_text()
     if notebook == "claims.py":
         margins = pd.read_csv(tmp_path / "margins.csv")
         pairs = set(zip(margins.controller, margins.baseline, strict=True))
