@@ -118,6 +118,12 @@ if "b" in policies and "c" in policies:
     lines.append("\n## 4. Communication helps most at large N: mean of B − C over world sizes, by N\n")
     by_n = margins[(margins.controller == policies["b"]) & (margins.baseline == policies["c"])]
     lines.append(markdown(by_n.groupby("N")[["diff"]].mean()))
+    # How often agents are within communication range (Chebyshev ≤ 2): F counts neighbour pairs per step, so
+    # 2F / (N·L) is the mean number of neighbours an agent has per step. C's F is counted though it cannot merge.
+    lines.append("\nNeighbours per agent per step, 2F / (N·L) (how often communication can happen), by n:\n")
+    near = episodes[episodes.controller.isin([policies["b"], policies["c"], "surfing"])]
+    near = near.assign(neighbours=2 * near.F / (near.N * near.L.clip(lower=1)))
+    lines.append(markdown(near.pivot_table(index="N", columns=["controller", "n"], values="neighbours"), digits=2))
 if "diagonal" in policies:
     lines.append("\n## 3. Diagonal is best\n")
     lines += [f"- diagonal − {m}: " + verdicts(policies["diagonal"], policies[m]) for m in ("a", "b", "c")

@@ -117,7 +117,7 @@ def _model_name(run: Path) -> str:
 def markdown(frame: pd.DataFrame, digits: int = 3) -> str:
     """A pipe table of `frame` (index included), numbers rounded; NaN shown as an en dash."""
     flat = frame.reset_index()
-    header = [str(c) if not isinstance(c, tuple) else " ".join(map(str, c)) for c in flat.columns]
+    header = [str(c) if not isinstance(c, tuple) else " ".join(map(str, c)).strip() for c in flat.columns]
 
     def cell(v: object) -> str:
         if isinstance(v, float):
