@@ -87,6 +87,13 @@ if margins is not None and "surfing" in baselines:
     lines.append("## 1. DRL beats information surfing (cells with n ≥ 40 and N ≥ 4)\n")
     region = (margins.n >= 40) & (margins.N >= 4)
     lines += [f"- {m}: " + verdicts(policies[m], "surfing", region) for m in sorted(policies)]
+    lines.append("\nCells of that region where a policy does not find more than surfing (tie, saturated or worse):\n")
+    short = margins[region & (margins.baseline == "surfing") & (margins.verdict != "better")].sort_values(["n", "N"])
+    short = short.assign(cell=[f"n{n} N{agents}" for n, agents in zip(short.n, short.N, strict=True)],
+                         entry=[f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
+                                zip(short["diff"], short.low, short.high, short.verdict, strict=True)])  # fmt: skip
+    lines.append(markdown(short.pivot_table(index="cell", columns="controller", values="entry", aggfunc="first",
+                                            sort=False).fillna("better")))  # fmt: skip
     lines.append("\nAll cells:\n")
     lines += [f"- {m}: " + verdicts(policies[m], "surfing") for m in sorted(policies)]
     # Where a policy trails surfing: does it leave the last targets (fewer complete episodes, longer L)?
