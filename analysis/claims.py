@@ -93,7 +93,7 @@ if margins is not None and "surfing" in baselines:
                          entry=[f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
                                 zip(short["diff"], short.low, short.high, short.verdict, strict=True)])  # fmt: skip
     lines.append(markdown(short.pivot_table(index="cell", columns="controller", values="entry", aggfunc="first",
-                                            sort=False).fillna("better")))  # fmt: skip
+                                            sort=False).sort_index(axis=1).fillna("better")))  # fmt: skip
     lines.append("\nAll cells:\n")
     lines += [f"- {m}: " + verdicts(policies[m], "surfing") for m in sorted(policies)]
     # Where a policy trails surfing: does it leave the last targets (fewer complete episodes, longer L)?
