@@ -135,5 +135,10 @@ if "diagonal" in policies:
     lines.append("\n## 3. Diagonal is best\n")
     lines += [f"- diagonal − {m}: " + verdicts(policies["diagonal"], policies[m]) for m in ("a", "b", "c")
               if m in policies]  # fmt: skip
+    # The best model per cell by mean found fraction (a "best" within CI noise of the next is still listed).
+    means = episodes[episodes.controller.isin(policies.values())].groupby(["n", "N", "model"]).found_fraction.mean()
+    best = means.groupby(["n", "N"]).idxmax().map(lambda key: key[2]).unstack("n")
+    lines.append("\nModel with the highest mean found fraction per cell (rows N, columns n):\n")
+    lines.append(markdown(best.fillna("–")))
 (OUT / "claims.md").write_text("\n".join(lines) + "\n")
 print("\n".join(lines))
