@@ -8,8 +8,9 @@
 # # Fig. 7 and Fig. 8: found fraction against team size
 #
 # Fig. 7: found fraction against N at n = 160, one line per controller or policy (95 % bootstrap CI bands), the
-# paper's four DRL models dashed. Fig. 8: every world size, DRL policies against information surfing and
-# coverage. Run from the repository root: `python analysis/figures.py`; inputs as in `table3.py`.
+# paper's four DRL models dashed, each in the colour of our policy of the same model. Fig. 8: every world size, DRL
+# policies against information surfing and coverage. Run from the repository root: `python analysis/figures.py`;
+# inputs as in `table3.py`.
 
 # %%
 import os
@@ -37,13 +38,18 @@ summary["label"] = summary["controller"] + " (" + summary["model"] + ")"
 # ## Fig. 7: n = 160
 
 # %%
+# One colour per controller; the paper's line for a model takes the colour of our policy of the same model.
+colours = {label: f"C{i}" for i, label in enumerate(sorted(summary.label.unique()))}
+policies = summary[summary.controller.str.startswith("policy:")]
+policy_colour = {model.lower(): colours[label] for label, model in zip(policies.label, policies.model, strict=True)}
 fig, ax = plt.subplots(figsize=(6, 4))
 for label, group in summary[summary.n == 160].groupby("label"):
     group = group.sort_values("N")
-    ax.plot(group.N, group["mean"], marker="o", label=label)
-    ax.fill_between(group.N, group["low"], group["high"], alpha=0.2)
+    ax.plot(group.N, group["mean"], marker="o", label=label, color=colours[label])
+    ax.fill_between(group.N, group["low"], group["high"], alpha=0.2, color=colours[label])
 for model, group in paper[paper.n == 160].groupby("model"):
-    ax.plot(group.N, group.found_fraction, linestyle="--", linewidth=1, label=f"paper {model}")
+    ax.plot(group.N, group.found_fraction, linestyle="--", linewidth=1, label=f"paper {model}",
+            color=policy_colour.get(model.lower(), "grey"))  # fmt: skip
 ax.set(xscale="log", xlabel="agents N", ylabel="found fraction", title="n = 160", ylim=(0, 1.02))
 ax.set_xticks(sorted(summary[summary.n == 160].N.unique()), labels=sorted(summary[summary.n == 160].N.unique()))
 ax.legend(fontsize=7)
@@ -60,7 +66,7 @@ for ax, n in zip(axes[0], sizes, strict=True):
     for label, group in summary[summary.n == n].groupby("label"):
         group = group.sort_values("N")
         ax.errorbar(group.N, group["mean"], yerr=[group["mean"] - group["low"], group["high"] - group["mean"]],
-                    marker="o", markersize=3, capsize=2, label=label)  # fmt: skip
+                    marker="o", markersize=3, capsize=2, label=label, color=colours[label])  # fmt: skip
     ax.set(xscale="log", xlabel="agents N", title=f"n = {n}", ylim=(0, 1.02))
     ticks = sorted(summary[summary.n == n].N.unique())
     ax.set_xticks(ticks, labels=ticks)
