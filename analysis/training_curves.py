@@ -70,7 +70,8 @@ def per_million(metric: str) -> str:
 
 
 # Meetings (val/F, neighbour pairs summed over a validation episode) show what each policy learned about staying
-# near the others: the communication reward (eq. 17) pays B and diagonal for meeting; A and C have no reason to.
+# near the others: the communication reward (eq. 17) pays B and diagonal for what a meeting adds to their maps;
+# A and C gain nothing from meeting.
 report = (f"Validation found fraction:\n\n{per_million('val/found_fraction')}\n"
           f"Validation meetings F per episode:\n\n{per_million('val/F')}")  # fmt: skip
 (OUT / "training_convergence.md").write_text(report)

@@ -44,18 +44,23 @@ def fixture_dirs(tmp_path_factory):
     return base
 
 
-@pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS])
-def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
+def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: Path) -> None:
     env = {
         **os.environ,
-        "SEARCHRL_EVAL_DIRS": ",".join(f"{fixture_dirs}/eval/{c}" for c in ("surfing", "coverage", "policy")),
-        "SEARCHRL_RUN_DIRS": str(fixture_dirs / "run"),
-        "SEARCHRL_ANALYSIS_OUT": str(tmp_path),
+        "SEARCHRL_EVAL_DIRS": ",".join(map(str, eval_dirs)),
+        "SEARCHRL_RUN_DIRS": str(run_dir),
+        "SEARCHRL_ANALYSIS_OUT": str(out_dir),
         "MPLBACKEND": "Agg",
     }
     out = subprocess.run([sys.executable, f"analysis/{notebook}"], cwd=ROOT, env=env, capture_output=True,
                          text=True, timeout=300)  # fmt: skip
     assert out.returncode == 0, out.stderr[-3000:]
+
+
+@pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS])
+def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
+    eval_dirs = [fixture_dirs / "eval" / c for c in ("surfing", "coverage", "policy")]
+    _run_notebook(notebook, eval_dirs, fixture_dirs / "run", tmp_path)
     expected = {
         "table3.py": ["table3.csv", "table3.md", "table3_vs_paper.md"],
         "figures.py": ["fig7_n160.png", "fig8_all_sizes.png"],
@@ -76,6 +81,33 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         assert pairs == {("policy:run", "surfing"), ("policy:run", "coverage")}
         assert len(margins) == 2 * 4 and (margins.maps == 3).all()  # 4 cells, 3 maps each
         assert "## 1. DRL beats information surfing" in (tmp_path / "claims.md").read_text()
+
+
+def test_claims_compares_the_models_with_each_other(fixture_dirs, tmp_path):
+    """The fixture policy relabelled as models b, c and diagonal: claims 2-4 run, and identical policies differ by
+    exactly 0 on every cell."""
+    eval_dirs = [fixture_dirs / "eval" / "surfing", fixture_dirs / "eval" / "coverage"]
+    for model in ("b", "c", "diagonal"):
+        cells = tmp_path / "eval" / model / "cells"
+        cells.mkdir(parents=True)
+        for path in (fixture_dirs / "eval" / "policy" / "cells").glob("*.parquet"):
+            pd.read_parquet(path).assign(model=model, controller=f"policy:{model}").to_parquet(cells / path.name)
+        eval_dirs.append(cells.parent)
+    _run_notebook("claims.py", eval_dirs, fixture_dirs / "run", tmp_path)
+    claims = (tmp_path / "claims.md").read_text()
+    for section in (
+        "## 2. B beats C",
+        "## 3. Diagonal is best",
+        "## 4. Communication helps most at large N",
+        "Neighbours per agent per step",
+        "Model with the highest mean found fraction per cell",
+    ):
+        assert section in claims, section
+    margins = pd.read_csv(tmp_path / "margins.csv")
+    between_models = margins[margins.baseline.str.startswith("policy:")]
+    assert set(zip(between_models.controller, between_models.baseline, strict=True)) == {
+        ("policy:b", "policy:c"), ("policy:diagonal", "policy:b"), ("policy:diagonal", "policy:c")}  # fmt: skip
+    assert (between_models["diff"] == 0).all() and len(between_models) == 3 * 4
 
 
 @pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS])
