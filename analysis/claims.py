@@ -39,14 +39,22 @@ policy_rows = episodes[episodes.controller.str.startswith("policy:")][["model", 
 if policy_rows.model.duplicated().any():
     raise SystemExit(f"several policies per model in {EVAL_DIRS}: {policy_rows.values.tolist()}; pass one per model")
 policies = dict(zip(policy_rows.model, policy_rows.controller, strict=True))  # model name -> controller label
+# Surfing runs in one model's world (Φ, communication, moves; `+model=<m>`, B's by default). Surfing in B's world
+# is the paper's single baseline, "surfing"; surfing in another model's world is "surfing (<m>)" and is compared
+# with that model's policy too: same sensing, merging and moves, only the controller differs.
+other_world = (episodes.controller == "surfing") & (episodes.model != "b")
+episodes.loc[other_world, "controller"] = "surfing (" + episodes.loc[other_world, "model"] + ")"
 baselines = [c for c in ("surfing", "coverage") if c in set(episodes.controller)]
-print(f"policies {policies}; baselines {baselines}")
+same_world = {m: "surfing" if m == "b" else f"surfing ({m})" for m in policies}
+same_world = {m: label for m, label in same_world.items() if label in set(episodes.controller)}
+print(f"policies {policies}; baselines {baselines}; surfing in the policy's own world {same_world}")
 
 # %% [markdown]
 # ## Margins over the baselines, cell by cell
 
 # %%
 pairs = [(policies[m], base) for m in sorted(policies) for base in baselines]
+pairs += [(policies[m], label) for m, label in sorted(same_world.items()) if label != "surfing"]
 pairs += [(policies[x], policies[y]) for x, y in [("b", "c"), ("diagonal", "a"), ("diagonal", "b"), ("diagonal", "c")]
           if x in policies and y in policies]  # fmt: skip
 margins = pd.concat([paired_margins(episodes, a, b) for a, b in pairs], ignore_index=True) if pairs else None
@@ -82,18 +90,26 @@ def verdicts(mine: str, base: str, region: pd.Series | None = None) -> str:
             f"[{worst.low:+.3f}, {worst.high:+.3f}] at n = {worst.n}, N = {worst.N}")  # fmt: skip
 
 
-lines = ["# Claims\n"]
-if margins is not None and "surfing" in baselines:
-    lines.append("## 1. DRL beats information surfing (cells with n ≥ 40 and N ≥ 4)\n")
-    region = (margins.n >= 40) & (margins.N >= 4)
-    lines += [f"- {m}: " + verdicts(policies[m], "surfing", region) for m in sorted(policies)]
-    lines.append("\nCells of that region where a policy does not find more than surfing (tie, saturated or worse):\n")
-    short = margins[region & (margins.baseline == "surfing") & (margins.verdict != "better")].sort_values(["n", "N"])
+def not_better(block: pd.DataFrame) -> str:
+    """Markdown table of the cells of `block` (margins rows) where a policy is not better: rows cells, columns
+    policies; a blank entry means better."""
+    short = block[block.verdict != "better"].sort_values(["n", "N"])
     short = short.assign(cell=[f"n{n} N{agents}" for n, agents in zip(short.n, short.N, strict=True)],
                          entry=[f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
                                 zip(short["diff"], short.low, short.high, short.verdict, strict=True)])  # fmt: skip
-    lines.append(markdown(short.pivot_table(index="cell", columns="controller", values="entry", aggfunc="first",
-                                            sort=False).sort_index(axis=1).fillna("better")))  # fmt: skip
+    if short.empty:
+        return "(none)"
+    return markdown(short.pivot_table(index="cell", columns="controller", values="entry", aggfunc="first",
+                                      sort=False).sort_index(axis=1).fillna("better"))  # fmt: skip
+
+
+lines = ["# Claims\n"]
+region = (margins.n >= 40) & (margins.N >= 4) if margins is not None else None
+if margins is not None and "surfing" in baselines:
+    lines.append("## 1. DRL beats information surfing (cells with n ≥ 40 and N ≥ 4)\n")
+    lines += [f"- {m}: " + verdicts(policies[m], "surfing", region) for m in sorted(policies)]
+    lines.append("\nCells of that region where a policy does not find more than surfing (tie, saturated or worse):\n")
+    lines.append(not_better(margins[region & (margins.baseline == "surfing")]))
     lines.append("\nAll cells:\n")
     lines += [f"- {m}: " + verdicts(policies[m], "surfing") for m in sorted(policies)]
     # Where a policy trails surfing: does it leave the last targets (fewer complete episodes, longer L)?
@@ -106,6 +122,14 @@ if margins is not None and "surfing" in baselines:
         )  # fmt: skip
         lines.append("\nCells where a policy trails surfing: share of episodes that find every target, mean L:\n")
         lines.append(markdown(detail))
+if margins is not None and len(same_world) > 1:
+    lines.append("\n## 1b. DRL beats information surfing in the policy's own world (n ≥ 40 and N ≥ 4)\n")
+    lines.append("Surfing with the model's Φ, communication and moves (`+model=<m>`); for B this is section 1.\n")
+    lines += [f"- {m} − {label}: " + verdicts(policies[m], label, region) for m, label in sorted(same_world.items())]
+    own = pd.concat([margins[(margins.controller == policies[m]) & (margins.baseline == label)]
+                     for m, label in same_world.items()])  # fmt: skip
+    lines.append("\nCells of that region where a policy does not find more than surfing in its own world:\n")
+    lines.append(not_better(own[region.loc[own.index]]))
 if margins is not None and "coverage" in baselines:
     lines.append("\n## Against geometric coverage (all cells)\n")
     lines += [f"- {m}: " + verdicts(policies[m], "coverage") for m in sorted(policies)]

@@ -93,10 +93,18 @@ def test_claims_compares_the_models_with_each_other(fixture_dirs, tmp_path):
         for path in (fixture_dirs / "eval" / "policy" / "cells").glob("*.parquet"):
             pd.read_parquet(path).assign(model=model, controller=f"policy:{model}").to_parquet(cells / path.name)
         eval_dirs.append(cells.parent)
+    # Surfing "in C's world": the B-world surfing episodes relabelled, so policy:c − surfing (c) must equal
+    # policy:b − surfing on every cell.
+    cells = tmp_path / "eval" / "surfing_c" / "cells"
+    cells.mkdir(parents=True)
+    for path in (fixture_dirs / "eval" / "surfing" / "cells").glob("*.parquet"):
+        pd.read_parquet(path).assign(model="c").to_parquet(cells / path.name)
+    eval_dirs.append(cells.parent)
     _run_notebook("claims.py", eval_dirs, fixture_dirs / "run", tmp_path)
     claims = (tmp_path / "claims.md").read_text()
     for section in (
         "## 2. B beats C",
+        "## 1b. DRL beats information surfing in the policy's own world",
         "## 3. Diagonal is best",
         "## 4. Communication helps most at large N",
         "Neighbours per agent per step",
@@ -108,6 +116,10 @@ def test_claims_compares_the_models_with_each_other(fixture_dirs, tmp_path):
     assert set(zip(between_models.controller, between_models.baseline, strict=True)) == {
         ("policy:b", "policy:c"), ("policy:diagonal", "policy:b"), ("policy:diagonal", "policy:c")}  # fmt: skip
     assert (between_models["diff"] == 0).all() and len(between_models) == 3 * 4
+    own_world = margins[margins.baseline == "surfing (c)"].set_index(["n", "N"])
+    b_world = margins[(margins.controller == "policy:b") & (margins.baseline == "surfing")].set_index(["n", "N"])
+    assert set(own_world.controller) == {"policy:c"} and len(own_world) == 4
+    assert (own_world["diff"] == b_world["diff"]).all()
 
 
 @pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS])
