@@ -74,6 +74,21 @@ def test_tiny_run_trains_saves_reloads_and_predicts(tmp_path, model):
     assert state[0].shape == (1, 8, 128)  # (layers, slots, lstm_hidden_size) of network=small
 
 
+def test_mixed_team_sizes_train_in_one_rollout(tmp_path):
+    """env.extra_teams adds a group of worlds with N = 6 beside the 2 worlds of N = 4: 2·4 + 1·6 slots."""
+    mixed = [*TINY, "env.extra_teams=[{n_agents:6,n_worlds:1}]", "validation.every=0"]
+    final = _run(tmp_path, ["+model=b", *mixed])
+    cfg = _compose(["+model=b", *mixed])
+    env = make_vec_env(cfg, seed=0)
+    assert env.num_envs == 14 and env.get_attr("n_agents", indices=[7, 8]) == [4, 6]
+    loaded = load_algorithm(cfg, str(final), env)
+    assert loaded.num_timesteps >= 2048
+    actions, _ = loaded.predict(env.reset(), episode_start=np.ones(14, bool))
+    assert actions.shape == (14,)
+    rows = list(csv.DictReader(open(tmp_path / "progress.csv")))
+    assert rows and rows[-1]["team/found_fraction"]
+
+
 @pytest.mark.parametrize("algo", ["a2c", "ppo"])
 def test_other_algorithms_train(tmp_path, algo):
     tiny = [o for o in TINY if algo != "a2c" or "batch_size" not in o]  # A2C has no minibatches
@@ -174,6 +189,8 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("algo.n_epochs=0", "algo.n_epochs=0"),
         ("network.lstm_hidden_size=0", "network.lstm_hidden_size=0"),
         ("keep_checkpoints=0", "keep_checkpoints=0"),
+        ("env.extra_teams=[{n_agents:0,n_worlds:1}]", r"env.extra_teams\[0\]: n_agents=0"),
+        ("env.extra_teams=[{n_agents:8,n_worlds:0}]", r"env.extra_teams\[0\].n_worlds=0"),
     ],
 )
 def test_check_config_names_the_bad_value(override, message):

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import fields, replace
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.vec_env import VecEnv
 
+from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
@@ -23,8 +25,25 @@ def world_config(cfg: DictConfig) -> WorldConfig:
     return WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
 
 
-def make_vec_env(cfg: DictConfig, seed: int | None = None) -> SearchVecEnv:
-    return SearchVecEnv(world_config(cfg), n_worlds=int(cfg.env.n_worlds), seed=seed)
+def team_groups(cfg: DictConfig) -> list[tuple[WorldConfig, int]]:
+    """(world config, K) per group of worlds: env.world with env.n_worlds, then each of env.extra_teams."""
+    world = world_config(cfg)
+    groups = [(world, int(cfg.env.n_worlds))]
+    for j, team in enumerate(cfg.env.extra_teams):
+        if int(team.n_worlds) < 1:
+            raise ConfigError(f"env.extra_teams[{j}].n_worlds={team.n_worlds!r} is not allowed: must be >= 1")
+        try:
+            groups.append((replace(world, n_agents=int(team.n_agents)), int(team.n_worlds)))
+        except ConfigError as err:
+            raise ConfigError(f"env.extra_teams[{j}]: {err}") from None
+    return groups
+
+
+def make_vec_env(cfg: DictConfig, seed: int | None = None) -> VecEnv:
+    """One SearchVecEnv, or a TeamMixVecEnv when env.extra_teams adds groups (group j seeded with seed + j)."""
+    envs = [SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j)
+            for j, (world, k) in enumerate(team_groups(cfg))]  # fmt: skip
+    return envs[0] if len(envs) == 1 else TeamMixVecEnv(envs)
 
 
 def _algo_kwargs(cfg: DictConfig) -> dict[str, Any]:
@@ -76,7 +95,7 @@ def check_config(cfg: DictConfig) -> None:
             raise ConfigError(f"{name}={value!r} is not allowed: must be >= 1")
     if int(cfg.validation.every) < 0 or int(cfg.validation.n_worlds) < 1:
         raise ConfigError(f"validation={dict(cfg.validation)!r} is not allowed: every >= 0 and n_worlds >= 1")
-    rollout = int(cfg.algo.n_steps) * int(cfg.env.n_worlds) * world.n_agents
+    rollout = int(cfg.algo.n_steps) * sum(k * group.n_agents for group, k in team_groups(cfg))
     batch = cfg.algo.get("batch_size")
     if batch is not None and not 1 <= int(batch) <= rollout:
         raise ConfigError(f"algo.batch_size={batch!r} is not allowed: 1 <= batch_size <= rollout size {rollout}")
@@ -84,7 +103,7 @@ def check_config(cfg: DictConfig) -> None:
     SearchCNN.check_sizes(list(net.conv_channels), int(net.vector_size), list(net.fc_sizes), world.fov)
 
 
-def make_algorithm(cfg: DictConfig, env: SearchVecEnv, tensorboard_log: str | None) -> BaseAlgorithm:
+def make_algorithm(cfg: DictConfig, env: VecEnv, tensorboard_log: str | None) -> BaseAlgorithm:
     algo_class, policy = ALGORITHMS[cfg.algo.name]
     return algo_class(
         policy,
@@ -98,7 +117,7 @@ def make_algorithm(cfg: DictConfig, env: SearchVecEnv, tensorboard_log: str | No
     )
 
 
-def load_algorithm(cfg: DictConfig, path: str, env: SearchVecEnv) -> BaseAlgorithm:
+def load_algorithm(cfg: DictConfig, path: str, env: VecEnv) -> BaseAlgorithm:
     """Load a checkpoint with its step count and optimiser state, attached to `env`."""
     algo_class, _ = ALGORITHMS[cfg.algo.name]
     return algo_class.load(path, env=env, device=cfg.device)

@@ -29,9 +29,18 @@ def _world_node() -> DictConfig:
 
 
 @dataclass
+class TeamConfig:
+    n_agents: int = MISSING  # N of this group's worlds
+    n_worlds: int = MISSING  # K of this group
+
+
+@dataclass
 class EnvConfig:
     world: Any = field(default_factory=_world_node)
     n_worlds: int = 16  # K worlds per VecEnv: K·N slots share the policy
+    # More groups of worlds with other team sizes in the same rollout (`TeamMixVecEnv`), e.g.
+    # 'env.extra_teams=[{n_agents:32,n_worlds:4}]'. Empty (the paper): every world has env.world.n_agents.
+    extra_teams: list[TeamConfig] = field(default_factory=list)
 
 
 @dataclass
