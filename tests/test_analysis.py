@@ -66,6 +66,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "figures.py": ["fig7_n160.png", "fig8_all_sizes.png"],
         "training_curves.py": ["training_curves.png", "training_curves.csv", "training_convergence.md"],
         "claims.py": ["margins.csv", "margins.md", "claims.md"],
+        "compare.py": ["compare.csv", "compare.md"],
     }[notebook]
     for name in expected:
         assert (tmp_path / name).stat().st_size > 0, name
@@ -75,6 +76,11 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         assert (table["low"] <= table["mean"]).all() and (table["mean"] <= table["high"]).all()
         policy = table[table.controller == "policy:run"].iloc[0]
         assert f"{policy['mean']:.3f} ({policy['paper']:.2f})" in (tmp_path / "table3_vs_paper.md").read_text()
+    if notebook == "compare.py":  # the first directory against each other one, labelled by folder name
+        compared = pd.read_csv(tmp_path / "compare.csv")
+        assert set(zip(compared.controller, compared.baseline, strict=True)) == {("surfing", "coverage"),
+                                                                               ("surfing", "policy")}  # fmt: skip
+        assert len(compared) == 2 * 4 and "## surfing − policy" in (tmp_path / "compare.md").read_text()
     if notebook == "claims.py":
         margins = pd.read_csv(tmp_path / "margins.csv")
         pairs = set(zip(margins.controller, margins.baseline, strict=True))
