@@ -92,7 +92,7 @@ def verdicts(mine: str, base: str, region: pd.Series | None = None) -> str:
 
 def not_better(block: pd.DataFrame) -> str:
     """Markdown table of the cells of `block` (margins rows) where a policy is not better: rows cells, columns
-    policies; a blank entry means better."""
+    policies; the cells a policy is better on read "better"."""
     short = block[block.verdict != "better"].sort_values(["n", "N"])
     short = short.assign(cell=[f"n{n} N{agents}" for n, agents in zip(short.n, short.N, strict=True)],
                          entry=[f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in

@@ -23,7 +23,9 @@ from searchrl.world.reset import reset_world
 from searchrl.world.state import allocate
 
 REFERENCE = Path(__file__).resolve().parents[1] / "runs" / "reference"
-SHIPPED = sorted(p.parent.name for p in REFERENCE.glob("*/model.zip"))
+# The four models, then ablations (`ablations/<model>_<change>`: a reference recipe with one setting changed).
+SHIPPED = sorted(str(p.parent.relative_to(REFERENCE)) for p in [*REFERENCE.glob("*/model.zip"),
+                                                                *REFERENCE.glob("ablations/*/model.zip")])  # fmt: skip
 
 
 def test_reference_folder_documents_every_shipped_policy():
@@ -36,7 +38,7 @@ def test_shipped_policy_is_complete_and_acts(model):
     folder = REFERENCE / model
     assert (folder / "model.zip").stat().st_size < 8 * 2**20  # a few MB
     world_dict, _, name = checkpoint_config(folder / "model.zip")
-    assert name == model
+    assert name == Path(model).name.split("_")[0]  # ablations/b_tau0 is a model B
     saved = OmegaConf.load(folder / "config.yaml")
     with zipfile.ZipFile(folder / "model.zip") as archive:  # SB3 stores num_timesteps in its JSON "data"
         trained = json.loads(archive.read("data"))["num_timesteps"]
