@@ -9,8 +9,8 @@ over the agents in the field of view is added. The agent takes the move best ali
 free cells it can see; with no gradient and no neighbour it moves at random.
 
 The default scales (1, 3) keep every sample inside the agent's 11×11 field of view: a greedy local climb, as the
-paper describes surfing (§6.1.3, §6.3), and what a policy sees. Wider scales also pull agents toward information far away;
-on the paper's grid that leaves more behind (see the README).
+paper describes surfing (§6.1.3, §6.3), and what a policy sees. Wider scales also pull agents toward information far
+away; on the paper's grid that leaves more behind (see the README).
 """
 
 from __future__ import annotations
