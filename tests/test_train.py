@@ -89,6 +89,20 @@ def test_mixed_team_sizes_train_in_one_rollout(tmp_path):
     assert rows and rows[-1]["team/found_fraction"]
 
 
+def test_imitation_warm_start_clones_before_rl(tmp_path):
+    """imitation.teacher=surfing clones surfing first: imitation.csv has one row per epoch, imitation.zip is the
+    clone, and RL then trains on from it to the usual model.zip."""
+    overrides = ["+model=b", *TINY, "validation.every=0", "imitation.teacher=surfing", "imitation.episodes=1",
+                 "imitation.epochs=2", "imitation.value_epochs=1", "imitation.batch_sequences=4"]  # fmt: skip
+    final = _run(tmp_path, overrides)
+    rows = list(csv.DictReader(open(tmp_path / "imitation.csv")))
+    assert [(int(r["epoch"]), r["phase"]) for r in rows] == [(1, "policy"), (2, "policy"), (3, "value")]
+    assert 0.0 < float(rows[0]["teacher_found_fraction"]) <= 1.0
+    clone = RecurrentPPO.load(tmp_path / "imitation.zip")
+    trained = RecurrentPPO.load(final)
+    assert clone.num_timesteps == 0 and trained.num_timesteps >= 2048
+
+
 @pytest.mark.parametrize("algo", ["a2c", "ppo"])
 def test_other_algorithms_train(tmp_path, algo):
     tiny = [o for o in TINY if algo != "a2c" or "batch_size" not in o]  # A2C has no minibatches
@@ -191,6 +205,9 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("keep_checkpoints=0", "keep_checkpoints=0"),
         ("env.extra_teams=[{n_agents:0,n_worlds:1}]", r"env.extra_teams\[0\]: n_agents=0"),
         ("env.extra_teams=[{n_agents:8,n_worlds:0}]", r"env.extra_teams\[0\].n_worlds=0"),
+        ("imitation.teacher=greedy", "imitation.teacher='greedy' is not allowed"),
+        ("imitation.teacher=surfing imitation.epochs=0", "imitation.epochs=0"),
+        ("imitation.teacher=surfing imitation.learning_rate=0", "imitation.learning_rate=0"),
     ],
 )
 def test_check_config_names_the_bad_value(override, message):

@@ -19,10 +19,12 @@ import sys
 from pathlib import Path
 
 import hydra
+import pandas as pd
 import torch
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.logger import Logger
 
@@ -33,6 +35,7 @@ from searchrl.train.build import (
     load_algorithm,
     make_algorithm,
     make_vec_env,
+    team_groups,
     world_config,
 )
 from searchrl.train.callbacks import (
@@ -42,6 +45,7 @@ from searchrl.train.callbacks import (
     latest_checkpoint,
 )
 from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
+from searchrl.train.imitation import clone, collect
 from searchrl.train.schema import TrainConfig, register_configs
 from searchrl.world.config import ConfigError
 
@@ -99,6 +103,26 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     return saved, run_dir, found[0], found[1]
 
 
+def warm_start(cfg: DictConfig, model: BaseAlgorithm, run_dir: Path) -> None:
+    """Clone the teacher into the fresh policy (imitation.py); imitation.csv records each epoch and
+    imitation.zip the clone before RL."""
+    im = cfg.imitation
+    demos = collect(team_groups(cfg), im.teacher, int(im.episodes), float(cfg.algo.gamma), int(cfg.seed))
+    print(f"imitation: {len(demos)} sequences of {im.teacher}, found fraction {demos.found_fraction:.3f}",
+          file=sys.stderr)  # fmt: skip
+    rows: list[dict[str, float]] = []
+
+    def record(row: dict[str, float]) -> None:
+        rows.append({**row, "teacher_found_fraction": demos.found_fraction})
+        print(f"imitation epoch {row['epoch']} ({row['phase']}): accuracy {row['accuracy']:.3f}, "
+              f"value loss {row['value_loss']:.2f}", file=sys.stderr)  # fmt: skip
+        write_text_atomic(run_dir / "imitation.csv", pd.DataFrame(rows).to_csv(index=False))
+
+    clone(model.policy, demos, int(im.epochs), int(im.value_epochs), int(im.batch_sequences),
+          float(im.learning_rate), int(cfg.seed), on_epoch=record)  # fmt: skip
+    write_atomic(run_dir / "imitation.zip", lambda tmp: model.save(tmp))  # the clone before RL, to evaluate
+
+
 def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None) -> Path:
     """Run (or resume) one training run; returns the path of the final model.zip."""
     cfg, run_dir, checkpoint, start_step = resolve_run(cfg, Path(output_dir), overrides or [])
@@ -117,6 +141,8 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
     env = make_vec_env(cfg)
     if checkpoint is None:
         model = make_algorithm(cfg, env, tensorboard_log=None)
+        if cfg.imitation.teacher is not None:
+            warm_start(cfg, model, run_dir)
     else:
         model = load_algorithm(cfg, str(checkpoint), env)
         model.set_random_seed(int(cfg.seed) + start_step)  # new scenarios, not a replay of the first ones

@@ -13,6 +13,7 @@ from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
+from searchrl.train.imitation import TEACHERS
 from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig
 from searchrl.world.config import ConfigError, WorldConfig
 
@@ -99,6 +100,18 @@ def check_config(cfg: DictConfig) -> None:
     batch = cfg.algo.get("batch_size")
     if batch is not None and not 1 <= int(batch) <= rollout:
         raise ConfigError(f"algo.batch_size={batch!r} is not allowed: 1 <= batch_size <= rollout size {rollout}")
+    imitation = cfg.imitation
+    if imitation.teacher is not None:
+        if imitation.teacher not in TEACHERS:
+            allowed = f"one of {sorted(TEACHERS)} or null"
+            raise ConfigError(f"imitation.teacher={imitation.teacher!r} is not allowed: {allowed}")
+        for name in ("episodes", "epochs", "batch_sequences"):
+            if int(imitation[name]) < 1:
+                raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 1")
+        if int(imitation.value_epochs) < 0:
+            raise ConfigError(f"imitation.value_epochs={imitation.value_epochs!r} is not allowed: must be >= 0")
+        if float(imitation.learning_rate) <= 0:
+            raise ConfigError(f"imitation.learning_rate={imitation.learning_rate!r} is not allowed: must be > 0")
     net = cfg.network
     SearchCNN.check_sizes(list(net.conv_channels), int(net.vector_size), list(net.fc_sizes), world.fov)
 

@@ -98,12 +98,25 @@ class ValidationConfig:
 
 
 @dataclass
+class ImitationConfig:
+    """Warm start by cloning a heuristic before RL (`searchrl/train/imitation.py`); not in the paper."""
+
+    teacher: str | None = None  # surfing or coverage; null trains from scratch as the paper does
+    episodes: int = 32  # teacher episodes per world of the run's rollout worlds (K·N·episodes sequences)
+    epochs: int = 4  # cross-entropy on the teacher's actions
+    value_epochs: int = 1  # then the value-only parameters on the teacher's discounted returns (0 skips)
+    batch_sequences: int = 16  # whole episodes per minibatch
+    learning_rate: float = 1e-3
+
+
+@dataclass
 class TrainConfig:
     env: EnvConfig = field(default_factory=EnvConfig)
     model: ModelConfig | None = None  # chosen with +model=<name>
     algo: Any = MISSING
     network: NetworkConfig = field(default_factory=NetworkConfig)
     validation: ValidationConfig = field(default_factory=ValidationConfig)
+    imitation: ImitationConfig = field(default_factory=ImitationConfig)
     seed: int = 0
     total_timesteps: int = 18_400_000  # agent-steps; the paper's ≈ 9000 episodes × 8 agents × 256 steps
     checkpoint_every: int = 500_000  # agent-steps

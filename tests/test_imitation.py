@@ -1,0 +1,70 @@
+"""Imitation warm start: demonstrations are the teacher's, deterministic per seed, and cloning fits them."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+from sb3_contrib import RecurrentPPO
+from stable_baselines3 import PPO
+
+from searchrl.controllers.surfing import InformationSurfing
+from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.policies.extractor import SearchCNN
+from searchrl.train.imitation import clone, collect, discounted_returns
+from searchrl.world.config import WorldConfig
+from searchrl.world.engine import SearchWorld
+
+WORLD = replace(WorldConfig(), world_size=(12, 16), n_targets=(2, 3), n_distributions=(4, 6), n_agents=3,
+                max_steps=24)  # fmt: skip
+EXTRACTOR = {"conv_channels": [8, 8, 8], "vector_size": 8, "fc_sizes": [32]}
+
+
+def test_discounted_returns_stop_at_episode_ends():
+    rewards = np.array([[1.0, 2.0, 4.0, 8.0]], np.float32)
+    dones = np.array([[0.0, 1.0, 0.0, 0.0]], np.float32)
+    expected = [1.0 + 0.5 * 2.0, 2.0, 4.0 + 0.5 * 8.0, 8.0]  # the sequence end is cut: no bootstrap
+    np.testing.assert_allclose(discounted_returns(rewards, dones, 0.5)[0], expected)
+
+
+def test_demonstrations_are_the_teachers_and_the_same_per_seed():
+    demos = collect([(WORLD, 2), (replace(WORLD, n_agents=5), 1)], "surfing", episodes=2, gamma=0.9, seed=3)
+    assert demos.maps.shape == (2 * (2 * 3 + 5), 24, 5, 11, 11) and demos.actions.shape == (22, 24)
+    assert demos.starts[:, 0].sum() == 0  # every sequence starts a fresh episode: the LSTM starts from zeros
+    again = collect([(WORLD, 2), (replace(WORLD, n_agents=5), 1)], "surfing", episodes=2, gamma=0.9, seed=3)
+    for name in ("maps", "vector", "actions", "starts", "returns"):
+        np.testing.assert_array_equal(getattr(demos, name), getattr(again, name))
+    other = collect([(WORLD, 2)], "surfing", episodes=1, gamma=0.9, seed=4)
+    assert not np.array_equal(other.maps, demos.maps[: len(other)])
+    # Replaying round 0 of group 0 with a fresh teacher gives the recorded first step.
+    world = SearchWorld(WORLD, 2)
+    maps, vector = world.reset(seed=int(np.random.SeedSequence([3, 0, 0]).generate_state(1)[0]))
+    teacher = InformationSurfing(WORLD, seed=3)
+    np.testing.assert_array_equal(teacher.act(world.state, maps, vector).reshape(-1), demos.actions[:6, 0])
+    np.testing.assert_array_equal(maps.reshape(6, 5, 11, 11).astype(np.float16), demos.maps[:6, 0])
+
+
+def test_unknown_teacher_is_named():
+    with pytest.raises(ValueError, match=r"imitation\.teacher='greedy'"):
+        collect([(WORLD, 1)], "greedy", episodes=1, gamma=0.9, seed=0)
+
+
+@pytest.mark.parametrize("algo", [RecurrentPPO, PPO])
+def test_cloning_fits_the_teacher(algo):
+    """A few epochs on the demonstrations raise the accuracy on the teacher's actions well above chance (1/5)."""
+    torch.manual_seed(0)
+    demos = collect([(WORLD, 4)], "surfing", episodes=2, gamma=0.9, seed=0)
+    env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
+    policy = "MultiInputLstmPolicy" if algo is RecurrentPPO else "MultiInputPolicy"
+    kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
+    if algo is RecurrentPPO:
+        kwargs["lstm_hidden_size"] = 32
+    model = algo(policy, env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
+    history = clone(model.policy, demos, epochs=12, value_epochs=4, batch_sequences=4, learning_rate=1e-3, seed=0)
+    assert [r["phase"] for r in history] == ["policy"] * 12 + ["value"] * 4
+    assert history[11]["imitation_loss"] < history[0]["imitation_loss"]
+    assert history[11]["accuracy"] > 0.5  # the teacher's most common action is 0.41 of these
+    assert history[-1]["value_loss"] < history[12]["value_loss"] < history[11]["value_loss"]
+    assert history[-1]["accuracy"] == pytest.approx(history[12]["accuracy"], abs=1e-6)  # the actor is left alone
