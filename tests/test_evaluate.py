@@ -76,10 +76,19 @@ def test_checkpoint_settings_come_from_its_run(tmp_path):
 
     model = _run(tmp_path / "run", ["+model=diagonal", *TINY, "total_timesteps=256", "validation.every=0"])
     frame = _evaluate(tmp_path / "eval", f"checkpoint={model}", "+model=a")  # +model ignored: the run decides
-    assert (frame.model == "diagonal").all() and frame.controller.str.startswith("policy:").all()
+    assert (frame.model == "diagonal").all() and (frame.controller == "policy:run").all()
     assert len(frame) == 18
     again = _evaluate(tmp_path / "again", f"checkpoint={model}")  # sampled actions come from the eval seed
     pd.testing.assert_frame_equal(frame, again)
+
+
+def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
+    from searchrl.controllers.policy import checkpoint_label
+
+    run = tmp_path / "b_seed0"
+    assert checkpoint_label(run / "model.zip") == "b_seed0"
+    assert checkpoint_label(run / "imitation.zip") == "b_seed0@imitation"
+    assert checkpoint_label(run / "checkpoints" / "step_512.zip") == "b_seed0@step_512"
 
 
 @pytest.mark.parametrize(

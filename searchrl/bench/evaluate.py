@@ -5,12 +5,11 @@ projection pessimistic."""
 from __future__ import annotations
 
 import time
-from pathlib import Path
 from typing import TextIO
 
 import torch
 
-from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor
+from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
 from searchrl.evaluate.__main__ import CONTROLLERS
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
@@ -27,7 +26,7 @@ def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = No
         world = WorldConfig.from_dict(checkpoint_config(checkpoint)[0])
         actor = load_actor(checkpoint, world)
         factory = lambda config: PolicyController(actor, config, seed=0)  # noqa: E731
-        controller = f"policy:{Path(checkpoint).parent.name}"
+        controller = f"policy:{checkpoint_label(checkpoint)}"
     else:
         factory, world = CONTROLLERS[controller], WorldConfig()
     observed = checkpoint is not None

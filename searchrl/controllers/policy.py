@@ -27,6 +27,14 @@ def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
     raise FileNotFoundError(f"checkpoint={str(path)!r} has no run config.yaml beside it or one folder up")
 
 
+def checkpoint_label(path: str | Path) -> str:
+    """The name a checkpoint is evaluated under: its run's folder for `<run>/model.zip`, `<run>@<file stem>` for
+    any other file of the run (`<run>@imitation`, `<run>@step_500000`), so they never share an output folder."""
+    path = Path(path).resolve()
+    run = path.parent.parent if path.parent.name == "checkpoints" else path.parent
+    return run.name if path.name == "model.zip" else f"{run.name}@{path.stem}"
+
+
 def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> Actor:
     """The actor of a saved RecurrentPPO / PPO / A2C model.zip; ValueError if it acts in another action set."""
     _, algo, _ = checkpoint_config(path)

@@ -23,7 +23,7 @@ from tqdm import tqdm
 from searchrl.atomic import write_atomic
 from searchrl.controllers.base import RandomWalk
 from searchrl.controllers.coverage import GeometricCoverage
-from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor
+from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
@@ -45,7 +45,7 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
     if cfg.checkpoint is not None:
         world_dict, _, model_name = checkpoint_config(cfg.checkpoint)
         world = WorldConfig.from_dict(world_dict)
-        run_name = Path(cfg.checkpoint).resolve().parent.name
+        run_name = checkpoint_label(cfg.checkpoint)
         actor = load_actor(cfg.checkpoint, world)  # loaded once, serves every cell
 
         def policy_factory(config: WorldConfig) -> PolicyController:
