@@ -103,6 +103,27 @@ def test_imitation_warm_start_clones_before_rl(tmp_path):
     assert clone.num_timesteps == 0 and trained.num_timesteps >= 2048
 
 
+def test_init_copies_policy_weights_only(tmp_path, capsys):
+    """init=<zip> starts a fresh run (step 0, fresh optimiser) from another run's weights; a zip of another
+    network is refused with the reason."""
+    from searchrl.train.__main__ import init_weights
+    from searchrl.train.build import make_algorithm
+
+    source = _run(tmp_path / "source", ["+model=b", *TINY, "validation.every=0"])
+    cfg = _compose(["+model=b", *TINY])
+    model = make_algorithm(cfg, make_vec_env(cfg), tensorboard_log=None)
+    init_weights(model, str(source))
+    loaded = RecurrentPPO.load(source)
+    for name, value in loaded.policy.state_dict().items():
+        torch.testing.assert_close(model.policy.state_dict()[name], value)
+    assert model.num_timesteps == 0 and not model.policy.optimizer.state_dict()["state"]
+    wider = _compose(["+model=b", *TINY, "network.lstm_hidden_size=16"])
+    other = make_algorithm(wider, make_vec_env(wider), tensorboard_log=None)
+    with pytest.raises(SystemExit):
+        init_weights(other, str(source))
+    assert "does not fit this run's policy" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("algo", ["a2c", "ppo"])
 def test_other_algorithms_train(tmp_path, algo):
     tiny = [o for o in TINY if algo != "a2c" or "batch_size" not in o]  # A2C has no minibatches
@@ -205,6 +226,7 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("keep_checkpoints=0", "keep_checkpoints=0"),
         ("env.extra_teams=[{n_agents:0,n_worlds:1}]", r"env.extra_teams\[0\]: n_agents=0"),
         ("env.extra_teams=[{n_agents:8,n_worlds:0}]", r"env.extra_teams\[0\].n_worlds=0"),
+        ("init=/nowhere/model.zip", "init='/nowhere/model.zip' does not exist"),
         ("imitation.teacher=greedy", "imitation.teacher='greedy' is not allowed"),
         ("imitation.teacher=surfing imitation.epochs=0", "imitation.epochs=0"),
         ("imitation.teacher=surfing imitation.learning_rate=0", "imitation.learning_rate=0"),

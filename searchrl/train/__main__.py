@@ -103,6 +103,16 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     return saved, run_dir, found[0], found[1]
 
 
+def init_weights(model: BaseAlgorithm, path: str) -> None:
+    """Copy the policy weights of checkpoint `path` into the fresh `model` (its optimiser state is not taken)."""
+    try:
+        params = type(model).load(path, device="cpu").get_parameters()
+        model.set_parameters({"policy": params["policy"]}, exact_match=False, device=model.device)
+    except Exception as err:  # a zip of another algorithm, a corrupt file, other shapes: all end here
+        fail(f"init={path!r} does not fit this run's policy (network, Φ and action set must match): {err}")
+    print(f"policy weights from {path}", file=sys.stderr)
+
+
 def warm_start(cfg: DictConfig, model: BaseAlgorithm, run_dir: Path) -> None:
     """Clone the teacher into the fresh policy (imitation.py); imitation.csv records each epoch and
     imitation.zip the clone before RL."""
@@ -141,6 +151,8 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
     env = make_vec_env(cfg)
     if checkpoint is None:
         model = make_algorithm(cfg, env, tensorboard_log=None)
+        if cfg.init is not None:
+            init_weights(model, str(cfg.init))
         if cfg.imitation.teacher is not None:
             warm_start(cfg, model, run_dir)
     else:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import fields, replace
+from pathlib import Path
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
@@ -100,6 +101,8 @@ def check_config(cfg: DictConfig) -> None:
     batch = cfg.algo.get("batch_size")
     if batch is not None and not 1 <= int(batch) <= rollout:
         raise ConfigError(f"algo.batch_size={batch!r} is not allowed: 1 <= batch_size <= rollout size {rollout}")
+    if cfg.get("init") is not None and not Path(cfg.init).is_file():
+        raise ConfigError(f"init={cfg.init!r} does not exist: give a model.zip, imitation.zip or checkpoint of a run")
     imitation = cfg.imitation
     if imitation.teacher is not None:
         if imitation.teacher not in TEACHERS:

@@ -122,6 +122,9 @@ class TrainConfig:
     checkpoint_every: int = 500_000  # agent-steps
     keep_checkpoints: int = 3  # newest checkpoints kept on disk
     resume: str | None = None  # a run directory to continue
+    # A checkpoint whose policy weights start this run (fine-tuning, e.g. from a run's imitation.zip); the step
+    # count and optimiser start afresh. Same observation and action spaces and network needed.
+    init: str | None = None
     threads: int = 2  # torch threads (1 makes a run bit-reproducible)
     device: str = "cpu"
     progress_bar: bool = True
