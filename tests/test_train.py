@@ -124,6 +124,19 @@ def test_init_copies_policy_weights_only(tmp_path, capsys):
     assert "does not fit this run's policy" in capsys.readouterr().err
 
 
+def test_resume_of_an_initialised_run_needs_no_init_file(tmp_path):
+    """A run started with init= resumes from its own checkpoint even after the init file is gone."""
+    source = _run(tmp_path / "source", ["+model=b", *TINY, "validation.every=0"])
+    copy = tmp_path / "init.zip"
+    copy.write_bytes(source.read_bytes())
+    run = tmp_path / "run"
+    _run(run, ["+model=b", *TINY, "validation.every=0", f"init={copy}"])
+    copy.unlink()
+    overrides = [f"resume={run}", "total_timesteps=2304"]
+    final = train(_compose(overrides), run / "resumed", overrides)
+    assert RecurrentPPO.load(final).num_timesteps >= 2304
+
+
 @pytest.mark.parametrize("algo", ["a2c", "ppo"])
 def test_other_algorithms_train(tmp_path, algo):
     tiny = [o for o in TINY if algo != "a2c" or "batch_size" not in o]  # A2C has no minibatches

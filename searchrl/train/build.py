@@ -101,7 +101,8 @@ def check_config(cfg: DictConfig) -> None:
     batch = cfg.algo.get("batch_size")
     if batch is not None and not 1 <= int(batch) <= rollout:
         raise ConfigError(f"algo.batch_size={batch!r} is not allowed: 1 <= batch_size <= rollout size {rollout}")
-    if cfg.get("init") is not None and not Path(cfg.init).is_file():
+    # A resumed run continues from its checkpoint; the file it was initialised from is no longer needed.
+    if cfg.get("init") is not None and cfg.get("resume") is None and not Path(cfg.init).is_file():
         raise ConfigError(f"init={cfg.init!r} does not exist: give a model.zip, imitation.zip or checkpoint of a run")
     imitation = cfg.imitation
     if imitation.teacher is not None:
