@@ -14,7 +14,7 @@ from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
-from searchrl.train.imitation import TEACHERS
+from searchrl.train.imitation import check_teacher
 from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig
 from searchrl.world.config import ConfigError, WorldConfig
 
@@ -106,9 +106,7 @@ def check_config(cfg: DictConfig) -> None:
         raise ConfigError(f"init={cfg.init!r} does not exist: give a model.zip, imitation.zip or checkpoint of a run")
     imitation = cfg.imitation
     if imitation.teacher is not None:
-        if imitation.teacher not in TEACHERS:
-            allowed = f"one of {sorted(TEACHERS)} or null"
-            raise ConfigError(f"imitation.teacher={imitation.teacher!r} is not allowed: {allowed}")
+        check_teacher(imitation.teacher)
         for name in ("episodes", "epochs", "batch_sequences"):
             if int(imitation[name]) < 1:
                 raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 1")

@@ -28,13 +28,19 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from searchrl.controllers.base import Controller
 from searchrl.controllers.coverage import GeometricCoverage
 from searchrl.controllers.surfing import InformationSurfing
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
 TEACHERS: dict[str, Callable[[WorldConfig, int], Controller]] = {
     "surfing": lambda config, seed: InformationSurfing(config, seed=seed),  # the defaults of controller=surfing
     "coverage": lambda config, seed: GeometricCoverage(config),
 }
+
+
+def check_teacher(teacher: str) -> None:
+    """ConfigError naming `imitation.teacher` unless it is one of TEACHERS."""
+    if teacher not in TEACHERS:
+        raise ConfigError(f"imitation.teacher={teacher!r} is not allowed: one of {sorted(TEACHERS)} or null")
 
 
 @dataclass
@@ -66,8 +72,7 @@ def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, 
             seed: int) -> Demonstrations:  # fmt: skip
     """Let `teacher` play `episodes` rounds in each (world config, K) group; round e of group j is seeded
     (seed, j, e), so the same seed gives the same demonstrations."""
-    if teacher not in TEACHERS:
-        raise ValueError(f"imitation.teacher={teacher!r} is not allowed: one of {sorted(TEACHERS)} or null")
+    check_teacher(teacher)
     parts, found = [], []
     for j, (config, n_worlds) in enumerate(groups):
         world = SearchWorld(config, n_worlds)
