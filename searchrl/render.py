@@ -49,7 +49,7 @@ def frame(state: WorldState, agent: int, cell: int) -> np.ndarray:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m searchrl.render", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    p.add_argument("--controller", choices=["surfing", "coverage", "random"], default="surfing")
+    p.add_argument("--controller", choices=["surfing", "greedy", "coverage", "random"], default="surfing")
     p.add_argument("--checkpoint", help="a trained model.zip (its run's world settings are used)")
     p.add_argument("--model", choices=sorted(MODELS), default="b", help="world settings for heuristics")
     p.add_argument("--n", type=int, default=40, help="world side")

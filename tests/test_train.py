@@ -103,6 +103,17 @@ def test_imitation_warm_start_clones_before_rl(tmp_path):
     assert clone.num_timesteps == 0 and trained.num_timesteps >= 2048
 
 
+def test_clone_only_run_saves_the_clone_as_its_model(tmp_path):
+    """total_timesteps=0 with a teacher runs no RL: model.zip is imitation.zip's policy, at step 0."""
+    overrides = ["+model=b", *TINY, "total_timesteps=0", "validation.every=0", "imitation.teacher=greedy",
+                 "imitation.episodes=1", "imitation.epochs=1", "imitation.value_epochs=0"]  # fmt: skip
+    final = _run(tmp_path, overrides)
+    model, clone = RecurrentPPO.load(final), RecurrentPPO.load(tmp_path / "imitation.zip")
+    assert model.num_timesteps == 0
+    for name, value in clone.policy.state_dict().items():
+        assert torch.equal(value, model.policy.state_dict()[name]), name
+
+
 def test_init_copies_policy_weights_only(tmp_path, capsys):
     """init=<zip> starts a fresh run (step 0, fresh optimiser) from another run's weights; a zip of another
     network is refused with the reason."""
@@ -240,7 +251,9 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("env.extra_teams=[{n_agents:0,n_worlds:1}]", r"env.extra_teams\[0\]: n_agents=0"),
         ("env.extra_teams=[{n_agents:8,n_worlds:0}]", r"env.extra_teams\[0\].n_worlds=0"),
         ("init=/nowhere/model.zip", "init='/nowhere/model.zip' does not exist"),
-        ("imitation.teacher=greedy", "imitation.teacher='greedy' is not allowed"),
+        ("imitation.teacher=planner", "imitation.teacher='planner' is not allowed"),
+        ("total_timesteps=0", "total_timesteps=0 is not allowed"),
+        ("total_timesteps=-5 imitation.teacher=greedy", "total_timesteps=-5 is not allowed"),
         ("imitation.teacher=surfing imitation.epochs=0", "imitation.epochs=0"),
         ("imitation.teacher=surfing imitation.learning_rate=0", "imitation.learning_rate=0"),
     ],

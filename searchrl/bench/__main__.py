@@ -21,7 +21,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--updates", type=int, default=4, help="train: timed rollouts+updates (>= 1)")
     parser.add_argument("--threads", type=int, default=2, help="train, eval, policy: torch threads (>= 1)")
     parser.add_argument("--network", choices=["paper", "small"], default="paper", help="train: network config")
-    parser.add_argument("--controller", choices=["surfing", "coverage", "random"], default="surfing", help="eval")
+    parser.add_argument(
+        "--controller", choices=["surfing", "greedy", "coverage", "random"], default="surfing", help="eval"
+    )
     parser.add_argument("--maps", type=int, default=10, help="eval: maps per cell (>= 1)")
     parser.add_argument("--checkpoint", help="eval: a policy model.zip instead of --controller; policy: required")
     args = parser.parse_args(argv)

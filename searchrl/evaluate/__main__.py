@@ -23,6 +23,7 @@ from tqdm import tqdm
 from searchrl.atomic import write_atomic
 from searchrl.controllers.base import RandomWalk
 from searchrl.controllers.coverage import GeometricCoverage
+from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.evaluate.grid import table2_cells
@@ -31,7 +32,12 @@ from searchrl.evaluate.schema import register_configs
 from searchrl.world.config import ConfigError, WorldConfig
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
-CONTROLLERS = {"surfing": InformationSurfing, "coverage": GeometricCoverage, "random": RandomWalk}
+CONTROLLERS = {
+    "surfing": InformationSurfing,
+    "greedy": FootprintGreedy,
+    "coverage": GeometricCoverage,
+    "random": RandomWalk,
+}
 register_configs()
 
 
@@ -59,12 +65,16 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         factory = lambda config: InformationSurfing(  # noqa: E731
             config, tuple(c.scales), c.w_p, c.w_u, c.repulsion, seed=int(cfg.seed)
         )
+    elif c.name == "greedy":
+        factory = lambda config: FootprintGreedy(  # noqa: E731
+            config, int(c.horizon), float(c.discount), c.w_p, c.w_u, seed=int(cfg.seed)
+        )
     elif c.name == "coverage":
         factory = lambda config: GeometricCoverage(config, radius=int(c.radius))  # noqa: E731
     elif c.name == "random":
         factory = lambda config: RandomWalk(config, seed=int(cfg.seed))  # noqa: E731
     else:
-        fail(f"controller={c.name!r} is not allowed: surfing, coverage, random, or checkpoint=<model.zip>")
+        fail(f"controller={c.name!r} is not allowed: surfing, greedy, coverage, random, or checkpoint=<model.zip>")
     factory(world)  # validates the controller's parameters before any work
     return world, c.name, model_name, factory, False
 

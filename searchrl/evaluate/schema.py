@@ -30,6 +30,17 @@ class SurfingConfig(ControllerConfig):
 
 
 @dataclass
+class GreedyConfig(ControllerConfig):
+    name: str = "greedy"
+    # Not one of the paper's baselines: a move is scored by the information its footprint would sense over the
+    # next `horizon` steps in that direction (inside the field of view), later steps weighted by `discount`.
+    horizon: int = 2
+    discount: float = 0.7
+    w_p: float = 0.6  # the same weights as surfing's, so the two differ only in how they read the belief
+    w_u: float = 0.4
+
+
+@dataclass
 class CoverageConfig(ControllerConfig):
     name: str = "coverage"
     radius: int = 1  # lanes 2·radius + 1 rows apart
@@ -72,5 +83,6 @@ def register_configs() -> None:
     cs = ConfigStore.instance()
     cs.store(name="evaluate_schema", node=EvaluateConfig)
     cs.store(group="controller", name="surfing_schema", node=SurfingConfig)
+    cs.store(group="controller", name="greedy_schema", node=GreedyConfig)
     cs.store(group="controller", name="coverage_schema", node=CoverageConfig)
     cs.store(group="controller", name="random_schema", node=RandomConfig)

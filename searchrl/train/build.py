@@ -83,7 +83,6 @@ def check_config(cfg: DictConfig) -> None:
     world = world_config(cfg)  # raises ConfigError naming the field
     positive = {
         "env.n_worlds": cfg.env.n_worlds,
-        "total_timesteps": cfg.total_timesteps,
         "checkpoint_every": cfg.checkpoint_every,
         "threads": cfg.threads,
         "algo.n_steps": cfg.algo.n_steps,
@@ -95,6 +94,13 @@ def check_config(cfg: DictConfig) -> None:
     for name, value in positive.items():
         if int(value) < 1:
             raise ConfigError(f"{name}={value!r} is not allowed: must be >= 1")
+    # 0 agent-steps of RL is a clone-only run: model.zip is the policy fitted to the teacher (or the init weights).
+    no_start = cfg.imitation.teacher is None and cfg.get("init") is None
+    if int(cfg.total_timesteps) < 0 or (int(cfg.total_timesteps) == 0 and no_start):
+        raise ConfigError(
+            f"total_timesteps={cfg.total_timesteps!r} is not allowed: must be >= 1, or 0 with imitation.teacher "
+            "or init (a run without RL)"
+        )
     if int(cfg.validation.every) < 0 or int(cfg.validation.n_worlds) < 1:
         raise ConfigError(f"validation={dict(cfg.validation)!r} is not allowed: every >= 0 and n_worlds >= 1")
     rollout = int(cfg.algo.n_steps) * sum(k * group.n_agents for group, k in team_groups(cfg))

@@ -1,8 +1,10 @@
-"""Warm start by imitation: clone a heuristic teacher (information surfing) into the policy before RL.
+"""Warm start by imitation: clone a heuristic teacher (surfing, footprint-greedy, coverage) into the policy before RL.
 
 Not in the paper, which trains from scratch. From scratch, PPO with the paper's rewards plateaus below greedy
 local surfing on this grid (README, claim 1); cloning surfing first starts RL from a policy that already climbs
-the information, and RL then only has to improve on it. `imitation.teacher=surfing` turns it on.
+the information, and RL then only has to improve on it. `imitation.teacher=surfing` turns it on;
+`imitation.teacher=greedy` clones footprint-greedy, which finds more than surfing on the grid, and with
+`total_timesteps=0` the run stops after the clone (model.zip is the clone).
 
 Two steps, both before `model.learn`:
 1. `collect`: the teacher plays `episodes` episodes in every world of the run's own world groups (same Φ,
@@ -27,12 +29,14 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 
 from searchrl.controllers.base import Controller
 from searchrl.controllers.coverage import GeometricCoverage
+from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
 TEACHERS: dict[str, Callable[[WorldConfig, int], Controller]] = {
     "surfing": lambda config, seed: InformationSurfing(config, seed=seed),  # the defaults of controller=surfing
+    "greedy": lambda config, seed: FootprintGreedy(config, seed=seed),  # the defaults of controller=greedy
     "coverage": lambda config, seed: GeometricCoverage(config),
 }
 

@@ -1,0 +1,97 @@
+"""Footprint-greedy search: each agent takes the move whose footprint would sense the most information.
+
+Per agent: information I = w_p·p̂ + w_u·û of its own belief (p̂, û scaled as in the observation). A move a is
+scored by what the 5×5 footprint Γ would see if the agent went on in that direction for `horizon` steps,
+Σ_{t=1..horizon} discount^(t-1) Σ_Γ Γ(d)·I(x + t·a + d), counting only cells inside the agent's 11×11 field of
+view (what a policy sees). The agent takes the best-scoring move among those to free cells; with nothing to sense
+it moves at random.
+
+Why it is here: it is the quantity sensing actually removes (eq. 1 with λk = 1), where surfing follows a pooled
+gradient of the same information. On the paper's grid it finds more than surfing wherever surfing is not
+saturated (README, "Results: baselines"), so it is the stronger teacher for a warm start
+(`imitation.teacher=greedy`). It is not one of the paper's baselines.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from searchrl.world.config import WorldConfig
+from searchrl.world.footprint import GAMMA, MOVES
+from searchrl.world.state import WorldState
+
+
+@njit(cache=True)
+def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, wu):
+    """Σ Γ(d)·I(r + d, c + d) of agent i's belief over the cells within `view` of its position (r0, c0)."""
+    g = gamma.shape[0] // 2
+    side = belief.shape[3]
+    total = 0.0
+    for dr in range(-g, g + 1):
+        for dc in range(-g, g + 1):
+            rr, cc = r + dr, c + dc
+            if abs(rr - r0) > view or abs(cc - c0) > view or rr < 0 or cc < 0 or rr >= side or cc >= side:
+                continue
+            weight = gamma[dr + g, dc + g]
+            if weight > 0.0:
+                total += weight * (wp * belief[k, i, 0, rr, cc] * sp + wu * belief[k, i, 1, rr, cc] * su)
+    return total
+
+
+@njit(cache=True)
+def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actions, gamma, horizon, discount, wp, wu,
+                   view, fallback, out):  # fmt: skip
+    """out (K,N) int64 <- footprint-greedy actions. fallback (K,N): random moves used where nothing is sensed."""
+    n_worlds, n_agents = pos.shape[0], pos.shape[1]
+    for k in range(n_worlds):
+        sp, su = obs_scale[k, 0], obs_scale[k, 1]
+        for i in range(n_agents):
+            r, c = pos[k, i, 0] + h, pos[k, i, 1] + h
+            best, best_score = -1, 0.0
+            for a in range(1, n_actions):
+                mr, mc = moves[a, 0], moves[a, 1]
+                if blocked[k, r + mr, c + mc] or occupant[k, r + mr, c + mc] >= 0:
+                    continue
+                score, weight = 0.0, 1.0
+                for t in range(1, horizon + 1):
+                    score += weight * _footprint_information(
+                        belief, k, i, r + t * mr, c + t * mc, r, c, view, gamma, sp, su, wp, wu
+                    )
+                    weight *= discount
+                if score > best_score:
+                    best, best_score = a, score
+            out[k, i] = best if best >= 1 else fallback[k, i]
+
+
+class FootprintGreedy:
+    """Batched footprint-greedy controller; parameters are config values of `controller=greedy`."""
+
+    def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
+                 w_u: float = 0.4, seed: int = 0) -> None:  # fmt: skip
+        view = config.fov // 2
+        if not 1 <= horizon <= view:
+            raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the field of view)")
+        if not 0 < discount <= 1:
+            raise ValueError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
+        if w_p < 0 or w_u < 0 or w_p + w_u == 0:
+            raise ValueError(f"w_p={w_p}, w_u={w_u} are not allowed: both >= 0, not both 0")
+        self.config = config
+        self.horizon, self.discount, self.w_p, self.w_u = int(horizon), float(discount), float(w_p), float(w_u)
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self, state: WorldState, mask: np.ndarray) -> None:
+        pass
+
+    def act(
+        self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
+    ) -> np.ndarray:
+        k, n = state.n_worlds, state.n_agents
+        fallback = self.rng.integers(1, self.config.n_actions, size=(k, n))
+        out = np.empty((k, n), np.int64)
+        greedy_actions(
+            state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
+            self.config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u, self.config.fov // 2,
+            fallback, out,
+        )  # fmt: skip
+        return out

@@ -1,0 +1,100 @@
+"""Footprint-greedy takes the move whose footprint would sense the most information it can see."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from searchrl.controllers.greedy import FootprintGreedy
+from searchrl.world.config import WorldConfig
+from searchrl.world.observe import observe
+from searchrl.world.state import allocate
+
+N_, E, S, W = 1, 2, 3, 4
+OFFSETS = {N_: (-1, 0), E: (0, 1), S: (1, 0), W: (0, -1)}
+
+
+def _world(config: WorldConfig, positions: list[tuple[int, int]]):
+    """A 30×30 world with zero beliefs (the caller adds information) and agents at `positions`."""
+    state = allocate(config, 1)
+    h, n = state.halo, 30
+    state.size[0] = n
+    state.blocked[0] = True
+    state.blocked[0, h : h + n, h : h + n] = False
+    state.occupant[0] = -1
+    for i, (r, c) in enumerate(positions):
+        state.pos[0, i] = (r, c)
+        state.occupant[0, r + h, c + h] = i
+    state.n_targets[0] = 1
+    state.target_valid[0, 0] = True
+    state.obs_scale[0] = (1.0, 1.0)
+    state.belief[:] = 0.0
+    return state
+
+
+def _put(state, agent: int, r: int, c: int, value: float = 1.0) -> None:
+    h = state.halo
+    state.belief[0, agent, :, r + h, c + h] = value
+
+
+def _act(ctrl: FootprintGreedy, state) -> np.ndarray:
+    return ctrl.act(state, *observe(ctrl.config, state))[0]
+
+
+@pytest.mark.parametrize("action", [N_, E, S, W])
+def test_greedy_heads_for_information_in_view(action):
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(config, [(15, 15)])
+    dr, dc = OFFSETS[action]
+    _put(state, 0, 15 + 3 * dr, 15 + 3 * dc)
+    assert _act(FootprintGreedy(config), state)[0] == action
+
+
+def test_greedy_ignores_information_outside_the_field_of_view():
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(config, [(15, 15)])
+    _put(state, 0, 15, 21, 100.0)  # 6 cells east: outside the 11×11 view
+    _put(state, 0, 15, 12, 0.01)  # a little information 3 cells west, inside it
+    assert _act(FootprintGreedy(config), state)[0] == W
+
+
+def test_horizon_sets_how_far_ahead_a_move_is_scored():
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(config, [(15, 15)])
+    _put(state, 0, 15, 19)  # 4 cells east: the footprint reaches it after two steps east, not after one
+    _put(state, 0, 17, 15, 0.05)  # weaker information 2 cells south, in reach after one step
+    assert _act(FootprintGreedy(config, horizon=1), state)[0] == S
+    assert _act(FootprintGreedy(config, horizon=2), state)[0] == E
+
+
+def test_greedy_does_not_step_into_an_agent():
+    config = WorldConfig(world_size=(30, 30), n_agents=2, n_targets=(1, 1))
+    state = _world(config, [(15, 15), (15, 16)])
+    _put(state, 0, 15, 17)
+    assert _act(FootprintGreedy(config), state)[0] not in (0, E)
+
+
+def test_greedy_moves_at_random_with_nothing_to_sense_and_repeats_with_its_seed():
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(config, [(15, 15)])
+    draws = [[_act(ctrl, state)[0] for _ in range(40)] for ctrl in (FootprintGreedy(config, seed=3),
+                                                                     FootprintGreedy(config, seed=3))]  # fmt: skip
+    assert draws[0] == draws[1]
+    assert set(draws[0]) == {N_, E, S, W}
+
+
+def test_greedy_uses_diagonal_moves_in_the_diagonal_model():
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1), diagonal=True)
+    state = _world(config, [(15, 15)])
+    _put(state, 0, 12, 18)  # 3 cells north-east
+    assert _act(FootprintGreedy(config), state)[0] == 5  # NE
+
+
+BAD = [({"horizon": 0}, "horizon"), ({"horizon": 6}, "horizon"), ({"discount": 0.0}, "discount"),
+       ({"w_p": 0.0, "w_u": 0.0}, "w_p")]  # fmt: skip
+
+
+@pytest.mark.parametrize("kwargs, name", BAD)
+def test_bad_parameters_are_named(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        FootprintGreedy(WorldConfig(), **kwargs)
