@@ -8,8 +8,9 @@
 # # The paper's claims, checked on this reproduction
 #
 # Every trained policy found in the evaluation directories (controller `policy:<run>`) is compared, on the same
-# maps, with information surfing and geometric coverage, and with the other policies: the paired difference in
-# found fraction per cell, with a 95 % bootstrap CI over maps. Then the paper's four claims:
+# maps, with information surfing, footprint-greedy (where evaluated) and geometric coverage, and with the other
+# policies: the paired difference in found fraction per cell, with a 95 % bootstrap CI over maps. Then the paper's
+# four claims:
 #
 # 1. DRL beats information surfing (here: on every cell with n ≥ 40 and N ≥ 4);
 # 2. model B beats model C (communication helps);
@@ -42,11 +43,15 @@ policies = dict(zip(policy_rows.model, policy_rows.controller, strict=True))  # 
 # Surfing runs in one model's world (Φ, communication, moves; `+model=<m>`, B's by default). Surfing in B's world
 # is the paper's single baseline, "surfing"; surfing in another model's world is "surfing (<m>)" and is compared
 # with that model's policy too: same sensing, merging and moves, only the controller differs.
-other_world = (episodes.controller == "surfing") & (episodes.model != "b")
-episodes.loc[other_world, "controller"] = "surfing (" + episodes.loc[other_world, "model"] + ")"
-baselines = [c for c in ("surfing", "coverage") if c in set(episodes.controller)]
+# Footprint-greedy (`controller=greedy`, the shipped policies' teacher) is labelled the same way.
+for heuristic in ("surfing", "greedy"):
+    other_world = (episodes.controller == heuristic) & (episodes.model != "b")
+    episodes.loc[other_world, "controller"] = f"{heuristic} (" + episodes.loc[other_world, "model"] + ")"
+baselines = [c for c in ("surfing", "greedy", "coverage") if c in set(episodes.controller)]
 same_world = {m: "surfing" if m == "b" else f"surfing ({m})" for m in policies}
 same_world = {m: label for m, label in same_world.items() if label in set(episodes.controller)}
+teacher_world = {m: "greedy" if m == "b" else f"greedy ({m})" for m in policies}
+teacher_world = {m: label for m, label in teacher_world.items() if label in set(episodes.controller)}
 print(f"policies {policies}; baselines {baselines}; surfing in the policy's own world {same_world}")
 
 # %% [markdown]
@@ -55,6 +60,7 @@ print(f"policies {policies}; baselines {baselines}; surfing in the policy's own 
 # %%
 pairs = [(policies[m], base) for m in sorted(policies) for base in baselines]
 pairs += [(policies[m], label) for m, label in sorted(same_world.items()) if label != "surfing"]
+pairs += [(policies[m], label) for m, label in sorted(teacher_world.items()) if label != "greedy"]
 pairs += [(policies[x], policies[y]) for x, y in [("b", "c"), ("diagonal", "a"), ("diagonal", "b"), ("diagonal", "c")]
           if x in policies and y in policies]  # fmt: skip
 margins = pd.concat([paired_margins(episodes, a, b) for a, b in pairs], ignore_index=True) if pairs else None
@@ -130,6 +136,10 @@ if margins is not None and len(same_world) > 1:
                      for m, label in same_world.items()])  # fmt: skip
     lines.append("\nCells of that region where a policy does not find more than surfing in its own world:\n")
     lines.append(not_better(own[region.loc[own.index]]))
+if margins is not None and teacher_world:
+    lines.append("\n## Policies against footprint-greedy in their own world (all cells)\n")
+    lines.append("How close a policy comes to greedy (`controller=greedy +model=<m>`), the teacher of the clones.\n")
+    lines += [f"- {m} − {label}: " + verdicts(policies[m], label) for m, label in sorted(teacher_world.items())]
 if margins is not None and "coverage" in baselines:
     lines.append("\n## Against geometric coverage (all cells)\n")
     lines += [f"- {m}: " + verdicts(policies[m], "coverage") for m in sorted(policies)]

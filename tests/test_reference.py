@@ -23,9 +23,10 @@ from searchrl.world.reset import reset_world
 from searchrl.world.state import allocate
 
 REFERENCE = Path(__file__).resolve().parents[1] / "runs" / "reference"
-# The four models, then ablations (`ablations/<model>_<change>`: a reference recipe with one setting changed).
-SHIPPED = sorted(str(p.parent.relative_to(REFERENCE)) for p in [*REFERENCE.glob("*/model.zip"),
-                                                                *REFERENCE.glob("ablations/*/model.zip")])  # fmt: skip
+# The four models (clones of footprint-greedy), the paper's RL recipe (`rl/<model>`), then ablations
+# (`ablations/<model>_<change>`: an RL reference recipe with one setting changed).
+SHIPPED = sorted(str(p.parent.relative_to(REFERENCE)) for pattern in ("*", "rl/*", "ablations/*")
+                 for p in REFERENCE.glob(f"{pattern}/model.zip"))  # fmt: skip
 
 
 def test_reference_folder_documents_every_shipped_policy():
@@ -43,8 +44,12 @@ def test_shipped_policy_is_complete_and_acts(model):
     with zipfile.ZipFile(folder / "model.zip") as archive:  # SB3 stores num_timesteps in its JSON "data"
         trained = json.loads(archive.read("data"))["num_timesteps"]
     assert saved.total_timesteps <= trained < saved.total_timesteps + 8192  # stopped at the first rollout past it
-    rows = list(csv.DictReader(open(folder / "progress.csv")))
-    assert int(rows[-1]["time/total_timesteps"]) == trained
+    if saved.total_timesteps == 0:  # a clone without RL: its record is the imitation log
+        rows = list(csv.DictReader(open(folder / "imitation.csv")))
+        assert saved.imitation.teacher and float(rows[-1]["accuracy"]) > 0.9
+    else:
+        rows = list(csv.DictReader(open(folder / "progress.csv")))
+        assert int(rows[-1]["time/total_timesteps"]) == trained
     config = cell_config(WorldConfig.from_dict(world_dict), Cell(40, 4, 8, 16))
     state = allocate(config, 2)
     for w in range(2):
