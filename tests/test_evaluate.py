@@ -32,7 +32,7 @@ def test_table2_grid_has_the_papers_30_cells():
     assert [c.n_agents for c in cells if c.n == 160] == [1, 2, 4, 8, 16, 32, 64, 128, 256]
 
 
-@pytest.mark.parametrize("controller", ["surfing", "coverage", "random"])
+@pytest.mark.parametrize("controller", ["surfing", "greedy", "coverage", "random"])
 def test_slice_rows_and_rerun_skips_done_cells(tmp_path, controller, capsys):
     frame = _evaluate(tmp_path, f"controller={controller}")
     assert list(frame.columns) == COLUMNS
@@ -99,14 +99,14 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
         ("grid.repeats=0", "grid.repeats=0"),
         ("checkpoint=/nonexistent/model.zip", "does not exist"),
         ("controller.radius=-1", "radius=-1"),
+        ("controller.horizon=9", "horizon=9"),
     ],
 )
 def test_bad_input_fails_before_work(tmp_path, override, message):
     cmd = [sys.executable, "-m", "searchrl.evaluate", *SLICE, f"out_dir={tmp_path}", override]
-    if "radius" in override:
-        cmd.append("controller=coverage")
+    if override.startswith("controller."):  # the controller group goes before its own settings
         cmd.remove(override)
-        cmd.append(override)
+        cmd += ["controller=coverage" if "radius" in override else "controller=greedy", override]
     out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 2 and message in out.stderr, out.stderr[-2000:]
     assert not (tmp_path / "cells").exists()
