@@ -47,8 +47,8 @@ def test_demonstrations_are_the_teachers_and_the_same_per_seed():
 
 
 def test_unknown_teacher_is_named():
-    with pytest.raises(ValueError, match=r"imitation\.teacher='greedy'"):
-        collect([(WORLD, 1)], "greedy", episodes=1, gamma=0.9, seed=0)
+    with pytest.raises(ValueError, match=r"imitation\.teacher='planner'"):
+        collect([(WORLD, 1)], "planner", episodes=1, gamma=0.9, seed=0)
 
 
 @pytest.mark.parametrize("algo", [RecurrentPPO, PPO])
