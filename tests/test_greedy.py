@@ -8,28 +8,15 @@ import pytest
 from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observe
-from searchrl.world.state import allocate
+from tests.handmade import make_world
 
 N_, E, S, W = 1, 2, 3, 4
 OFFSETS = {N_: (-1, 0), E: (0, 1), S: (1, 0), W: (0, -1)}
 
 
 def _world(config: WorldConfig, positions: list[tuple[int, int]]):
-    """A 30×30 world with zero beliefs (the caller adds information) and agents at `positions`."""
-    state = allocate(config, 1)
-    h, n = state.halo, 30
-    state.size[0] = n
-    state.blocked[0] = True
-    state.blocked[0, h : h + n, h : h + n] = False
-    state.occupant[0] = -1
-    for i, (r, c) in enumerate(positions):
-        state.pos[0, i] = (r, c)
-        state.occupant[0, r + h, c + h] = i
-    state.n_targets[0] = 1
-    state.target_valid[0, 0] = True
-    state.obs_scale[0] = (1.0, 1.0)
-    state.belief[:] = 0.0
-    return state
+    """A 30×30 world with zero beliefs (the caller adds information), agents at `positions`, one target in a corner."""
+    return make_world(config, 30, positions, targets=[(0, 0)])
 
 
 def _put(state, agent: int, r: int, c: int, value: float = 1.0) -> None:

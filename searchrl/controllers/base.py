@@ -44,3 +44,28 @@ class RandomWalk:
         self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
     ) -> np.ndarray:
         return self.rng.integers(0, self.config.n_actions, size=(state.n_worlds, state.n_agents))
+
+
+class FallbackHeuristic:
+    """Shell of the compiled heuristics (surfing, greedy): a kernel fills the (K, N) actions from the state, and
+    agents with nothing to follow take a uniformly random move (never stay) drawn here from a seeded generator."""
+
+    def __init__(self, config: WorldConfig, seed: int = 0) -> None:
+        self.config = config
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self, state: WorldState, mask: np.ndarray) -> None:
+        pass
+
+    def act(
+        self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
+    ) -> np.ndarray:
+        k, n = state.n_worlds, state.n_agents
+        fallback = self.rng.integers(1, self.config.n_actions, size=(k, n))
+        out = np.empty((k, n), np.int64)
+        self.fill(state, fallback, out)
+        return out
+
+    def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
+        """out (K, N) int64 <- actions; fallback (K, N) holds the random moves for agents with nothing to follow."""
+        raise NotImplementedError

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from searchrl.controllers.base import FallbackHeuristic
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import GAMMA, MOVES
 from searchrl.world.state import WorldState
@@ -64,7 +65,7 @@ def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_action
             out[k, i] = best if best >= 1 else fallback[k, i]
 
 
-class FootprintGreedy:
+class FootprintGreedy(FallbackHeuristic):
     """Batched footprint-greedy controller; parameters are config values of `controller=greedy`."""
 
     def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
@@ -76,22 +77,12 @@ class FootprintGreedy:
             raise ValueError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
         if w_p < 0 or w_u < 0 or w_p + w_u == 0:
             raise ValueError(f"w_p={w_p}, w_u={w_u} are not allowed: both >= 0, not both 0")
-        self.config = config
+        super().__init__(config, seed)
         self.horizon, self.discount, self.w_p, self.w_u = int(horizon), float(discount), float(w_p), float(w_u)
-        self.rng = np.random.default_rng(seed)
 
-    def reset(self, state: WorldState, mask: np.ndarray) -> None:
-        pass
-
-    def act(
-        self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
-    ) -> np.ndarray:
-        k, n = state.n_worlds, state.n_agents
-        fallback = self.rng.integers(1, self.config.n_actions, size=(k, n))
-        out = np.empty((k, n), np.int64)
+    def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
         greedy_actions(
             state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
             self.config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u, self.config.fov // 2,
             fallback, out,
         )  # fmt: skip
-        return out

@@ -20,6 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
+from searchrl.controllers.base import FallbackHeuristic
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES
 from searchrl.world.state import WorldState
@@ -91,7 +92,7 @@ def surfing_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actio
             out[k, i] = best
 
 
-class InformationSurfing:
+class InformationSurfing(FallbackHeuristic):
     """Batched information-surfing controller; parameters are config values of `controller=surfing`."""
 
     def __init__(self, config: WorldConfig, scales: tuple[int, ...] = (1, 3), w_p: float = 0.6,
@@ -100,23 +101,13 @@ class InformationSurfing:
             raise ValueError(f"scales={list(scales)!r} is not allowed: one or more positive block sizes")
         if w_p < 0 or w_u < 0 or repulsion < 0:
             raise ValueError(f"w_p={w_p}, w_u={w_u}, repulsion={repulsion} are not allowed: all must be >= 0")
-        self.config = config
+        super().__init__(config, seed)
         self.scales = np.asarray(scales, np.int64)
         self.w_p, self.w_u, self.repulsion = w_p, w_u, repulsion
-        self.rng = np.random.default_rng(seed)
 
-    def reset(self, state: WorldState, mask: np.ndarray) -> None:
-        pass
-
-    def act(
-        self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
-    ) -> np.ndarray:
-        k, n = state.n_worlds, state.n_agents
-        fallback = self.rng.integers(1, self.config.n_actions, size=(k, n))
-        out = np.empty((k, n), np.int64)
+    def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
         surfing_actions(
             state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
             self.config.n_actions, self.scales, self.w_p, self.w_u, self.repulsion, self.config.fov // 2,
             fallback, out,
         )  # fmt: skip
-        return out
