@@ -77,8 +77,20 @@ def test_greedy_uses_diagonal_moves_in_the_diagonal_model():
     assert _act(FootprintGreedy(config), state)[0] == 5  # NE
 
 
+@pytest.mark.parametrize("contested, other_col, action", [(1.0, 19, E), (0.0, 19, W), (0.0, 21, E)])
+def test_contested_leaves_to_a_visible_neighbour_the_cells_it_reaches_first(contested, other_col, action):
+    """Information 3 east of agent 0 and 1 west of agent 1 (4 east): with contested=0 agent 0 leaves it and goes for
+    the weaker information west; an agent 6 east is outside the view and contests nothing."""
+    config = WorldConfig(world_size=(30, 30), n_agents=2, n_targets=(1, 1))
+    state = _world(config, [(15, 15), (15, other_col)])
+    _put(state, 0, 15, other_col - 1 if other_col == 19 else 19)  # nearer the other agent than agent 0
+    _put(state, 0, 15, 15 - (3 if other_col == 19 else 4), 0.3)  # as far west as the information is east
+    assert _act(FootprintGreedy(config, contested=contested), state)[0] == action
+
+
 BAD = [({"horizon": 0}, "horizon"), ({"horizon": 6}, "horizon"), ({"discount": 0.0}, "discount"),
-       ({"w_p": 0.0, "w_u": 0.0}, "w_p")]  # fmt: skip
+       ({"w_p": 0.0, "w_u": 0.0}, "w_p"), ({"contested": 1.5}, "contested"),
+       ({"contested": -0.1}, "contested")]  # fmt: skip
 
 
 @pytest.mark.parametrize("kwargs, name", BAD)

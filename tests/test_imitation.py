@@ -13,7 +13,7 @@ from stable_baselines3 import PPO
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.extractor import SearchCNN
-from searchrl.train.imitation import clone, collect, discounted_returns
+from searchrl.train.imitation import clone, collect, discounted_returns, make_teacher
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 
@@ -49,6 +49,19 @@ def test_demonstrations_are_the_teachers_and_the_same_per_seed():
 def test_unknown_teacher_is_named():
     with pytest.raises(ValueError, match=r"imitation\.teacher='planner'"):
         collect([(WORLD, 1)], "planner", episodes=1, gamma=0.9, seed=0)
+
+
+def test_teacher_args_build_the_teacher_and_bad_ones_are_named():
+    args = {"horizon": 1, "contested": 0.5}
+    demos = collect([(WORLD, 2)], "greedy", episodes=1, gamma=0.9, seed=3, teacher_args=args)
+    world = SearchWorld(WORLD, 2)
+    maps, vector = world.reset(seed=int(np.random.SeedSequence([3, 0, 0]).generate_state(1)[0]))
+    teacher = make_teacher("greedy", WORLD, 3, args)
+    assert (teacher.horizon, teacher.contested) == (1, 0.5)
+    np.testing.assert_array_equal(teacher.act(world.state, maps, vector).reshape(-1), demos.actions[:6, 0])
+    for bad, message in [({"reach": 2}, "reach"), ({"horizon": 0}, "horizon=0"), ({"seed": 1}, "seed")]:
+        with pytest.raises(ValueError, match=rf"imitation\.teacher_args.*{message}"):
+            make_teacher("greedy", WORLD, 0, bad)
 
 
 @pytest.mark.parametrize("algo", [RecurrentPPO, PPO])

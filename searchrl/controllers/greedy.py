@@ -6,6 +6,11 @@ scored by what the 5×5 footprint Γ would see if the agent went on in that dire
 view (what a policy sees). The agent takes the best-scoring move among those to free cells; with nothing to sense
 it moves at random.
 
+Cells nearer (in moves) to another agent in view than to this one count `contested` times their information
+(1: no difference). Agents of a team that do not share beliefs (model C) or have not met yet see the same
+prior and would chase the same peak; leaving the cells a neighbour reaches first to that neighbour splits the
+view between them, using only what the field of view shows (other agents' positions, observation channel 0).
+
 Why it is here: it is the quantity sensing actually removes (eq. 1 with λk = 1), where surfing follows a pooled
 gradient of the same information. On the paper's grid it finds more than surfing on 14 of the 30 cells and less
 on none (README, "Results: baselines"), so it is the stronger teacher for a warm start (`imitation.teacher=greedy`).
@@ -24,8 +29,16 @@ from searchrl.world.state import WorldState
 
 
 @njit(cache=True)
-def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, wu):
-    """Σ Γ(d)·I(r + d, c + d) of agent i's belief over the cells within `view` of its position (r0, c0)."""
+def _moves_apart(dr, dc, diagonal):
+    """Moves between two cells dr, dc apart: Chebyshev with diagonal moves, Manhattan without."""
+    return max(abs(dr), abs(dc)) if diagonal else abs(dr) + abs(dc)
+
+
+@njit(cache=True)
+def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, wu, others, n_others, contested,
+                           diagonal):  # fmt: skip
+    """Σ Γ(d)·w·I(r + d, c + d) of agent i's belief over the cells within `view` of its position (r0, c0);
+    w = contested where one of the agents at others[:n_others] (rows, cols) is fewer moves away than (r0, c0)."""
     g = gamma.shape[0] // 2
     side = belief.shape[3]
     total = 0.0
@@ -36,19 +49,34 @@ def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, 
                 continue
             weight = gamma[dr + g, dc + g]
             if weight > 0.0:
+                mine = _moves_apart(rr - r0, cc - c0, diagonal)
+                for j in range(n_others):
+                    if _moves_apart(rr - others[j, 0], cc - others[j, 1], diagonal) < mine:
+                        weight *= contested
+                        break
                 total += weight * (wp * belief[k, i, 0, rr, cc] * sp + wu * belief[k, i, 1, rr, cc] * su)
     return total
 
 
 @njit(cache=True)
 def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actions, gamma, horizon, discount, wp, wu,
-                   view, fallback, out):  # fmt: skip
+                   view, contested, fallback, out):  # fmt: skip
     """out (K,N) int64 <- footprint-greedy actions. fallback (K,N): random moves used where nothing is sensed."""
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
+    diagonal = n_actions > 5
+    others = np.empty(((2 * view + 1) ** 2, 2), np.int64)
     for k in range(n_worlds):
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
         for i in range(n_agents):
             r, c = pos[k, i, 0] + h, pos[k, i, 1] + h
+            n_others = 0
+            if contested != 1.0:  # the other agents in view, as channel 0 of the observation shows them
+                for dr in range(-view, view + 1):
+                    for dc in range(-view, view + 1):
+                        j = occupant[k, r + dr, c + dc]
+                        if j >= 0 and j != i:
+                            others[n_others, 0], others[n_others, 1] = r + dr, c + dc
+                            n_others += 1
             best, best_score = -1, 0.0
             for a in range(1, n_actions):
                 mr, mc = moves[a, 0], moves[a, 1]
@@ -57,7 +85,8 @@ def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_action
                 score, weight = 0.0, 1.0
                 for t in range(1, horizon + 1):
                     score += weight * _footprint_information(
-                        belief, k, i, r + t * mr, c + t * mc, r, c, view, gamma, sp, su, wp, wu
+                        belief, k, i, r + t * mr, c + t * mc, r, c, view, gamma, sp, su, wp, wu, others, n_others,
+                        contested, diagonal,
                     )
                     weight *= discount
                 if score > best_score:
@@ -69,7 +98,7 @@ class FootprintGreedy(FallbackHeuristic):
     """Batched footprint-greedy controller; parameters are config values of `controller=greedy`."""
 
     def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
-                 w_u: float = 0.4, seed: int = 0) -> None:  # fmt: skip
+                 w_u: float = 0.4, contested: float = 1.0, seed: int = 0) -> None:  # fmt: skip
         view = config.fov // 2
         if not 1 <= horizon <= view:
             raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the field of view)")
@@ -77,12 +106,15 @@ class FootprintGreedy(FallbackHeuristic):
             raise ValueError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
         if w_p < 0 or w_u < 0 or w_p + w_u == 0:
             raise ValueError(f"w_p={w_p}, w_u={w_u} are not allowed: both >= 0, not both 0")
+        if not 0 <= contested <= 1:
+            raise ValueError(f"contested={contested!r} is not allowed: 0 <= contested <= 1")
         super().__init__(config, seed)
         self.horizon, self.discount, self.w_p, self.w_u = int(horizon), float(discount), float(w_p), float(w_u)
+        self.contested = float(contested)
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
         greedy_actions(
             state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
             self.config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u, self.config.fov // 2,
-            fallback, out,
+            self.contested, fallback, out,
         )  # fmt: skip

@@ -67,7 +67,7 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         )
     elif c.name == "greedy":
         factory = lambda config: FootprintGreedy(  # noqa: E731
-            config, int(c.horizon), float(c.discount), c.w_p, c.w_u, seed=int(cfg.seed)
+            config, int(c.horizon), float(c.discount), c.w_p, c.w_u, float(c.contested), seed=int(cfg.seed)
         )
     elif c.name == "coverage":
         factory = lambda config: GeometricCoverage(config, radius=int(c.radius))  # noqa: E731

@@ -38,6 +38,8 @@ class GreedyConfig(ControllerConfig):
     discount: float = 0.7
     w_p: float = 0.6  # the same weights as surfing's, so the two differ only in how they read the belief
     w_u: float = 0.4
+    # Weight of cells another agent in view reaches in fewer moves (1: no difference; < 1 splits the view).
+    contested: float = 1.0
 
 
 @dataclass

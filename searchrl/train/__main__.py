@@ -35,6 +35,7 @@ from searchrl.train.build import (
     load_algorithm,
     make_algorithm,
     make_vec_env,
+    teacher_args,
     team_groups,
     world_config,
 )
@@ -117,7 +118,8 @@ def warm_start(cfg: DictConfig, model: BaseAlgorithm, run_dir: Path) -> None:
     """Clone the teacher into the fresh policy (imitation.py); imitation.csv records each epoch and
     imitation.zip the clone before RL."""
     im = cfg.imitation
-    demos = collect(team_groups(cfg), im.teacher, int(im.episodes), float(cfg.algo.gamma), int(cfg.seed))
+    demos = collect(team_groups(cfg), im.teacher, int(im.episodes), float(cfg.algo.gamma), int(cfg.seed),
+                    teacher_args(cfg))  # fmt: skip
     print(f"imitation: {len(demos)} sequences of {im.teacher}, found fraction {demos.found_fraction:.3f}",
           file=sys.stderr)  # fmt: skip
     rows: list[dict[str, float]] = []

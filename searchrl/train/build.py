@@ -14,7 +14,7 @@ from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
-from searchrl.train.imitation import check_teacher
+from searchrl.train.imitation import make_teacher
 from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig
 from searchrl.world.config import ConfigError, WorldConfig
 
@@ -112,7 +112,7 @@ def check_config(cfg: DictConfig) -> None:
         raise ConfigError(f"init={cfg.init!r} does not exist: give a model.zip, imitation.zip or checkpoint of a run")
     imitation = cfg.imitation
     if imitation.teacher is not None:
-        check_teacher(imitation.teacher)
+        make_teacher(imitation.teacher, world, 0, teacher_args(cfg))  # unknown teacher or bad arguments
         for name in ("episodes", "epochs", "batch_sequences"):
             if int(imitation[name]) < 1:
                 raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 1")
@@ -142,3 +142,8 @@ def load_algorithm(cfg: DictConfig, path: str, env: VecEnv) -> BaseAlgorithm:
     """Load a checkpoint with its step count and optimiser state, attached to `env`."""
     algo_class, _ = ALGORITHMS[cfg.algo.name]
     return algo_class.load(path, env=env, device=cfg.device)
+
+
+def teacher_args(cfg: DictConfig) -> dict[str, Any]:
+    """`imitation.teacher_args` as a plain dict (keyword arguments of the teacher's controller)."""
+    return dict(OmegaConf.to_container(cfg.imitation.teacher_args, resolve=True) or {})

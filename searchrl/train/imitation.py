@@ -34,17 +34,26 @@ from searchrl.controllers.surfing import InformationSurfing
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
-TEACHERS: dict[str, Callable[[WorldConfig, int], Controller]] = {
-    "surfing": lambda config, seed: InformationSurfing(config, seed=seed),  # the defaults of controller=surfing
-    "greedy": lambda config, seed: FootprintGreedy(config, seed=seed),  # the defaults of controller=greedy
-    "coverage": lambda config, seed: GeometricCoverage(config),
+# Each takes (world config, seed, **teacher_args); without arguments a teacher has the defaults of its controller=…
+TEACHERS: dict[str, Callable[..., Controller]] = {
+    "surfing": lambda config, seed, **args: InformationSurfing(config, seed=seed, **args),
+    "greedy": lambda config, seed, **args: FootprintGreedy(config, seed=seed, **args),
+    "coverage": lambda config, seed, **args: GeometricCoverage(config, **args),
 }
 
 
-def check_teacher(teacher: str) -> None:
-    """ConfigError naming `imitation.teacher` unless it is one of TEACHERS."""
+def make_teacher(teacher: str, config: WorldConfig, seed: int, args: dict | None = None) -> Controller:
+    """The teacher's controller; ConfigError naming `imitation.teacher` or `imitation.teacher_args` if either is
+    not allowed (an unknown teacher, an argument its controller does not take, or a value it refuses)."""
     if teacher not in TEACHERS:
         raise ConfigError(f"imitation.teacher={teacher!r} is not allowed: one of {sorted(TEACHERS)} or null")
+    args = dict(args or {})
+    if "seed" in args:
+        raise ConfigError("imitation.teacher_args.seed is not allowed: the teacher is seeded from the run's seed")
+    try:
+        return TEACHERS[teacher](config, seed, **args)
+    except (TypeError, ValueError) as err:
+        raise ConfigError(f"imitation.teacher_args={args} is not allowed for teacher {teacher!r}: {err}") from err
 
 
 @dataclass
@@ -72,15 +81,14 @@ def discounted_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> 
     return returns
 
 
-def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, gamma: float,
-            seed: int) -> Demonstrations:  # fmt: skip
-    """Let `teacher` play `episodes` rounds in each (world config, K) group; round e of group j is seeded
-    (seed, j, e), so the same seed gives the same demonstrations."""
-    check_teacher(teacher)
+def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, gamma: float, seed: int,
+            teacher_args: dict | None = None) -> Demonstrations:  # fmt: skip
+    """Let `teacher` (built with `teacher_args`) play `episodes` rounds in each (world config, K) group; round e
+    of group j is seeded (seed, j, e), so the same seed gives the same demonstrations."""
     parts, found = [], []
     for j, (config, n_worlds) in enumerate(groups):
         world = SearchWorld(config, n_worlds)
-        controller = TEACHERS[teacher](config, seed + j)
+        controller = make_teacher(teacher, config, seed + j, teacher_args)
         steps, slots = config.max_steps, n_worlds * config.n_agents
         for e in range(episodes):
             maps, vector = world.reset(seed=int(np.random.SeedSequence([seed, j, e]).generate_state(1)[0]))

@@ -102,6 +102,9 @@ class ImitationConfig:
     """Warm start by cloning a heuristic before RL (`searchrl/train/imitation.py`); not in the paper."""
 
     teacher: str | None = None  # surfing, greedy or coverage; null trains from scratch as the paper does
+    # Keyword arguments of the teacher's controller (those of controller=<teacher>), e.g. {horizon: 1} for greedy;
+    # empty: that controller's defaults.
+    teacher_args: dict[str, Any] = field(default_factory=dict)
     episodes: int = 32  # teacher episodes per world of the run's rollout worlds (K·N·episodes sequences)
     epochs: int = 4  # cross-entropy on the teacher's actions
     value_epochs: int = 1  # then the value-only parameters on the teacher's discounted returns (0 skips)
