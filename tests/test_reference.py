@@ -17,6 +17,7 @@ from searchrl.controllers.policy import PolicyController, checkpoint_config
 from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import cell_config
+from searchrl.train.imitation import make_teacher
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_world
@@ -47,6 +48,12 @@ def test_shipped_policy_is_complete_and_acts(model):
     if saved.total_timesteps == 0:  # a clone without RL: its record is the imitation log
         rows = list(csv.DictReader(open(folder / "imitation.csv")))
         assert saved.imitation.teacher and float(rows[-1]["accuracy"]) > 0.9
+        # The recorded teacher rebuilds (the clone command reproduces it), and the README's command names its
+        # arguments: `+imitation.teacher_args.<name>=<value>` for each one the run was given.
+        args = OmegaConf.to_container(saved.imitation.teacher_args) if "teacher_args" in saved.imitation else {}
+        make_teacher(saved.imitation.teacher, WorldConfig.from_dict(world_dict), 0, args)
+        readme = (REFERENCE / "README.md").read_text()
+        assert all(f"+imitation.teacher_args.{k}={v}" in readme for k, v in args.items())
     else:
         rows = list(csv.DictReader(open(folder / "progress.csv")))
         assert int(rows[-1]["time/total_timesteps"]) == trained
