@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import pandas as pd
@@ -71,7 +72,7 @@ def test_shards_split_the_cells(tmp_path):
     )
 
 
-def test_checkpoint_settings_come_from_its_run(tmp_path):
+def test_checkpoint_settings_come_from_its_run(tmp_path, capsys):
     from tests.test_train import TINY, _run
 
     model = _run(tmp_path / "run", ["+model=diagonal", *TINY, "total_timesteps=256", "validation.every=0"])
@@ -80,6 +81,31 @@ def test_checkpoint_settings_come_from_its_run(tmp_path):
     assert len(frame) == 18
     again = _evaluate(tmp_path / "again", f"checkpoint={model}")  # sampled actions come from the eval seed
     pd.testing.assert_frame_equal(frame, again)
+    with zipfile.ZipFile(model, "a") as archive:  # the same path, another file (as if retrained)
+        archive.writestr("note.txt", "retrained")
+    with pytest.raises(SystemExit):
+        _evaluate(tmp_path / "again", f"checkpoint={model}")
+    assert "checkpoint_sha256" in capsys.readouterr().err
+
+
+def test_a_folder_refuses_results_of_other_settings(tmp_path, capsys):
+    """Cells are skipped when their file exists, so a run with other settings must not resume another's folder."""
+    first = _evaluate(tmp_path, "controller=greedy", "shard=0", "num_shards=2")
+    record = (tmp_path / "evaluation.yaml").read_text()
+    assert "horizon: 2" in record and "maps_per_cell: 3" in record
+    changes = [("controller.horizon=1", "controller_args.horizon: 2 there, 1 here"),
+               ("seed=5", "seed: 7000000 there, 5 here"), ("+model=c", "model: 'b' there, 'c' here"),
+               ("grid.maps_per_cell=4", "grid.maps_per_cell: 3 there, 4 here")]  # fmt: skip
+    for override, difference in changes:
+        capsys.readouterr()
+        with pytest.raises(SystemExit) as exit_:
+            _evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2", override)
+        err = capsys.readouterr().err
+        assert exit_.value.code == 2 and f"out_dir={str(tmp_path)!r} holds results of other settings" in err, err
+        assert difference in err, err
+    assert len(load(tmp_path)) == len(first) and (tmp_path / "evaluation.yaml").read_text() == record
+    both = _evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2", "threads=2", "batch_mb=64")
+    assert len(both) == 18  # the same settings resume; threads and batch size do not change an episode
 
 
 def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):

@@ -87,7 +87,7 @@ def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_action
                     score += weight * _footprint_information(
                         belief, k, i, r + t * mr, c + t * mc, r, c, view, gamma, sp, su, wp, wu, others, n_others,
                         contested, diagonal,
-                    )
+                    )  # fmt: skip
                     weight *= discount
                 if score > best_score:
                     best, best_score = a, score

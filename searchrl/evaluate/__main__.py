@@ -1,8 +1,10 @@
-"""`python -m searchrl.evaluate controller=<surfing|coverage|random> [+model=...]` or `checkpoint=<model.zip>`
+"""`python -m searchrl.evaluate controller=<surfing|greedy|coverage|random> [+model=...]` or `checkpoint=<model.zip>`
 
 Runs the controller on the Table 2/3 grid and writes one parquet file per cell, `<out_dir>/cells/<cell>.parquet`
 (one row per episode), atomically; cells already written are skipped, so a rerun resumes and `shard=` /
-`num_shards=` split the grid across multirun jobs. Load the results with `searchrl.evaluate.results.load`.
+`num_shards=` split the grid across multirun jobs. `<out_dir>/evaluation.yaml` records the settings the cells were
+run with; a run with other settings into the same folder stops before any work (`searchrl/evaluate/record.py`).
+Load the results with `searchrl.evaluate.results.load`.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.evaluate.grid import table2_cells
+from searchrl.evaluate.record import claim_folder, evaluation_settings
 from searchrl.evaluate.runner import run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.world.config import ConfigError, WorldConfig
@@ -92,12 +95,13 @@ def evaluate(cfg: DictConfig) -> Path:
                 raise ConfigError(f"grid.{name}={cfg.grid[name]!r} is not allowed: must be >= 1")
         if not 0 <= int(cfg.shard) < int(cfg.num_shards):
             raise ConfigError(f"shard={cfg.shard!r} is not allowed: 0 <= shard < num_shards={cfg.num_shards}")
+        out_dir = Path(cfg.out_dir or f"runs/eval/{controller_name.replace(':', '_')}")
+        claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name))
     except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException) as err:
         fail(str(err))
     import torch
 
     torch.set_num_threads(int(cfg.threads))
-    out_dir = Path(cfg.out_dir or f"runs/eval/{controller_name.replace(':', '_')}")
     mine = [(i, c) for i, c in enumerate(cells) if i % int(cfg.num_shards) == int(cfg.shard)]
     todo = [(i, c) for i, c in mine if not (out_dir / "cells" / f"{c.key}.parquet").exists()]
     maps, repeats = int(cfg.grid.maps_per_cell), int(cfg.grid.repeats)

@@ -1,0 +1,80 @@
+"""What an evaluation folder holds results of: `<out_dir>/evaluation.yaml`.
+
+An evaluation resumes by skipping cells whose parquet file exists, so a second run into the same folder with other
+settings (another `controller.horizon`, a retrained `model.zip` at the same path, another `seed` or grid) would
+silently keep the first run's cells beside its own. The first run into a folder records the settings that decide
+its episodes; every later run compares its own with them and stops, naming what differs, before any work.
+Settings that do not change an episode (shard, num_shards, threads, batch_mb, progress_bar) are not recorded.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sys
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from searchrl.atomic import write_text_atomic
+from searchrl.world.config import ConfigError
+
+RECORD = "evaluation.yaml"
+GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents", "maps_per_cell", "repeats")
+
+
+def file_sha256(path: str | Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def evaluation_settings(cfg: DictConfig, label: str, model_name: str) -> dict[str, Any]:
+    """The settings that decide a folder's episodes. A checkpoint is named by the hash of its file (its world and
+    network come with it); a heuristic by its parameters and the world settings it runs in. The grid lists are
+    recorded whole: a cell's maps are seeded by its index in them, so another list gives other maps per cell."""
+    settings: dict[str, Any] = {
+        "controller": label,
+        "model": model_name,
+        "seed": int(cfg.seed),
+        "grid": {key: OmegaConf.to_container(cfg.grid, resolve=True)[key] for key in GRID_KEYS},
+    }
+    if cfg.checkpoint is not None:
+        settings["checkpoint_sha256"] = file_sha256(cfg.checkpoint)
+        settings["deterministic"] = bool(cfg.deterministic)
+    else:
+        settings["controller_args"] = OmegaConf.to_container(cfg.controller, resolve=True)
+        settings["world"] = OmegaConf.to_container(cfg.env.world, resolve=True)
+    return settings
+
+
+def _flatten(tree: Any, prefix: str = "") -> dict[str, Any]:
+    if not isinstance(tree, dict):
+        return {prefix: tree}
+    flat: dict[str, Any] = {}
+    for key, value in tree.items():
+        flat.update(_flatten(value, f"{prefix}.{key}" if prefix else str(key)))
+    return flat
+
+
+def claim_folder(out_dir: str | Path, settings: dict[str, Any]) -> None:
+    """Record `settings` in `out_dir`, or check them against the record there; ConfigError naming the folder and
+    every setting that differs. A folder with results but no record (made before records existed) adopts these."""
+    path = Path(out_dir) / RECORD
+    mine = OmegaConf.to_container(OmegaConf.create(settings))  # the types a YAML round trip gives
+    if path.exists():
+        theirs = _flatten(OmegaConf.to_container(OmegaConf.load(path)))
+        ours = _flatten(mine)
+        differ = [f"{key}: {theirs.get(key, '(absent)')!r} there, {ours.get(key, '(absent)')!r} here"
+                  for key in sorted(theirs.keys() | ours.keys()) if theirs.get(key) != ours.get(key)]  # fmt: skip
+        if differ:
+            raise ConfigError(
+                f"out_dir={str(out_dir)!r} holds results of other settings ({'; '.join(differ)}): give this run "
+                f"another out_dir, or remove that folder to start it afresh"
+            )
+        return
+    if (Path(out_dir) / "cells").exists():
+        print(f"note: {out_dir} has results but no {RECORD}; recording this run's settings", file=sys.stderr)
+    write_text_atomic(path, OmegaConf.to_yaml(OmegaConf.create(mine)))
