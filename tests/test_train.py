@@ -114,6 +114,19 @@ def test_clone_only_run_saves_the_clone_as_its_model(tmp_path):
         assert torch.equal(value, model.policy.state_dict()[name]), name
 
 
+def test_dagger_rounds_refit_the_clone_on_states_it_reaches(tmp_path):
+    """imitation.dagger_rounds=1: a second fit after the clone played; imitation.csv tells the rounds apart and
+    records the clone's found fraction while it played."""
+    overrides = ["+model=b", *TINY, "total_timesteps=0", "validation.every=0", "imitation.teacher=greedy",
+                 "imitation.episodes=1", "imitation.epochs=1", "imitation.value_epochs=1",
+                 "imitation.dagger_rounds=1"]  # fmt: skip
+    _run(tmp_path, overrides)
+    rows = list(csv.DictReader(open(tmp_path / "imitation.csv")))
+    expected = [("1", "policy", "0"), ("2", "value", "0"), ("3", "policy", "1"), ("4", "value", "1")]
+    assert [(r["epoch"], r["phase"], r["dagger_round"]) for r in rows] == expected
+    assert rows[0]["clone_found_fraction"] == "" and 0.0 <= float(rows[-1]["clone_found_fraction"]) <= 1.0
+
+
 def test_init_copies_policy_weights_only(tmp_path, capsys):
     """init=<zip> starts a fresh run (step 0, fresh optimiser) from another run's weights; a zip of another
     network is refused with the reason."""
@@ -258,6 +271,7 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("imitation.teacher=greedy +imitation.teacher_args.reach=2", r"imitation.teacher_args=\{'reach': 2\}"),
         ("imitation.teacher=greedy +imitation.teacher_args.contested=2", "contested=2"),
         ("imitation.teacher=surfing imitation.learning_rate=0", "imitation.learning_rate=0"),
+        ("imitation.teacher=greedy imitation.dagger_rounds=-1", "imitation.dagger_rounds=-1"),
     ],
 )
 def test_check_config_names_the_bad_value(override, message):

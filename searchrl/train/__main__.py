@@ -29,6 +29,8 @@ from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.logger import Logger
 
 from searchrl.atomic import write_atomic, write_text_atomic
+from searchrl.controllers.policy import PolicyController
+from searchrl.policies.actor import Actor
 from searchrl.train.build import (
     TRAINABLE_MODELS,
     check_config,
@@ -48,7 +50,7 @@ from searchrl.train.callbacks import (
 from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
 from searchrl.train.imitation import clone, collect
 from searchrl.train.schema import TrainConfig, register_configs
-from searchrl.world.config import ConfigError
+from searchrl.world.config import ConfigError, WorldConfig
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 register_configs()
@@ -115,23 +117,38 @@ def init_weights(model: BaseAlgorithm, path: str) -> None:
 
 
 def warm_start(cfg: DictConfig, model: BaseAlgorithm, run_dir: Path) -> None:
-    """Clone the teacher into the fresh policy (imitation.py); imitation.csv records each epoch and
-    imitation.zip the clone before RL."""
-    im = cfg.imitation
-    demos = collect(team_groups(cfg), im.teacher, int(im.episodes), float(cfg.algo.gamma), int(cfg.seed),
-                    teacher_args(cfg))  # fmt: skip
+    """Clone the teacher into the fresh policy (imitation.py), then refit it over `imitation.dagger_rounds` DAgger
+    rounds; imitation.csv records each epoch and imitation.zip the clone before RL."""
+    im, groups, gamma, seed = cfg.imitation, team_groups(cfg), float(cfg.algo.gamma), int(cfg.seed)
+    demos = collect(groups, im.teacher, int(im.episodes), gamma, seed, teacher_args(cfg))
     print(f"imitation: {len(demos)} sequences of {im.teacher}, found fraction {demos.found_fraction:.3f}",
           file=sys.stderr)  # fmt: skip
     rows: list[dict[str, float]] = []
+    dagger_round, clone_found = 0, float("nan")  # the clone's found fraction while it played that round's episodes
 
     def record(row: dict[str, float]) -> None:
-        rows.append({**row, "teacher_found_fraction": demos.found_fraction})
-        print(f"imitation epoch {row['epoch']} ({row['phase']}): accuracy {row['accuracy']:.3f}, "
+        rows.append({**row, "teacher_found_fraction": demos.found_fraction, "dagger_round": dagger_round,
+                     "clone_found_fraction": clone_found})  # fmt: skip
+        rows[-1]["epoch"] = len(rows)
+        print(f"imitation epoch {len(rows)} ({row['phase']}, round {dagger_round}): accuracy {row['accuracy']:.3f}, "
               f"value loss {row['value_loss']:.2f}", file=sys.stderr)  # fmt: skip
         write_text_atomic(run_dir / "imitation.csv", pd.DataFrame(rows).to_csv(index=False))
 
-    clone(model.policy, demos, int(im.epochs), int(im.value_epochs), int(im.batch_sequences),
-          float(im.learning_rate), int(cfg.seed), on_epoch=record)  # fmt: skip
+    fit = (int(im.epochs), int(im.value_epochs), int(im.batch_sequences), float(im.learning_rate))
+    clone(model.policy, demos, *fit, seed, on_epoch=record)
+    for dagger_round in range(1, int(im.get("dagger_rounds", 0)) + 1):
+        device = model.policy.device
+        actor = Actor(model.policy.to("cpu"))  # the clone as it is now; Actor runs on CPU
+
+        def player(config: WorldConfig, player_seed: int, actor: Actor = actor) -> PolicyController:
+            return PolicyController(actor, config, seed=player_seed)
+
+        played = collect(groups, im.teacher, int(im.episodes), gamma, seed, teacher_args(cfg), player, dagger_round)
+        model.policy.to(device)
+        clone_found = played.found_fraction
+        print(f"imitation round {dagger_round}: the clone found {clone_found:.3f}", file=sys.stderr)
+        demos = demos.join(played)
+        clone(model.policy, demos, *fit, seed + dagger_round, on_epoch=record, fresh_head=False)
     write_atomic(run_dir / "imitation.zip", lambda tmp: model.save(tmp))  # the clone before RL, to evaluate
 
 

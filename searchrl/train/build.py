@@ -116,8 +116,9 @@ def check_config(cfg: DictConfig) -> None:
         for name in ("episodes", "epochs", "batch_sequences"):
             if int(imitation[name]) < 1:
                 raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 1")
-        if int(imitation.value_epochs) < 0:
-            raise ConfigError(f"imitation.value_epochs={imitation.value_epochs!r} is not allowed: must be >= 0")
+        for name in ("value_epochs", "dagger_rounds"):
+            if int(imitation.get(name, 0)) < 0:
+                raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 0")
         if float(imitation.learning_rate) <= 0:
             raise ConfigError(f"imitation.learning_rate={imitation.learning_rate!r} is not allowed: must be > 0")
     net = cfg.network

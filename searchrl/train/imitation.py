@@ -15,6 +15,10 @@ Two steps, both before `model.learn`:
    zeros as at every episode start; then fit the value-only parameters to the returns. The fitted critic means
    PPO's first advantages come from a value that already knows the teacher's returns, so the first updates do not
    undo the clone.
+3. `imitation.dagger_rounds` > 0 (DAgger, Ross et al. 2011): the clone plays `episodes` more rounds while the
+   teacher labels every state it reaches, those sequences join the demonstrations, and the clone is fitted again
+   (from where it is). Cloning alone only shows states the teacher visits; one wrong move of the clone leads to
+   states no demonstration covers, and errors compound (the clones trailed their teacher on a few cells).
 """
 
 from __future__ import annotations
@@ -70,6 +74,12 @@ class Demonstrations:
     def __len__(self) -> int:
         return self.actions.shape[0]
 
+    def join(self, other: Demonstrations) -> Demonstrations:
+        """Both sets of sequences (DAgger's aggregate); found_fraction stays this one's (the teacher's)."""
+        fields = ("maps", "vector", "actions", "starts", "returns")
+        joined = {f: np.concatenate([getattr(self, f), getattr(other, f)]) for f in fields}
+        return Demonstrations(**joined, found_fraction=self.found_fraction)
+
 
 def discounted_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.ndarray:
     """(S, T) return-to-go G_t = r_t + γ·G_{t+1}·(1 − done_t); the sequence end is cut without bootstrap."""
@@ -82,17 +92,24 @@ def discounted_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> 
 
 
 def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, gamma: float, seed: int,
-            teacher_args: dict | None = None) -> Demonstrations:  # fmt: skip
+            teacher_args: dict | None = None, player: Callable[[WorldConfig, int], Controller] | None = None,
+            dagger_round: int = 0) -> Demonstrations:  # fmt: skip
     """Let `teacher` (built with `teacher_args`) play `episodes` rounds in each (world config, K) group; round e
-    of group j is seeded (seed, j, e), so the same seed gives the same demonstrations."""
+    of group j is seeded (seed, j, e), so the same seed gives the same demonstrations. With `player(config, seed)`
+    (a DAgger round) that controller moves the agents and the teacher only labels the states; `dagger_round` > 0
+    draws other scenarios, seeded (seed, j, e, dagger_round). `found_fraction` is then the player's."""
     parts, found = [], []
     for j, (config, n_worlds) in enumerate(groups):
         world = SearchWorld(config, n_worlds)
         controller = make_teacher(teacher, config, seed + j, teacher_args)
+        mover = controller if player is None else player(config, seed + j)
         steps, slots = config.max_steps, n_worlds * config.n_agents
         for e in range(episodes):
-            maps, vector = world.reset(seed=int(np.random.SeedSequence([seed, j, e]).generate_state(1)[0]))
+            entropy = [seed, j, e] + ([dagger_round] if dagger_round else [])
+            maps, vector = world.reset(seed=int(np.random.SeedSequence(entropy).generate_state(1)[0]))
             controller.reset(world.state, np.ones(n_worlds, bool))
+            if mover is not controller:
+                mover.reset(world.state, np.ones(n_worlds, bool))
             rec = {
                 "maps": np.empty((steps, slots, *maps.shape[2:]), np.float16),
                 "vector": np.empty((steps, slots, vector.shape[2]), np.float32),
@@ -105,7 +122,7 @@ def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, 
                 actions = controller.act(world.state, maps, vector)
                 rec["maps"][t], rec["vector"][t] = maps.reshape(slots, *maps.shape[2:]), vector.reshape(slots, -1)
                 rec["actions"][t] = actions.reshape(-1)
-                tr = world.step(actions)
+                tr = world.step(actions if mover is controller else mover.act(world.state, maps, vector))
                 done = tr.result.done
                 rec["rewards"][t] = tr.result.reward.reshape(-1)
                 rec["dones"][t] = np.repeat(done, config.n_agents)
@@ -113,6 +130,8 @@ def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, 
                     rec["starts"][t + 1] = rec["dones"][t]
                 if done.any():
                     controller.reset(world.state, done)
+                    if mover is not controller:
+                        mover.reset(world.state, done)
                     found.extend(tr.metrics["found_fraction"][done].tolist())
                 maps, vector = tr.maps, tr.vector
             parts.append({key: np.swapaxes(value, 0, 1) for key, value in rec.items()})  # (slots, T, ...)
@@ -154,8 +173,8 @@ def _value_parameters(policy: ActorCriticPolicy) -> list[torch.nn.Parameter]:
 
 
 def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_epochs: int, batch_sequences: int,
-          learning_rate: float, seed: int,
-          on_epoch: Callable[[dict[str, float]], None] | None = None) -> list[dict[str, float]]:  # fmt: skip
+          learning_rate: float, seed: int, on_epoch: Callable[[dict[str, float]], None] | None = None,
+          fresh_head: bool = True) -> list[dict[str, float]]:  # fmt: skip
     """Fit `policy` in place: `epochs` of cross-entropy on the teacher's actions through the whole network, then
     `value_epochs` of (V − return)² on the value-only parameters. One row of metrics per epoch (phase, imitation
     loss, value loss, accuracy = argmax action is the teacher's), averaged over the epoch's minibatches.
@@ -163,10 +182,12 @@ def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_e
     Why two phases: the returns' squared error is ~20× the imitation loss at the start, and through the shared
     extractor it drowned the imitation gradient (accuracy stayed at the majority action). Why a unit-gain action
     head: SB3 initialises it with gain 0.01 so PPO starts near uniform, which also starves the extractor of
-    gradient; the clone's head is re-drawn orthogonally with gain 1 and fitting then starts at once.
+    gradient; the clone's head is re-drawn orthogonally with gain 1 and fitting then starts at once
+    (`fresh_head=False` keeps it: a DAgger round refits a clone).
     """
-    torch.nn.init.orthogonal_(policy.action_net.weight, gain=1.0)
-    torch.nn.init.zeros_(policy.action_net.bias)
+    if fresh_head:
+        torch.nn.init.orthogonal_(policy.action_net.weight, gain=1.0)
+        torch.nn.init.zeros_(policy.action_net.bias)
     rng = np.random.default_rng(seed)
     returns = torch.as_tensor(demos.returns)
     policy.set_training_mode(True)

@@ -108,6 +108,9 @@ class ImitationConfig:
     episodes: int = 32  # teacher episodes per world of the run's rollout worlds (K·N·episodes sequences)
     epochs: int = 4  # cross-entropy on the teacher's actions
     value_epochs: int = 1  # then the value-only parameters on the teacher's discounted returns (0 skips)
+    # DAgger rounds after the first fit: the clone plays `episodes` more episodes per world, the teacher labels the
+    # states it reaches, and the clone is refitted on all sequences so far (memory grows by the first set per round).
+    dagger_rounds: int = 0
     batch_sequences: int = 16  # whole episodes per minibatch
     learning_rate: float = 1e-3
 
