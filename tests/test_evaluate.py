@@ -127,6 +127,7 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
         ("controller.radius=-1", "radius=-1"),
         ("controller.horizon=9", "horizon=9"),
         ("controller.contested=2", "contested=2.0"),
+        ("controller.w_t=-1", "w_t=-1.0"),
     ],
 )
 def test_bad_input_fails_before_work(tmp_path, override, message):

@@ -88,8 +88,20 @@ def test_contested_leaves_to_a_visible_neighbour_the_cells_it_reaches_first(cont
     assert _act(FootprintGreedy(config, contested=contested), state)[0] == action
 
 
+def test_target_weight_avoids_probability_under_high_uncertainty():
+    """Equal p three cells east and west; east also has û = 0.9, where §4.1.4 rarely keeps a target. The blend
+    0.6 p̂ + 0.4 û goes east for the uncertainty; w_t alone scores p̂ (1 − û) and goes west."""
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(config, [(15, 15)])
+    h = state.halo
+    state.belief[0, 0, 0, 15 + h, 18 + h] = state.belief[0, 0, 0, 15 + h, 12 + h] = 0.5
+    state.belief[0, 0, 1, 15 + h, 18 + h] = 0.9
+    assert _act(FootprintGreedy(config), state)[0] == E
+    assert _act(FootprintGreedy(config, w_p=0.0, w_u=0.0, w_t=1.0), state)[0] == W
+
+
 BAD = [({"horizon": 0}, "horizon"), ({"horizon": 6}, "horizon"), ({"discount": 0.0}, "discount"),
-       ({"w_p": 0.0, "w_u": 0.0}, "w_p"), ({"contested": 1.5}, "contested"),
+       ({"w_p": 0.0, "w_u": 0.0}, "w_p"), ({"w_t": -1.0}, "w_t"), ({"contested": 1.5}, "contested"),
        ({"contested": -0.1}, "contested")]  # fmt: skip
 
 

@@ -1,10 +1,19 @@
 """Footprint-greedy search: each agent takes the move whose footprint would sense the most information.
 
-Per agent: information I = w_p·p̂ + w_u·û of its own belief (p̂, û scaled as in the observation). A move a is
-scored by what the 5×5 footprint Γ would see if the agent went on in that direction for `horizon` steps,
+Per agent: information I = w_p·p̂ + w_u·û + w_t·p̂·(1 − û) of its own belief (p̂, û scaled as in the observation,
+so û = u / max u on unvisited cells). A move a is scored by what the 5×5 footprint Γ would see if the agent went
+on in that direction for `horizon` steps,
 Σ_{t=1..horizon} discount^(t-1) Σ_Γ Γ(d)·I(x + t·a + d), counting only cells inside the agent's 11×11 field of
 view (what a policy sees). The agent takes the best-scoring move among those to free cells; with nothing to sense
 it moves at random.
+
+Which information. The defaults (w_p 0.6, w_u 0.4, w_t 0) blend probability and uncertainty as surfing does.
+The term p̂·(1 − û) is proportional to the chance that a target sits in the cell: §4.1.4 keeps a target drawn
+from p with probability 1 − u (we read u relative to its maximum, searchrl/world/reset.py), so targets avoid
+high uncertainty; sensing scales p and u of a cell by the same factor (1 − Γ), so on a sensed cell p̂·(1 − û)
+stays an upper bound of the posterior. With w_p = w_u = 0, w_t = 1 and horizon 3 (the shipped policies'
+teacher) greedy scores a move by the targets its footprint expects to detect, and finds clearly more than the
+blend (README, "Results: baselines").
 
 Cells nearer (in moves) to another agent in view than to this one count `contested` times their information
 (1: no difference). Agents of a team that do not share beliefs (model C) or have not met yet see the same
@@ -35,8 +44,8 @@ def _moves_apart(dr, dc, diagonal):
 
 
 @njit(cache=True)
-def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, wu, others, n_others, contested,
-                           diagonal):  # fmt: skip
+def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, wu, wt, others, n_others,
+                           contested, diagonal):  # fmt: skip
     """Σ Γ(d)·w·I(r + d, c + d) of agent i's belief over the cells within `view` of its position (r0, c0);
     w = contested where one of the agents at others[:n_others] (rows, cols) is fewer moves away than (r0, c0)."""
     g = gamma.shape[0] // 2
@@ -54,13 +63,14 @@ def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, 
                     if _moves_apart(rr - others[j, 0], cc - others[j, 1], diagonal) < mine:
                         weight *= contested
                         break
-                total += weight * (wp * belief[k, i, 0, rr, cc] * sp + wu * belief[k, i, 1, rr, cc] * su)
+                p_hat, u_hat = belief[k, i, 0, rr, cc] * sp, belief[k, i, 1, rr, cc] * su
+                total += weight * (wp * p_hat + wu * u_hat + wt * p_hat * max(0.0, 1.0 - u_hat))
     return total
 
 
 @njit(cache=True)
 def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actions, gamma, horizon, discount, wp, wu,
-                   view, contested, fallback, out):  # fmt: skip
+                   wt, view, contested, fallback, out):  # fmt: skip
     """out (K,N) int64 <- footprint-greedy actions. fallback (K,N): random moves used where nothing is sensed."""
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     diagonal = n_actions > 5
@@ -85,8 +95,8 @@ def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_action
                 score, weight = 0.0, 1.0
                 for t in range(1, horizon + 1):
                     score += weight * _footprint_information(
-                        belief, k, i, r + t * mr, c + t * mc, r, c, view, gamma, sp, su, wp, wu, others, n_others,
-                        contested, diagonal,
+                        belief, k, i, r + t * mr, c + t * mc, r, c, view, gamma, sp, su, wp, wu, wt, others,
+                        n_others, contested, diagonal,
                     )  # fmt: skip
                     weight *= discount
                 if score > best_score:
@@ -98,23 +108,25 @@ class FootprintGreedy(FallbackHeuristic):
     """Batched footprint-greedy controller; parameters are config values of `controller=greedy`."""
 
     def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
-                 w_u: float = 0.4, contested: float = 1.0, seed: int = 0) -> None:  # fmt: skip
+                 w_u: float = 0.4, w_t: float = 0.0, contested: float = 1.0, seed: int = 0) -> None:  # fmt: skip
         view = config.fov // 2
         if not 1 <= horizon <= view:
             raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the field of view)")
         if not 0 < discount <= 1:
             raise ValueError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
-        if w_p < 0 or w_u < 0 or w_p + w_u == 0:
-            raise ValueError(f"w_p={w_p}, w_u={w_u} are not allowed: both >= 0, not both 0")
+        if min(w_p, w_u, w_t) < 0 or w_p + w_u + w_t == 0:
+            raise ValueError(f"w_p={w_p}, w_u={w_u}, w_t={w_t} are not allowed: all >= 0, not all 0")
         if not 0 <= contested <= 1:
             raise ValueError(f"contested={contested!r} is not allowed: 0 <= contested <= 1")
         super().__init__(config, seed)
         self.horizon, self.discount, self.w_p, self.w_u = int(horizon), float(discount), float(w_p), float(w_u)
+        self.w_t = float(w_t)
         self.contested = float(contested)
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
         greedy_actions(
             state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
-            self.config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u, self.config.fov // 2,
+            self.config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u, self.w_t,
+            self.config.fov // 2,
             self.contested, fallback, out,
         )  # fmt: skip

@@ -70,8 +70,9 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         )
     elif c.name == "greedy":
         factory = lambda config: FootprintGreedy(  # noqa: E731
-            config, int(c.horizon), float(c.discount), c.w_p, c.w_u, float(c.contested), seed=int(cfg.seed)
-        )
+            config, horizon=int(c.horizon), discount=float(c.discount), w_p=float(c.w_p), w_u=float(c.w_u),
+            w_t=float(c.w_t), contested=float(c.contested), seed=int(cfg.seed),
+        )  # fmt: skip
     elif c.name == "coverage":
         factory = lambda config: GeometricCoverage(config, radius=int(c.radius))  # noqa: E731
     elif c.name == "random":

@@ -38,6 +38,9 @@ class GreedyConfig(ControllerConfig):
     discount: float = 0.7
     w_p: float = 0.6  # the same weights as surfing's, so the two differ only in how they read the belief
     w_u: float = 0.4
+    # Weight of p̂·(1 − û), the chance a target sits in the cell (§4.1.4 keeps a draw from p with probability
+    # 1 − u/max u); w_p=0 w_u=0 w_t=1 scores a move by the targets its footprint expects to detect.
+    w_t: float = 0.0
     # Weight of cells another agent in view reaches in fewer moves (1: no difference; < 1 splits the view).
     contested: float = 1.0
 
