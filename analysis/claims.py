@@ -43,7 +43,7 @@ policies = dict(zip(policy_rows.model, policy_rows.controller, strict=True))  # 
 # Surfing runs in one model's world (Φ, communication, moves; `+model=<m>`, B's by default). Surfing in B's world
 # is the paper's single baseline, "surfing"; surfing in another model's world is "surfing (<m>)" and is compared
 # with that model's policy too: same sensing, merging and moves, only the controller differs.
-# Footprint-greedy (`controller=greedy`, default settings: the teacher of A's and diagonal's clones) likewise.
+# Footprint-greedy (`controller=greedy`, with whatever settings its evaluation ran) likewise.
 for heuristic in ("surfing", "greedy"):
     other_world = (episodes.controller == heuristic) & (episodes.model != "b")
     episodes.loc[other_world, "controller"] = f"{heuristic} (" + episodes.loc[other_world, "model"] + ")"
@@ -138,9 +138,9 @@ if margins is not None and len(same_world) > 1:
     lines.append(not_better(own[region.loc[own.index]]))
 if margins is not None and teacher_world:
     lines.append("\n## Policies against footprint-greedy in their own world (all cells)\n")
-    lines.append("How close a policy comes to greedy with its default settings (`controller=greedy +model=<m>`), the "
-                 "teacher of A's and diagonal's clones; B's and C's teachers take other settings "
-                 "(`runs/reference/README.md`).\n")  # fmt: skip
+    lines.append("How close a policy comes to footprint-greedy in its own world (`controller=greedy +model=<m>`, with "
+                 "the settings of the evaluated greedy runs; pass the teacher's to compare a clone with its "
+                 "teacher, `runs/reference/README.md`).\n")  # fmt: skip
     lines += [f"- {m} − {label}: " + verdicts(policies[m], label) for m, label in sorted(teacher_world.items())]
 if margins is not None and "coverage" in baselines:
     lines.append("\n## Against geometric coverage (all cells)\n")
