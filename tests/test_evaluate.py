@@ -7,6 +7,7 @@ import sys
 import zipfile
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 from hydra import compose, initialize_config_dir
@@ -128,6 +129,7 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
         ("controller.horizon=9", "horizon=9"),
         ("controller.contested=2", "contested=2.0"),
         ("controller.w_t=-1", "w_t=-1.0"),
+        ("controller.reach=-1", "reach=-1.0"),
     ],
 )
 def test_bad_input_fails_before_work(tmp_path, override, message):
@@ -138,3 +140,23 @@ def test_bad_input_fails_before_work(tmp_path, override, message):
     out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 2 and message in out.stderr, out.stderr[-2000:]
     assert not (tmp_path / "cells").exists()
+
+
+def test_run_cell_shows_each_episode_end_once():
+    """`on_done` sees every world's final state exactly once, with the found targets the episode's row reports."""
+    from searchrl.controllers.greedy import FootprintGreedy
+    from searchrl.evaluate.runner import run_cell
+    from searchrl.world.config import WorldConfig
+
+    cell = table2_cells([20], [4], [8], [2])[1]  # n = 20, N = 2
+    seen, found = [], {}
+
+    def on_done(state, first):
+        seen.extend(np.flatnonzero(first).tolist())
+        for w in np.flatnonzero(first):
+            found[int(w)] = state.n_found[w] / state.n_targets[w]
+
+    frame = run_cell(lambda c: FootprintGreedy(c, seed=1), WorldConfig(), cell, 1, maps=3, repeats=2, seed=5,
+                     needs_observation=False, on_done=on_done)  # fmt: skip
+    assert sorted(seen) == list(range(6))
+    assert np.allclose([found[w] for w in range(6)], frame.found_fraction)

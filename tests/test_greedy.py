@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from searchrl.controllers.greedy import FootprintGreedy
+from searchrl.controllers.greedy import FootprintGreedy, reach_weights
 from searchrl.world.config import WorldConfig
+from searchrl.world.footprint import GAMMA
 from searchrl.world.observe import observe
 from tests.handmade import make_world
 
@@ -100,9 +101,56 @@ def test_target_weight_avoids_probability_under_high_uncertainty():
     assert _act(FootprintGreedy(config, w_p=0.0, w_u=0.0, w_t=1.0), state)[0] == W
 
 
+def test_reach_weights_count_cells_by_the_footprint_mass_that_can_reach_them():
+    """Γ_total / Γ_reach: 1 inside, 5.44/3.96 on an edge, 5.44/2.85 in a corner, above 1 beside an obstacle,
+    0 on blocked cells; the exponent raises them."""
+    blocked = np.ones((1, 24, 24), bool)
+    blocked[0, 5:19, 5:19] = False  # a 14×14 world with a halo of 5
+    blocked[0, 12, 12] = True  # one obstacle
+    total = GAMMA.sum()
+    weights = reach_weights(blocked, 1.0)[0]
+    assert weights[8, 8] == pytest.approx(1.0)
+    assert weights[5, 8] == pytest.approx(total / (total - GAMMA[3:].sum()))  # top edge: no agent above it
+    assert weights[5, 5] == pytest.approx(total / (total - GAMMA[3:].sum() - GAMMA[:3, 3:].sum()))
+    assert weights[12, 13] > 1.0 and weights[12, 12] == 0.0 and weights[0, 0] == 0.0
+    assert np.allclose(reach_weights(blocked, 2.0)[0], weights**2)
+    assert np.array_equal(reach_weights(blocked, 0.0)[0], (~blocked[0]).astype(float))
+
+
+def test_reach_draws_to_the_edge_what_passing_agents_would_barely_sense():
+    """Information 0.9 on the west edge and 1.0 as far east, reached with the same footprint weights: every cell
+    counting the same goes east; reach 1 weighs the edge cell by 5.44/3.96 and goes west."""
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(config, [(15, 3)])
+    _put(state, 0, 15, 0, 0.9)
+    _put(state, 0, 15, 6, 1.0)
+    assert _act(FootprintGreedy(config), state)[0] == E
+    assert _act(FootprintGreedy(config, reach=1.0), state)[0] == W
+
+
+def test_seen_lowers_the_belief_under_a_neighbours_footprint_and_remembers_it():
+    """Information 1.0 three cells east, on the cell where a neighbour stands, and 0.9 three west. Greedy goes east;
+    with `seen` the neighbour's footprint clears that cell in what agent 0 believes, so it goes west, and it still
+    does after the neighbour has left its view, until a reset forgets what it saw."""
+    config = WorldConfig(world_size=(30, 30), n_agents=2, n_targets=(1, 1))
+    state = _world(config, [(15, 15), (15, 18)])
+    _put(state, 0, 15, 18, 1.0)
+    _put(state, 0, 15, 12, 0.9)
+    assert _act(FootprintGreedy(config), state)[0] == E
+    greedy = FootprintGreedy(config, seen=True)
+    greedy.reset(state, np.ones(1, bool))
+    assert _act(greedy, state)[0] == W
+    h = state.halo
+    state.occupant[0, 15 + h, 18 + h], state.occupant[0, 2 + h, 28 + h] = -1, 1  # agent 1 leaves the view
+    state.pos[0, 1] = (2, 28)
+    assert _act(greedy, state)[0] == W
+    greedy.reset(state, np.ones(1, bool))
+    assert _act(greedy, state)[0] == E
+
+
 BAD = [({"horizon": 0}, "horizon"), ({"horizon": 6}, "horizon"), ({"discount": 0.0}, "discount"),
        ({"w_p": 0.0, "w_u": 0.0}, "w_p"), ({"w_t": -1.0}, "w_t"), ({"contested": 1.5}, "contested"),
-       ({"contested": -0.1}, "contested")]  # fmt: skip
+       ({"contested": -0.1}, "contested"), ({"reach": -1.0}, "reach"), ({"reach": 5.0}, "reach")]  # fmt: skip
 
 
 @pytest.mark.parametrize("kwargs, name", BAD)

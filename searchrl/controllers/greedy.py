@@ -20,6 +20,19 @@ Cells nearer (in moves) to another agent in view than to this one count `contest
 prior and would chase the same peak; leaving the cells a neighbour reaches first to that neighbour splits the
 view between them, using only what the field of view shows (other agents' positions, observation channel 0).
 
+With `seen`, each agent also keeps what it can infer from the neighbours it sees: a neighbour in view sensed
+its footprint in the last step, so the agent scales its own p̂ and û there by (1 − Γ), as that sensing did in the
+world, and remembers it until the world is reset. In a world that merges beliefs (B) this comes through
+communication; in C it is the only way an agent learns what others cleared, and with many agents C's greedy
+otherwise re-chases it (README, "Results: the reference policies"). It reads only the observation's channel of
+other agents, over time.
+
+Cells that fewer footprint positions can sense count more with `reach` > 0: (Γ_total / Γ_reach)^reach, where
+Γ_reach is the footprint mass an agent can put on the cell from the cells it may stand on (1.37 on an edge, 1.91
+in a corner, above 1 beside obstacles; `reach_weights`). A footprint on the edge senses little, so greedy keeps
+off the edge and only brushes it with Γ's outer ring; with many agents most targets it misses lie on the edge
+(README, "Results: the reference policies"). Weighting those cells draws an agent onto the edge when it passes.
+
 Why it is here: it is the quantity sensing actually removes (eq. 1 with λk = 1), where surfing follows a pooled
 gradient of the same information. On the paper's grid it finds more than surfing on 14 of the 30 cells and less
 on none (README, "Results: baselines"), so it is the stronger teacher for a warm start (`imitation.teacher=greedy`).
@@ -45,8 +58,8 @@ def _moves_apart(dr, dc, diagonal):
 
 @njit(cache=True)
 def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, wu, wt, others, n_others,
-                           contested, diagonal):  # fmt: skip
-    """Σ Γ(d)·w·I(r + d, c + d) of agent i's belief over the cells within `view` of its position (r0, c0);
+                           contested, diagonal, reach, seen, use_seen):  # fmt: skip
+    """Σ Γ(d)·w·reach·I(r + d, c + d) of agent i's belief over the cells within `view` of its position (r0, c0);
     w = contested where one of the agents at others[:n_others] (rows, cols) is fewer moves away than (r0, c0)."""
     g = gamma.shape[0] // 2
     side = belief.shape[3]
@@ -64,29 +77,37 @@ def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, 
                         weight *= contested
                         break
                 p_hat, u_hat = belief[k, i, 0, rr, cc] * sp, belief[k, i, 1, rr, cc] * su
-                total += weight * (wp * p_hat + wu * u_hat + wt * p_hat * max(0.0, 1.0 - u_hat))
+                if use_seen:  # what the neighbours it saw there have sensed, as that sensing scales p and u
+                    p_hat, u_hat = p_hat * seen[k, i, rr, cc], u_hat * seen[k, i, rr, cc]
+                total += weight * reach[k, rr, cc] * (wp * p_hat + wu * u_hat + wt * p_hat * max(0.0, 1.0 - u_hat))
     return total
 
 
 @njit(cache=True)
 def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actions, gamma, horizon, discount, wp, wu,
-                   wt, view, contested, fallback, out):  # fmt: skip
+                   wt, view, contested, reach, seen, use_seen, fallback, out):  # fmt: skip
     """out (K,N) int64 <- footprint-greedy actions. fallback (K,N): random moves used where nothing is sensed."""
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     diagonal = n_actions > 5
     others = np.empty(((2 * view + 1) ** 2, 2), np.int64)
+    g = gamma.shape[0] // 2
     for k in range(n_worlds):
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
         for i in range(n_agents):
             r, c = pos[k, i, 0] + h, pos[k, i, 1] + h
             n_others = 0
-            if contested != 1.0:  # the other agents in view, as channel 0 of the observation shows them
+            if contested != 1.0 or use_seen:  # the other agents in view, as channel 0 of the observation shows them
                 for dr in range(-view, view + 1):
                     for dc in range(-view, view + 1):
                         j = occupant[k, r + dr, c + dc]
                         if j >= 0 and j != i:
                             others[n_others, 0], others[n_others, 1] = r + dr, c + dc
                             n_others += 1
+            if use_seen:  # each neighbour in view sensed its footprint at the end of the last step
+                for j in range(n_others):
+                    for dr in range(-g, g + 1):
+                        for dc in range(-g, g + 1):
+                            seen[k, i, others[j, 0] + dr, others[j, 1] + dc] *= 1.0 - gamma[dr + g, dc + g]
             best, best_score = -1, 0.0
             for a in range(1, n_actions):
                 mr, mc = moves[a, 0], moves[a, 1]
@@ -96,7 +117,7 @@ def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_action
                 for t in range(1, horizon + 1):
                     score += weight * _footprint_information(
                         belief, k, i, r + t * mr, c + t * mc, r, c, view, gamma, sp, su, wp, wu, wt, others,
-                        n_others, contested, diagonal,
+                        n_others, contested, diagonal, reach, seen, use_seen,
                     )  # fmt: skip
                     weight *= discount
                 if score > best_score:
@@ -104,11 +125,33 @@ def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_action
             out[k, i] = best if best >= 1 else fallback[k, i]
 
 
+def reach_weights(blocked: np.ndarray, exponent: float) -> np.ndarray:
+    """(K, S, S) float64 weights (Γ_total / Γ_reach)^exponent from blocked (K, S, S) bool, 0 on blocked cells.
+
+    Γ_reach(x) = Σ_d Γ(d) over the offsets d with x − d free: the footprint mass an agent can put on cell x from
+    the cells it can stand on. It is Γ_total inside the world and less on the edge (3.96 of 5.44), in a corner
+    (2.85) and beside obstacles. Needs a halo of at least Γ's radius (the state's is half the field of view)."""
+    g = GAMMA.shape[0] // 2
+    free = ~blocked
+    side = blocked.shape[-1]
+    mass = np.zeros(blocked.shape, np.float64)
+    for dr in range(-g, g + 1):
+        for dc in range(-g, g + 1):
+            if GAMMA[dr + g, dc + g] > 0:  # mass[x] += Γ(d) · free[x − d]
+                mass[:, g : side - g, g : side - g] += (
+                    GAMMA[dr + g, dc + g] * free[:, g - dr : side - g - dr, g - dc : side - g - dc]
+                )
+    weights = np.zeros(blocked.shape, np.float64)
+    np.divide(GAMMA.sum(), mass, out=weights, where=free & (mass > 0))
+    return np.power(weights, exponent, out=weights, where=free)
+
+
 class FootprintGreedy(FallbackHeuristic):
     """Batched footprint-greedy controller; parameters are config values of `controller=greedy`."""
 
     def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
-                 w_u: float = 0.4, w_t: float = 0.0, contested: float = 1.0, seed: int = 0) -> None:  # fmt: skip
+                 w_u: float = 0.4, w_t: float = 0.0, contested: float = 1.0, reach: float = 0.0,
+                 seen: bool = False, seed: int = 0) -> None:  # fmt: skip
         view = config.fov // 2
         if not 1 <= horizon <= view:
             raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the field of view)")
@@ -118,15 +161,33 @@ class FootprintGreedy(FallbackHeuristic):
             raise ValueError(f"w_p={w_p}, w_u={w_u}, w_t={w_t} are not allowed: all >= 0, not all 0")
         if not 0 <= contested <= 1:
             raise ValueError(f"contested={contested!r} is not allowed: 0 <= contested <= 1")
+        if not 0 <= reach <= 4:
+            raise ValueError(f"reach={reach!r} is not allowed: 0 <= reach <= 4 (0: every cell counts the same)")
         super().__init__(config, seed)
         self.horizon, self.discount, self.w_p, self.w_u = int(horizon), float(discount), float(w_p), float(w_u)
         self.w_t = float(w_t)
         self.contested = float(contested)
+        self.reach = float(reach)
+        self.seen = bool(seen)
+        self._weights = np.ones((0, 0, 0))  # (K, S, S) reach weights of the worlds, refreshed on reset
+        self._seen = np.ones((1, 1, 1, 1), np.float32)  # (K, N, S, S) Π (1 − Γ) of neighbours' footprints seen
+
+    def reset(self, state: WorldState, mask: np.ndarray) -> None:
+        if self._weights.shape != state.blocked.shape:
+            self._weights, mask = np.ones(state.blocked.shape), np.ones(state.n_worlds, bool)
+        if self.reach > 0 and mask.any():  # obstacles and the world's side change only on reset
+            self._weights[mask] = reach_weights(state.blocked[mask], self.reach)
+        if self.seen:
+            if self._seen.shape != state.belief[:, :, 0].shape:
+                self._seen = np.ones(state.belief[:, :, 0].shape, np.float32)
+            self._seen[mask] = 1.0
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
+        if self._weights.shape != state.blocked.shape:
+            self.reset(state, np.ones(state.n_worlds, bool))
         greedy_actions(
             state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
             self.config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u, self.w_t,
             self.config.fov // 2,
-            self.contested, fallback, out,
+            self.contested, self._weights, self._seen, self.seen, fallback, out,
         )  # fmt: skip

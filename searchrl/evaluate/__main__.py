@@ -71,7 +71,8 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
     elif c.name == "greedy":
         factory = lambda config: FootprintGreedy(  # noqa: E731
             config, horizon=int(c.horizon), discount=float(c.discount), w_p=float(c.w_p), w_u=float(c.w_u),
-            w_t=float(c.w_t), contested=float(c.contested), seed=int(cfg.seed),
+            w_t=float(c.w_t), contested=float(c.contested), reach=float(c.reach),
+            seen=bool(c.seen), seed=int(cfg.seed),
         )  # fmt: skip
     elif c.name == "coverage":
         factory = lambda config: GeometricCoverage(config, radius=int(c.radius))  # noqa: E731

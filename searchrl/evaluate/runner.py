@@ -14,7 +14,7 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_world
-from searchrl.world.state import allocate
+from searchrl.world.state import WorldState, allocate
 from searchrl.world.step import step
 
 COLUMNS = ["controller", "model", "n", "N", "targets", "map_seed", "repeat", "found_fraction", "L", "R", "F", "M_bar"]
@@ -49,10 +49,12 @@ def run_cell(
     budget_mb: float = 1024.0,
     needs_observation: bool = True,
     on_steps: Callable[[int], None] | None = None,
+    on_done: Callable[[WorldState, np.ndarray], None] | None = None,
 ) -> pd.DataFrame:
     """One row per episode (COLUMNS minus controller/model). Every repeat of a map starts from the same world
     (map, targets and start cells come from the map seed); repeats differ in the step draws and the
-    controller's own randomness, both seeded from `seed` and the cell."""
+    controller's own randomness, both seeded from `seed` and the cell. `on_done(state, first)` sees the batch's
+    state when the worlds in `first` (K,) bool end their episode (analysis/missed_targets.py reads it)."""
     config = cell_config(world, cell)
     episodes = [(m, r) for m in range(maps) for r in range(repeats)]
     batch = worlds_per_batch(config, budget_mb)
@@ -81,6 +83,8 @@ def run_cell(
                 for name, values in metrics.items():
                     final.setdefault(name, np.zeros(k, values.dtype))[first] = values[first]
                 finished |= result.done
+                if on_done:
+                    on_done(state, first)
             if on_steps:
                 on_steps(int((~finished | first).sum()) * config.n_agents)
         for w, (_, r) in enumerate(chunk):

@@ -43,6 +43,12 @@ class GreedyConfig(ControllerConfig):
     w_t: float = 0.0
     # Weight of cells another agent in view reaches in fewer moves (1: no difference; < 1 splits the view).
     contested: float = 1.0
+    # Cells that fewer footprint positions can sense (edges, corners, beside obstacles) count
+    # (Γ_total / Γ_reach)^reach times; 0 counts every cell the same (searchrl/controllers/greedy.py).
+    reach: float = 0.0
+    # Lower what an agent believes under the footprints of the neighbours it sees, as their sensing would (for
+    # worlds without merging, model C; searchrl/controllers/greedy.py).
+    seen: bool = False
 
 
 @dataclass
