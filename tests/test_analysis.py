@@ -45,14 +45,20 @@ def fixture_dirs(tmp_path_factory):
 
 
 def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: Path) -> None:
+    args = []
+    if notebook == "missed_targets.py":  # it runs a controller itself: a small greedy on two small cells
+        args = ["controller=greedy", "controller.reach=2", "controller.seen=true", "grid.maps_per_cell=3",
+                "grid.repeats=2"]  # fmt: skip
     env = {
+        "SEARCHRL_CELLS": "n20_N1,n20_N2",
+        "SEARCHRL_LABEL": "small",
         **os.environ,
         "SEARCHRL_EVAL_DIRS": ",".join(map(str, eval_dirs)),
         "SEARCHRL_RUN_DIRS": str(run_dir),
         "SEARCHRL_ANALYSIS_OUT": str(out_dir),
         "MPLBACKEND": "Agg",
     }
-    out = subprocess.run([sys.executable, f"analysis/{notebook}"], cwd=ROOT, env=env, capture_output=True,
+    out = subprocess.run([sys.executable, f"analysis/{notebook}", *args], cwd=ROOT, env=env, capture_output=True,
                          text=True, timeout=300)  # fmt: skip
     assert out.returncode == 0, out.stderr[-3000:]
 
@@ -67,9 +73,16 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "training_curves.py": ["training_curves.png", "training_curves.csv", "training_convergence.md"],
         "claims.py": ["margins.csv", "margins.md", "claims.md"],
         "compare.py": ["compare.csv", "compare.md"],
+        "missed_targets.py": ["small.csv", "missed_targets.md"],
     }[notebook]
     for name in expected:
         assert (tmp_path / name).stat().st_size > 0, name
+    if notebook == "missed_targets.py":  # every unfound target is counted once, in one distance bin
+        rows = pd.read_csv(tmp_path / "small.csv")
+        assert list(rows.cell) == ["n20_N1", "n20_N2"] and (rows.episodes == 6).all()
+        bins = rows[["missed_on_edge", "missed_1_in", "missed_2_in", "missed_3+_in"]].sum(axis=1)
+        assert (bins == rows.missed).all()
+        assert ((1 - rows.found) * rows.episodes * 4).round().astype(int).tolist() == rows.missed.tolist()
     if notebook == "table3.py":
         table = pd.read_csv(tmp_path / "table3.csv")
         assert set(table.controller) == {"surfing", "coverage", "policy:run"} and table["paper"].notna().all()

@@ -87,7 +87,7 @@ def test_teacher_args_build_the_teacher_and_bad_ones_are_named():
     teacher = make_teacher("greedy", WORLD, 3, args)
     assert (teacher.horizon, teacher.contested) == (1, 0.5)
     np.testing.assert_array_equal(teacher.act(world.state, maps, vector).reshape(-1), demos.actions[:6, 0])
-    for bad, message in [({"reach": 2}, "reach"), ({"horizon": 0}, "horizon=0"), ({"seed": 1}, "seed")]:
+    for bad, message in [({"sweep": 2}, "sweep"), ({"horizon": 0}, "horizon=0"), ({"seed": 1}, "seed")]:
         with pytest.raises(ValueError, match=rf"imitation\.teacher_args.*{message}"):
             make_teacher("greedy", WORLD, 0, bad)
 

@@ -268,7 +268,7 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("total_timesteps=0", "total_timesteps=0 is not allowed"),
         ("total_timesteps=-5 imitation.teacher=greedy", "total_timesteps=-5 is not allowed"),
         ("imitation.teacher=surfing imitation.epochs=0", "imitation.epochs=0"),
-        ("imitation.teacher=greedy +imitation.teacher_args.reach=2", r"imitation.teacher_args=\{'reach': 2\}"),
+        ("imitation.teacher=greedy +imitation.teacher_args.sweep=2", r"imitation.teacher_args=\{'sweep': 2\}"),
         ("imitation.teacher=greedy +imitation.teacher_args.contested=2", "contested=2"),
         ("imitation.teacher=surfing imitation.learning_rate=0", "imitation.learning_rate=0"),
         ("imitation.teacher=greedy imitation.dagger_rounds=-1", "imitation.dagger_rounds=-1"),
