@@ -48,6 +48,7 @@ from searchrl.controllers.base import FallbackHeuristic
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import GAMMA, MOVES
 from searchrl.world.state import WorldState
+from searchrl.world.step import SUPPORT_DC, SUPPORT_DR, SUPPORT_G
 
 
 @njit(cache=True)
@@ -135,12 +136,8 @@ def reach_weights(blocked: np.ndarray, exponent: float) -> np.ndarray:
     free = ~blocked
     side = blocked.shape[-1]
     mass = np.zeros(blocked.shape, np.float64)
-    for dr in range(-g, g + 1):
-        for dc in range(-g, g + 1):
-            if GAMMA[dr + g, dc + g] > 0:  # mass[x] += Γ(d) · free[x − d]
-                mass[:, g : side - g, g : side - g] += (
-                    GAMMA[dr + g, dc + g] * free[:, g - dr : side - g - dr, g - dc : side - g - dc]
-                )
+    for dr, dc, weight in zip(SUPPORT_DR, SUPPORT_DC, SUPPORT_G, strict=True):  # mass[x] += Γ(d) · free[x − d]
+        mass[:, g : side - g, g : side - g] += weight * free[:, g - dr : side - g - dr, g - dc : side - g - dc]
     weights = np.zeros(blocked.shape, np.float64)
     np.divide(GAMMA.sum(), mass, out=weights, where=free & (mass > 0))
     return np.power(weights, exponent, out=weights, where=free)
