@@ -81,6 +81,8 @@ def test_mixed_team_sizes_train_in_one_rollout(tmp_path):
     cfg = _compose(["+model=b", *mixed])
     env = make_vec_env(cfg, seed=0)
     assert env.num_envs == 14 and env.get_attr("n_agents", indices=[7, 8]) == [4, 6]
+    sized = make_vec_env(_compose(["+model=b", *TINY, "env.extra_teams=[{n_agents:6,n_worlds:1,world_size:[30,40]}]"]))
+    assert [w.config.world_size for w in sized.envs] == [(12, 20), (30, 40)]  # its own n range, others keep theirs
     loaded = load_algorithm(cfg, str(final), env)
     assert loaded.num_timesteps >= 2048
     actions, _ = loaded.predict(env.reset(), episode_start=np.ones(14, bool))
@@ -263,6 +265,7 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("keep_checkpoints=0", "keep_checkpoints=0"),
         ("env.extra_teams=[{n_agents:0,n_worlds:1}]", r"env.extra_teams\[0\]: n_agents=0"),
         ("env.extra_teams=[{n_agents:8,n_worlds:0}]", r"env.extra_teams\[0\].n_worlds=0"),
+        ("env.extra_teams=[{n_agents:8,n_worlds:1,world_size:[40,4]}]", r"env.extra_teams\[0\]: world_size"),
         ("init=/nowhere/model.zip", "init='/nowhere/model.zip' does not exist"),
         ("imitation.teacher=planner", "imitation.teacher='planner' is not allowed"),
         ("total_timesteps=0", "total_timesteps=0 is not allowed"),

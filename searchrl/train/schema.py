@@ -32,6 +32,9 @@ def _world_node() -> DictConfig:
 class TeamConfig:
     n_agents: int = MISSING  # N of this group's worlds
     n_worlds: int = MISSING  # K of this group
+    # [n_min, n_max] of this group's worlds; null keeps env.world.world_size. Lets a clone see the crowded
+    # large worlds of the evaluation grid (n = 160, N = 256) that the training range [20, 128] never holds.
+    world_size: list[int] | None = None
 
 
 @dataclass
@@ -39,7 +42,8 @@ class EnvConfig:
     world: Any = field(default_factory=_world_node)
     n_worlds: int = 16  # K worlds per VecEnv: K·N slots share the policy
     # More groups of worlds with other team sizes in the same rollout (`TeamMixVecEnv`), e.g.
-    # 'env.extra_teams=[{n_agents:32,n_worlds:4}]'. Empty (the paper): every world has env.world.n_agents.
+    # 'env.extra_teams=[{n_agents:32,n_worlds:4},{n_agents:128,n_worlds:1,world_size:[80,160]}]'. Empty (the
+    # paper): every world has env.world.n_agents.
     extra_teams: list[TeamConfig] = field(default_factory=list)
 
 
