@@ -130,6 +130,7 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
         ("controller.contested=2", "contested=2.0"),
         ("controller.w_t=-1", "w_t=-1.0"),
         ("controller.reach=-1", "reach=-1.0"),
+        ("controller.age=9", "age=9.0"),
     ],
 )
 def test_bad_input_fails_before_work(tmp_path, override, message):

@@ -148,9 +148,29 @@ def test_seen_lowers_the_belief_under_a_neighbours_footprint_and_remembers_it():
     assert _act(greedy, state)[0] == E
 
 
+def test_age_prefers_what_the_agent_saw_lately_to_what_it_never_saw():
+    """Information 1.0 three cells east that agent 0 has not seen since the start, and 0.4 two cells west, inside its
+    explicit area Φ, so it knows that value is the truth now. Greedy goes east; with `age`, 100 steps on, what an
+    evenly spread team would have sensed there since lowers the east cell to 0.55 of it, so it goes west, and a reset
+    (step 0) makes both fresh again."""
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(config, [(15, 15)])
+    _put(state, 0, 15, 18, 1.0)
+    _put(state, 0, 15, 13, 0.4)
+    state.t[:] = 100
+    assert _act(FootprintGreedy(config), state)[0] == E
+    greedy = FootprintGreedy(config, age=1.0)
+    greedy.reset(state, np.ones(1, bool))
+    assert _act(greedy, state)[0] == W
+    state.t[:] = 0
+    greedy.reset(state, np.ones(1, bool))
+    assert _act(greedy, state)[0] == E
+
+
 BAD = [({"horizon": 0}, "horizon"), ({"horizon": 6}, "horizon"), ({"discount": 0.0}, "discount"),
        ({"w_p": 0.0, "w_u": 0.0}, "w_p"), ({"w_t": -1.0}, "w_t"), ({"contested": 1.5}, "contested"),
-       ({"contested": -0.1}, "contested"), ({"reach": -1.0}, "reach"), ({"reach": 5.0}, "reach")]  # fmt: skip
+       ({"contested": -0.1}, "contested"), ({"reach": -1.0}, "reach"), ({"reach": 5.0}, "reach"),
+       ({"age": -0.5}, "age"), ({"age": 5.0}, "age")]  # fmt: skip
 
 
 @pytest.mark.parametrize("kwargs, name", BAD)

@@ -59,7 +59,7 @@ def _moves_apart(dr, dc, diagonal):
 
 @njit(cache=True)
 def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, wu, wt, others, n_others,
-                           contested, diagonal, reach, seen, use_seen):  # fmt: skip
+                           contested, diagonal, reach, seen, use_seen, known, now, rate, use_age):  # fmt: skip
     """Σ Γ(d)·w·reach·I(r + d, c + d) of agent i's belief over the cells within `view` of its position (r0, c0);
     w = contested where one of the agents at others[:n_others] (rows, cols) is fewer moves away than (r0, c0)."""
     g = gamma.shape[0] // 2
@@ -80,13 +80,17 @@ def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, 
                 p_hat, u_hat = belief[k, i, 0, rr, cc] * sp, belief[k, i, 1, rr, cc] * su
                 if use_seen:  # what the neighbours it saw there have sensed, as that sensing scales p and u
                     p_hat, u_hat = p_hat * seen[k, i, rr, cc], u_hat * seen[k, i, rr, cc]
+                if use_age:  # what unseen agents have likely sensed since it last saw the cell's truth
+                    fresh = np.exp(-rate * (now - known[k, i, rr, cc]))
+                    p_hat, u_hat = p_hat * fresh, u_hat * fresh
                 total += weight * reach[k, rr, cc] * (wp * p_hat + wu * u_hat + wt * p_hat * max(0.0, 1.0 - u_hat))
     return total
 
 
 @njit(cache=True)
 def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actions, gamma, horizon, discount, wp, wu,
-                   wt, view, contested, reach, seen, use_seen, fallback, out):  # fmt: skip
+                   wt, view, contested, reach, seen, use_seen, known, steps, rates, use_age, phi, fallback,
+                   out):  # fmt: skip
     """out (K,N) int64 <- footprint-greedy actions. fallback (K,N): random moves used where nothing is sensed."""
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     diagonal = n_actions > 5
@@ -109,6 +113,12 @@ def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_action
                     for dr in range(-g, g + 1):
                         for dc in range(-g, g + 1):
                             seen[k, i, others[j, 0] + dr, others[j, 1] + dc] *= 1.0 - gamma[dr + g, dc + g]
+            if use_age:  # its belief inside Φ is the world's truth now, with every agent's sensing in it
+                for dr in range(-phi, phi + 1):
+                    for dc in range(-phi, phi + 1):
+                        known[k, i, r + dr, c + dc] = steps[k]
+                        if use_seen:
+                            seen[k, i, r + dr, c + dc] = 1.0
             best, best_score = -1, 0.0
             for a in range(1, n_actions):
                 mr, mc = moves[a, 0], moves[a, 1]
@@ -118,7 +128,7 @@ def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_action
                 for t in range(1, horizon + 1):
                     score += weight * _footprint_information(
                         belief, k, i, r + t * mr, c + t * mc, r, c, view, gamma, sp, su, wp, wu, wt, others,
-                        n_others, contested, diagonal, reach, seen, use_seen,
+                        n_others, contested, diagonal, reach, seen, use_seen, known, steps[k], rates[k], use_age,
                     )  # fmt: skip
                     weight *= discount
                 if score > best_score:
@@ -148,7 +158,7 @@ class FootprintGreedy(FallbackHeuristic):
 
     def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
                  w_u: float = 0.4, w_t: float = 0.0, contested: float = 1.0, reach: float = 0.0,
-                 seen: bool = False, seed: int = 0) -> None:  # fmt: skip
+                 seen: bool = False, age: float = 0.0, seed: int = 0) -> None:  # fmt: skip
         view = config.fov // 2
         if not 1 <= horizon <= view:
             raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the field of view)")
@@ -160,12 +170,17 @@ class FootprintGreedy(FallbackHeuristic):
             raise ValueError(f"contested={contested!r} is not allowed: 0 <= contested <= 1")
         if not 0 <= reach <= 4:
             raise ValueError(f"reach={reach!r} is not allowed: 0 <= reach <= 4 (0: every cell counts the same)")
+        if not 0 <= age <= 4:
+            raise ValueError(f"age={age!r} is not allowed: 0 <= age <= 4 (0: a belief does not age)")
         super().__init__(config, seed)
         self.horizon, self.discount, self.w_p, self.w_u = int(horizon), float(discount), float(w_p), float(w_u)
         self.w_t = float(w_t)
         self.contested = float(contested)
         self.reach = float(reach)
         self.seen = bool(seen)
+        self.age = float(age)
+        self._known = np.zeros((1, 1, 1, 1), np.int32)  # (K, N, S, S) step at which each agent last saw the truth
+        self._rates = np.zeros(1)  # (K,) age · N · ΣΓ / free cells: how fast an evenly spread team senses a cell
         self._weights = np.ones((0, 0, 0))  # (K, S, S) reach weights of the worlds, refreshed on reset
         self._seen = np.ones((1, 1, 1, 1), np.float32)  # (K, N, S, S) Π (1 − Γ) of neighbours' footprints seen
 
@@ -178,6 +193,12 @@ class FootprintGreedy(FallbackHeuristic):
             if self._seen.shape != state.belief[:, :, 0].shape:
                 self._seen = np.ones(state.belief[:, :, 0].shape, np.float32)
             self._seen[mask] = 1.0
+        if self.age > 0:
+            if self._known.shape != state.belief[:, :, 0].shape:
+                self._known = np.zeros(state.belief[:, :, 0].shape, np.int32)
+            self._known[mask] = 0
+            free = (~state.blocked).sum(axis=(1, 2))
+            self._rates = self.age * state.n_agents * GAMMA.sum() / np.maximum(free, 1)
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
         if self._weights.shape != state.blocked.shape:
@@ -186,5 +207,6 @@ class FootprintGreedy(FallbackHeuristic):
             state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
             self.config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u, self.w_t,
             self.config.fov // 2,
-            self.contested, self._weights, self._seen, self.seen, fallback, out,
+            self.contested, self._weights, self._seen, self.seen, self._known, state.t, self._rates, self.age > 0,
+            self.config.explicit_area // 2, fallback, out,
         )  # fmt: skip

@@ -72,7 +72,7 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         factory = lambda config: FootprintGreedy(  # noqa: E731
             config, horizon=int(c.horizon), discount=float(c.discount), w_p=float(c.w_p), w_u=float(c.w_u),
             w_t=float(c.w_t), contested=float(c.contested), reach=float(c.reach),
-            seen=bool(c.seen), seed=int(cfg.seed),
+            seen=bool(c.seen), age=float(c.age), seed=int(cfg.seed),
         )  # fmt: skip
     elif c.name == "coverage":
         factory = lambda config: GeometricCoverage(config, radius=int(c.radius))  # noqa: E731

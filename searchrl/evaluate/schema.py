@@ -49,6 +49,9 @@ class GreedyConfig(ControllerConfig):
     # Lower what an agent believes under the footprints of the neighbours it sees, as their sensing would (for
     # worlds without merging, model C; searchrl/controllers/greedy.py).
     seen: bool = False
+    # Count what an agent believes of a cell exp(−age · ρ · steps since it last saw the cell's truth) times, ρ the
+    # rate at which a team spread evenly senses a cell (for worlds without merging; searchrl/controllers/greedy.py).
+    age: float = 0.0
 
 
 @dataclass
