@@ -27,6 +27,14 @@ communication; in C it is the only way an agent learns what others cleared, and 
 otherwise re-chases it (README, "Results: the reference policies"). It reads only the observation's channel of
 other agents, over time.
 
+With `age` > 0, what an agent believes of a cell counts exp(−age·ρ·(t − t₀)) times, t₀ the last step it saw the
+cell's truth (inside its explicit area Φ, where the world refreshes its belief; 0 for cells it never saw) and
+ρ = N·ΣΓ / (free cells) the rate at which a team of N spread evenly over the world senses each cell. Without
+merging (model C) an agent's belief outside its own path stays the prior, so in a crowded world it chases peaks
+that others cleared long ago and leaves the cells it saw partly sensed; ageing the belief makes those known
+remainders worth a detour. Inside Φ the neighbours' footprints inferred by `seen` are forgotten, since the
+truth there already holds them. With few agents ρ is small and nothing changes.
+
 Cells that fewer footprint positions can sense count more with `reach` > 0: (Γ_total / Γ_reach)^reach, where
 Γ_reach is the footprint mass an agent can put on the cell from the cells it may stand on (1.37 on an edge, 1.91
 in a corner, above 1 beside obstacles; `reach_weights`). A footprint on the edge senses little, so greedy keeps

@@ -29,7 +29,7 @@ from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.evaluate.grid import table2_cells
-from searchrl.evaluate.record import claim_folder, evaluation_settings
+from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.runner import run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.world.config import ConfigError, WorldConfig
@@ -98,7 +98,7 @@ def evaluate(cfg: DictConfig) -> Path:
         if not 0 <= int(cfg.shard) < int(cfg.num_shards):
             raise ConfigError(f"shard={cfg.shard!r} is not allowed: 0 <= shard < num_shards={cfg.num_shards}")
         out_dir = Path(cfg.out_dir or f"runs/eval/{controller_name.replace(':', '_')}")
-        claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name))
+        claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name), option_defaults(cfg))
     except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException) as err:
         fail(str(err))
     import torch

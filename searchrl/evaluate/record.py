@@ -50,6 +50,17 @@ def evaluation_settings(cfg: DictConfig, label: str, model_name: str) -> dict[st
     return settings
 
 
+def option_defaults(cfg: DictConfig) -> dict[str, Any]:
+    """Flattened defaults of the heuristic's own schema (`controller_args.<name>`): an option added to a controller
+    after a folder was recorded is absent there, and at its default it plays the episodes the record describes."""
+    if cfg.checkpoint is not None:
+        return {}
+    schema = OmegaConf.get_type(cfg.controller)
+    if schema is None or schema is dict:
+        return {}
+    return _flatten({"controller_args": OmegaConf.to_container(OmegaConf.structured(schema))})
+
+
 def _flatten(tree: Any, prefix: str = "") -> dict[str, Any]:
     if not isinstance(tree, dict):
         return {prefix: tree}
@@ -59,16 +70,20 @@ def _flatten(tree: Any, prefix: str = "") -> dict[str, Any]:
     return flat
 
 
-def claim_folder(out_dir: str | Path, settings: dict[str, Any]) -> None:
+def claim_folder(out_dir: str | Path, settings: dict[str, Any], defaults: dict[str, Any] | None = None) -> None:
     """Record `settings` in `out_dir`, or check them against the record there; ConfigError naming the folder and
-    every setting that differs. A folder with results but no record (made before records existed) adopts these."""
+    every setting that differs. A setting the record lacks matches when this run has it at its value in `defaults`
+    (flattened keys; `option_defaults`). A folder with results but no record (made before records existed) adopts
+    these."""
+    defaults = defaults or {}
     path = Path(out_dir) / RECORD
     mine = OmegaConf.to_container(OmegaConf.create(settings))  # the types a YAML round trip gives
     if path.exists():
         theirs = _flatten(OmegaConf.to_container(OmegaConf.load(path)))
         ours = _flatten(mine)
         differ = [f"{key}: {theirs.get(key, '(absent)')!r} there, {ours.get(key, '(absent)')!r} here"
-                  for key in sorted(theirs.keys() | ours.keys()) if theirs.get(key) != ours.get(key)]  # fmt: skip
+                  for key in sorted(theirs.keys() | ours.keys())
+                  if theirs.get(key, defaults.get(key, "(absent)")) != ours.get(key)]  # fmt: skip
         if differ:
             raise ConfigError(
                 f"out_dir={str(out_dir)!r} holds results of other settings ({'; '.join(differ)}): give this run "
