@@ -131,6 +131,8 @@ def _refresh_beliefs(config: WorldConfig, state: WorldState, k: int) -> None:
             for pc in range(col - r_phi, col + r_phi + 1):
                 state.belief[k, i, 0, pr, pc] = state.p[k, pr, pc]
                 state.belief[k, i, 1, pr, pc] = state.u[k, pr, pc]
+                if config.belief_age > 0:  # seen at the step count this step ends with
+                    state.belief_time[k, i, pr, pc] = state.t[k] + 1
 
 
 def _neighbours(config: WorldConfig, state: WorldState, k: int) -> list[list[int]]:
@@ -235,8 +237,13 @@ def oracle_observe(config: WorldConfig, state: WorldState) -> tuple[np.ndarray, 
                     pr, pc = row + h - r_f + wr, col + h - r_f + wc
                     maps[k, i, 1, wr, wc] = float(state.blocked[k, pr, pc])
                     maps[k, i, 2, wr, wc] = float(state.found_grid[k, pr, pc])
-                    maps[k, i, 3, wr, wc] = state.belief[k, i, 0, pr, pc] * state.obs_scale[k, 0]
-                    maps[k, i, 4, wr, wc] = state.belief[k, i, 1, pr, pc] * state.obs_scale[k, 1]
+                    fresh = 1.0
+                    if config.belief_age > 0:  # SPEC "Observation": ρ = N·ΣΓ / free cells of world k
+                        free = int((~state.blocked[k]).sum())
+                        rate = config.belief_age * n_agents * float(GAMMA.sum()) / free
+                        fresh = np.exp(-rate * (int(state.t[k]) - int(state.belief_time[k, i, pr, pc])))
+                    maps[k, i, 3, wr, wc] = state.belief[k, i, 0, pr, pc] * state.obs_scale[k, 0] * fresh
+                    maps[k, i, 4, wr, wc] = state.belief[k, i, 1, pr, pc] * state.obs_scale[k, 1] * fresh
             remaining = int(state.n_targets[k] - state.n_found[k])
             vector[k, i] = (col / n, row / n, remaining / int(state.n_targets[k]))
     return maps, vector

@@ -33,6 +33,8 @@ from searchrl.world.config import ConfigError, WorldConfig
         ({"tau": -0.1}, "tau"),
         ({"eta": 1.5}, "eta"),
         ({"rho_max": 1.0}, "rho_max"),
+        ({"belief_age": -0.5}, "belief_age"),
+        ({"belief_age": 5.0}, "belief_age"),
     ],
 )
 def test_bad_values_raise_config_error_naming_the_field(kwargs: dict, field: str) -> None:

@@ -120,3 +120,28 @@ def test_bench_rejects_bad_arguments(capsys):
     with pytest.raises(SystemExit):
         bench_main(["world", "--seconds", "0"])
     assert "--seconds=0.0 is not allowed" in capsys.readouterr().err
+
+
+def test_belief_age_dims_what_an_agent_saw_long_ago_and_only_that():
+    """With belief_age the belief channels of a cell the agent has not seen for s steps show exp(−belief_age·ρ·s)
+    of its belief (ρ = N·ΣΓ / free cells); cells inside Φ show it whole; without belief_age nothing changes."""
+    from searchrl.world.footprint import GAMMA
+
+    base = WorldConfig(world_size=(30, 30), n_targets=(1, 1), n_agents=2, max_steps=50)
+    aged = WorldConfig(**{**base.__dict__, "belief_age": 1.0})
+    plain, old = SearchWorld(base, n_worlds=1, seed=3), SearchWorld(aged, n_worlds=1, seed=3)
+    plain.reset(), old.reset()
+    actions = np.full((1, 2), 1)  # the same moves in both worlds, so the same beliefs
+    for _ in range(6):
+        tr_plain, tr_old = plain.step(actions), old.step(actions)
+    np.testing.assert_array_equal(tr_plain.maps[:, :, :3], tr_old.maps[:, :, :3])
+    rate = 1.0 * 2 * GAMMA.sum() / 30**2
+    half, phi = base.fov // 2, base.explicit_area // 2
+    seen_at = old.state.belief_time[0, 0]
+    r, c = old.state.pos[0, 0] + old.state.halo
+    stale = 6 - seen_at[r - half : r + half + 1, c - half : c + half + 1]  # (fov, fov) steps since seen
+    assert stale[half - phi : half + phi + 1, half - phi : half + phi + 1].max() == 0
+    assert stale.max() == 6  # cells of the field of view it never saw date from the reset
+    expected = tr_plain.maps[0, 0, 3:] * np.exp(-rate * stale)
+    np.testing.assert_allclose(tr_old.maps[0, 0, 3:], expected, rtol=1e-5)
+    assert (tr_old.maps[0, 0, 3:] < tr_plain.maps[0, 0, 3:]).any()

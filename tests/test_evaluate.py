@@ -144,14 +144,17 @@ def test_bad_input_fails_before_work(tmp_path, override, message):
 
 
 def test_a_record_made_before_an_option_existed_resumes_at_its_default(tmp_path, capsys):
-    """A folder recorded before `controller.age` existed lacks it: at its default (off) the run plays the same
-    episodes and resumes the folder; any other value is refused, naming it."""
+    """A folder recorded before `controller.age` and `env.world.belief_age` existed lacks them: at their defaults
+    (off) the run plays the same episodes and resumes the folder; any other value is refused, naming it."""
     _evaluate(tmp_path, "controller=greedy", "shard=0", "num_shards=2")
     record = tmp_path / "evaluation.yaml"
     record.write_text("\n".join(line for line in record.read_text().splitlines() if "age:" not in line) + "\n")
     with pytest.raises(SystemExit) as exit_:
         _evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2", "controller.age=0.5")
     assert exit_.value.code == 2 and "controller_args.age: '(absent)' there, 0.5 here" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        _evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2", "env.world.belief_age=0.5")
+    assert exit_.value.code == 2 and "world.belief_age: '(absent)' there, 0.5 here" in capsys.readouterr().err
     assert len(_evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2")) == 18
 
 

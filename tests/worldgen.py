@@ -11,7 +11,7 @@ from searchrl.world.state import WorldState
 # Discrete state (positions, occupancy, targets, counters) must be bit-exact between engine and oracle.
 DISCRETE_FIELDS = (
     "size", "t", "pos", "occupant", "blocked", "target_pos", "target_valid", "target_found", "found_grid",
-    "n_targets", "n_found", "ep_comm_pairs", "ep_collisions",
+    "n_targets", "n_found", "ep_comm_pairs", "ep_collisions", "belief_time",
 )  # fmt: skip
 # Float state: SPEC fixes the order of the products, but sums over cells and agents may be taken in any order,
 # so floats are compared to float32 rounding (rtol 1e-5) rather than bit for bit.
@@ -39,6 +39,7 @@ def small_configs(draw: st.DrawFn, max_steps: tuple[int, int] = (3, 30)) -> Worl
         comm_range=draw(st.sampled_from([3, 5])),
         diagonal=draw(st.booleans()),
         max_steps=draw(st.integers(*max_steps)),
+        belief_age=draw(st.sampled_from([0.0, 0.0, 2.0])),
     )
 
 

@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import hashlib
 import sys
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
 from searchrl.atomic import write_text_atomic
-from searchrl.world.config import ConfigError
+from searchrl.world.config import ConfigError, WorldConfig
 
 RECORD = "evaluation.yaml"
 GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents", "maps_per_cell", "repeats")
@@ -51,14 +52,17 @@ def evaluation_settings(cfg: DictConfig, label: str, model_name: str) -> dict[st
 
 
 def option_defaults(cfg: DictConfig) -> dict[str, Any]:
-    """Flattened defaults of the heuristic's own schema (`controller_args.<name>`): an option added to a controller
-    after a folder was recorded is absent there, and at its default it plays the episodes the record describes."""
+    """Flattened defaults of the heuristic's own schema (`controller_args.<name>`) and of the world (`world.<name>`):
+    an option added to a controller or the world after a folder was recorded is absent there, and at its default
+    it plays the episodes the record describes."""
     if cfg.checkpoint is not None:
         return {}
+    world = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default for f in fields(WorldConfig)}
+    defaults = _flatten({"world": world})
     schema = OmegaConf.get_type(cfg.controller)
-    if schema is None or schema is dict:
-        return {}
-    return _flatten({"controller_args": OmegaConf.to_container(OmegaConf.structured(schema))})
+    if schema is not None and schema is not dict:
+        defaults.update(_flatten({"controller_args": OmegaConf.to_container(OmegaConf.structured(schema))}))
+    return defaults
 
 
 def _flatten(tree: Any, prefix: str = "") -> dict[str, Any]:

@@ -59,6 +59,11 @@ class WorldConfig:
     communication: bool = True  # min-merge of beliefs with neighbours (§5); off for A and C
     comm_range: int = 5  # side of the square communication area (the 5x5 of Γ, §5.1)
     diagonal: bool = False  # 9 actions instead of 5
+    # Observation only (not in the paper; 0 = off): the belief channels show an agent's belief of a cell
+    # exp(−belief_age·ρ·(t − t₀)) times, t₀ the last step it saw the cell's truth in Φ and ρ = N·ΣΓ / free cells
+    # the rate at which an evenly spread team senses a cell. Without merging (model C) a belief off the agent's
+    # own path stays the prior; this shows how stale it is (README, "Deviations and choices").
+    belief_age: float = 0.0
 
     # --- rewards (Table 1, eq. 5, eq. 17)
     step_reward: float = -0.05
@@ -115,6 +120,7 @@ class WorldConfig:
             self.explicit_area,
             f"Φ must fit inside the field of view (fov={self.fov})",
         )
+        _need(0 <= self.belief_age <= 4, "belief_age", self.belief_age, "0 <= belief_age <= 4 (0: beliefs do not age)")
         _need(self.max_steps >= 1, "max_steps", self.max_steps, ">= 1")
         _need(self.xi >= 0, "xi", self.xi, ">= 0")
         _need(self.tau >= 0, "tau", self.tau, ">= 0")

@@ -144,11 +144,13 @@ def sense(p, u, pos, dr, dc, g, c_coef, h, surv, fsum, removed, done, collected)
 
 
 @njit(cache=_CACHE)
-def refresh_beliefs(belief, belief_box, p, u, pos, radius, h):
+def refresh_beliefs(belief, belief_box, belief_time, p, u, pos, t, radius, h):
     """Phase 4. Copy the true maps into each agent's belief on its (2·radius+1)² explicit area Φ and grow the
-    agent's belief box to cover it."""
+    agent's belief box to cover it. With `belief_time` allocated (not (K, N, 0, 0)) mark Φ as seen at step t + 1,
+    the count this step ends with."""
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     width = 2 * radius + 1
+    timed = belief_time.shape[2] > 0
     for k in range(n_worlds):
         for i in range(n_agents):
             r0 = pos[k, i, 0] + h - radius
@@ -158,6 +160,10 @@ def refresh_beliefs(belief, belief_box, p, u, pos, radius, h):
                 for r in range(r0, r0 + width):
                     for c in range(c0, c0 + width):
                         belief[k, i, ch, r, c] = src[k, r, c]
+            if timed:
+                for r in range(r0, r0 + width):
+                    for c in range(c0, c0 + width):
+                        belief_time[k, i, r, c] = t[k] + 1
             box = belief_box[k, i]
             box[0] = min(box[0], r0)
             box[1] = max(box[1], r0 + width - 1)
@@ -254,8 +260,10 @@ def communicate(belief, belief_box, occupant, pos, radius, h, merge, comm_pairs,
 
 
 @njit(cache=_CACHE)
-def observe_into(occupant, blocked, found_grid, belief, obs_scale, pos, size, n_targets, n_found, h, maps, vec):
-    """Observation of §3.2.1 into maps (K,N,5,F,F) float32 and vec (K,N,3) float32 (see SPEC.md).
+def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, age_rate, t, pos, size, n_targets,
+                 n_found, h, maps, vec):  # fmt: skip
+    """Observation of §3.2.1 into maps (K,N,5,F,F) float32 and vec (K,N,3) float32 (see SPEC.md). Where
+    age_rate[k] > 0 the belief channels are scaled by exp(−age_rate·(t − belief_time)).
 
     Written channel by channel so every inner loop runs over contiguous memory. (A numba `prange` over agents
     was 15x slower on the 2-core machine: thread wake-ups cost more than the work.)
@@ -283,6 +291,14 @@ def observe_into(occupant, blocked, found_grid, belief, obs_scale, pos, size, n_
                 out[3, a, b] = bel_p[r, c0 + b] * sp
             for b in range(fov):
                 out[4, a, b] = bel_u[r, c0 + b] * su
+        if age_rate[k] > 0.0:
+            seen_at = belief_time[k, i]
+            for a in range(fov):
+                r = r0 + a
+                for b in range(fov):
+                    fresh = np.float32(np.exp(-age_rate[k] * (t[k] - seen_at[r, c0 + b])))
+                    out[3, a, b] *= fresh
+                    out[4, a, b] *= fresh
         out[0, half, half] = 0.0  # the agent itself stands at the centre and is not shown
         vec[k, i, 0] = pos[k, i, 1] / size[k]
         vec[k, i, 1] = pos[k, i, 0] / size[k]

@@ -27,11 +27,12 @@ def observe(
     """Observations of every agent: maps (K, N, 5, fov, fov) float32 and vector (K, N, 3) float32.
 
     p and u are scaled by 1 / max of the world's prior map, so the prior peaks at 1 in every world whatever
-    its size (the raw maps sum to 1 and shrink as 1/n²). Pass `out` to reuse buffers.
+    its size (the raw maps sum to 1 and shrink as 1/n²). With `config.belief_age` > 0 they also show how stale the
+    agent's belief of each cell is (`WorldConfig.belief_age`). Pass `out` to reuse buffers.
     """
     maps, vec = observation_buffers(config, state.n_worlds) if out is None else out
     kernels.observe_into(
-        state.occupant, state.blocked, state.found_grid, state.belief, state.obs_scale, state.pos,
-        state.size, state.n_targets, state.n_found, state.halo, maps, vec,
+        state.occupant, state.blocked, state.found_grid, state.belief, state.obs_scale, state.belief_time,
+        state.age_rate, state.t, state.pos, state.size, state.n_targets, state.n_found, state.halo, maps, vec,
     )  # fmt: skip
     return maps, vec

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from searchrl.world.config import WorldConfig
+from searchrl.world.footprint import GAMMA
 from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
 from searchrl.world.state import WorldState
 
@@ -103,6 +104,9 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
     state.belief[k, :, 1] = state.u[k]
     side = state.p.shape[1]
     state.belief_box[k] = (side, -1, side, -1)  # empty: beliefs equal the prior
+    if state.belief_time.size:
+        state.belief_time[k] = 0
+    state.age_rate[k] = config.belief_age * n_agents * float(GAMMA.sum()) / int(free.sum())
     state.pos[k] = pos
     state.occupant[k] = -1
     state.occupant[k, pos[:, 0] + h, pos[:, 1] + h] = np.arange(n_agents, dtype=np.int32)

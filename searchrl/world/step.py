@@ -86,7 +86,10 @@ def step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.ra
         surv, fsum, removed, done, info,
     )  # fmt: skip
 
-    kernels.refresh_beliefs(state.belief, state.belief_box, state.p, state.u, state.pos, config.explicit_area // 2, h)
+    kernels.refresh_beliefs(
+        state.belief, state.belief_box, state.belief_time, state.p, state.u, state.pos, state.t,
+        config.explicit_area // 2, h,
+    )  # fmt: skip
 
     comm_pairs = np.empty(k, np.int64)
     comm_gain = np.empty((k, n), np.float64)
