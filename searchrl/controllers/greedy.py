@@ -54,7 +54,7 @@ from numba import njit
 
 from searchrl.controllers.base import FallbackHeuristic
 from searchrl.world.config import WorldConfig
-from searchrl.world.footprint import GAMMA, MOVES
+from searchrl.world.footprint import GAMMA, MOVES, team_sensing_rate
 from searchrl.world.state import WorldState
 from searchrl.world.step import SUPPORT_DC, SUPPORT_DR, SUPPORT_G
 
@@ -205,8 +205,7 @@ class FootprintGreedy(FallbackHeuristic):
             if self._known.shape != state.belief[:, :, 0].shape:
                 self._known = np.zeros(state.belief[:, :, 0].shape, np.int32)
             self._known[mask] = 0
-            free = (~state.blocked).sum(axis=(1, 2))
-            self._rates = self.age * state.n_agents * GAMMA.sum() / np.maximum(free, 1)
+            self._rates = self.age * team_sensing_rate(state.blocked, state.n_agents)
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
         if self._weights.shape != state.blocked.shape:

@@ -14,6 +14,14 @@ def make_footprint(radius: int = 2) -> np.ndarray:
 
 GAMMA: np.ndarray = make_footprint(2)  # (5, 5) float64; the paper prints it to 4 decimals
 
+
+def team_sensing_rate(blocked: np.ndarray, n_agents: int) -> np.ndarray:
+    """ρ = N·ΣΓ / free cells per world, (K,) float64 from blocked (K, S, S) bool: the footprint mass a team of N
+    spread evenly puts on each free cell per step. Greedy's `age` and the world's `belief_age` scale it."""
+    free = (~blocked).sum(axis=(1, 2))
+    return n_agents * float(GAMMA.sum()) / np.maximum(free, 1)
+
+
 # Moves as (d_row, d_col); row grows southwards, col eastwards. First 5 are the cardinal mode.
 MOVES: np.ndarray = np.array(
     [(0, 0), (-1, 0), (0, 1), (1, 0), (0, -1), (-1, 1), (1, 1), (1, -1), (-1, -1)],

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from searchrl.world.config import WorldConfig
-from searchrl.world.footprint import GAMMA
+from searchrl.world.footprint import team_sensing_rate
 from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
 from searchrl.world.state import WorldState
 
@@ -100,13 +100,13 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
     state.u[inner] = u
     state.blocked[k] = True
     state.blocked[inner] = ~free
+    state.age_rate[k] = config.belief_age * team_sensing_rate(state.blocked[k : k + 1], n_agents)[0]
     state.belief[k, :, 0] = state.p[k]  # every agent starts from the prior (§3.2.1)
     state.belief[k, :, 1] = state.u[k]
     side = state.p.shape[1]
     state.belief_box[k] = (side, -1, side, -1)  # empty: beliefs equal the prior
     if state.belief_time.size:
         state.belief_time[k] = 0
-    state.age_rate[k] = config.belief_age * n_agents * float(GAMMA.sum()) / int(free.sum())
     state.pos[k] = pos
     state.occupant[k] = -1
     state.occupant[k, pos[:, 0] + h, pos[:, 1] + h] = np.arange(n_agents, dtype=np.int32)
