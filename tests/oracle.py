@@ -219,10 +219,11 @@ def oracle_step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng
 
 
 def oracle_observe(config: WorldConfig, state: WorldState) -> tuple[np.ndarray, np.ndarray]:
-    """The five-channel FOV window Θ and the 3-vector of §3.2.1, per SPEC "Observation"."""
+    """The FOV window Θ (five channels, six with belief_age_channel) and the 3-vector of §3.2.1, per SPEC
+    "Observation"."""
     n_worlds, n_agents, fov, h = state.n_worlds, state.n_agents, config.fov, state.halo
     r_f = fov // 2
-    maps = np.zeros((n_worlds, n_agents, 5, fov, fov), np.float32)
+    maps = np.zeros((n_worlds, n_agents, 6 if config.belief_age_channel else 5, fov, fov), np.float32)
     vector = np.zeros((n_worlds, n_agents, 3), np.float32)
     for k in range(n_worlds):
         n = int(state.size[k])
@@ -242,6 +243,8 @@ def oracle_observe(config: WorldConfig, state: WorldState) -> tuple[np.ndarray, 
                         free = int((~state.blocked[k]).sum())
                         rate = config.belief_age * n_agents * float(GAMMA.sum()) / free
                         fresh = np.exp(-rate * (int(state.t[k]) - int(state.belief_time[k, i, pr, pc])))
+                    if config.belief_age_channel:  # shown on its own; the belief keeps its scale
+                        maps[k, i, 5, wr, wc], fresh = fresh, 1.0
                     maps[k, i, 3, wr, wc] = state.belief[k, i, 0, pr, pc] * state.obs_scale[k, 0] * fresh
                     maps[k, i, 4, wr, wc] = state.belief[k, i, 1, pr, pc] * state.obs_scale[k, 1] * fresh
             remaining = int(state.n_targets[k] - state.n_found[k])

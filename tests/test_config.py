@@ -35,6 +35,8 @@ from searchrl.world.config import ConfigError, WorldConfig
         ({"rho_max": 1.0}, "rho_max"),
         ({"belief_age": -0.5}, "belief_age"),
         ({"belief_age": 5.0}, "belief_age"),
+        ({"belief_age_channel": True}, "belief_age_channel"),
+        ({"belief_age": 1.0, "belief_age_channel": "yes"}, "belief_age_channel"),
     ],
 )
 def test_bad_values_raise_config_error_naming_the_field(kwargs: dict, field: str) -> None:

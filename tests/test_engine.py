@@ -145,3 +145,25 @@ def test_belief_age_dims_what_an_agent_saw_long_ago_and_only_that():
     expected = tr_plain.maps[0, 0, 3:] * np.exp(-rate * stale)
     np.testing.assert_allclose(tr_old.maps[0, 0, 3:], expected, rtol=1e-5)
     assert (tr_old.maps[0, 0, 3:] < tr_plain.maps[0, 0, 3:]).any()
+
+
+def test_belief_age_channel_shows_the_factor_beside_an_unscaled_belief():
+    """With belief_age_channel the same factor fills a sixth channel and the five others are those of a world
+    without belief_age; the observation space says six channels."""
+    from searchrl.envs.spaces import observation_space
+
+    base = WorldConfig(world_size=(30, 30), n_targets=(1, 1), n_agents=2, max_steps=50)
+    scaled = WorldConfig(**{**base.__dict__, "belief_age": 1.0})
+    shown = WorldConfig(**{**scaled.__dict__, "belief_age_channel": True})
+    assert observation_space(shown)["map"].shape == (6, 11, 11)
+    assert observation_space(scaled)["map"].shape == (5, 11, 11)
+    worlds = [SearchWorld(c, n_worlds=1, seed=3) for c in (base, scaled, shown)]
+    for w in worlds:
+        w.reset()
+    actions = np.full((1, 2), 1)
+    for _ in range(6):
+        plain, old, chan = (w.step(actions) for w in worlds)
+    np.testing.assert_array_equal(chan.maps[:, :, :5], plain.maps)
+    fresh = chan.maps[0, 0, 5]
+    assert fresh.min() < 1.0 and fresh.max() == 1.0  # Φ was seen this step; the rest of the view earlier
+    np.testing.assert_allclose(old.maps[0, 0, 3:], plain.maps[0, 0, 3:] * fresh, rtol=1e-6)

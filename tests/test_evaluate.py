@@ -82,6 +82,12 @@ def test_checkpoint_settings_come_from_its_run(tmp_path, capsys):
     assert len(frame) == 18
     again = _evaluate(tmp_path / "again", f"checkpoint={model}")  # sampled actions come from the eval seed
     pd.testing.assert_frame_equal(frame, again)
+    from searchrl.controllers.policy import load_actor
+    from searchrl.world.config import WorldConfig
+
+    six = WorldConfig(diagonal=True, belief_age=1.0, belief_age_channel=True)  # a sixth channel it never saw
+    with pytest.raises(ValueError, match=r"sees a \(5, 11, 11\) field of view but the world shows \(6, 11, 11\)"):
+        load_actor(model, six)
     with zipfile.ZipFile(model, "a") as archive:  # the same path, another file (as if retrained)
         archive.writestr("note.txt", "retrained")
     with pytest.raises(SystemExit):

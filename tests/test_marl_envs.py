@@ -16,9 +16,11 @@ from searchrl.world.engine import SearchWorld
 CONFIG = WorldConfig(world_size=(10, 14), n_targets=(2, 3), n_agents=4, max_steps=30)
 
 
-def test_pettingzoo_api_and_seed_tests():
-    parallel_api_test(SearchParallelEnv(CONFIG), num_cycles=80)
-    parallel_seed_test(lambda: SearchParallelEnv(CONFIG), num_cycles=40)
+@pytest.mark.parametrize("age_channel", [False, True])
+def test_pettingzoo_api_and_seed_tests(age_channel):
+    config = WorldConfig(**{**CONFIG.__dict__, "belief_age": float(age_channel), "belief_age_channel": age_channel})
+    parallel_api_test(SearchParallelEnv(config), num_cycles=80)
+    parallel_seed_test(lambda: SearchParallelEnv(config), num_cycles=40)
 
 
 @pytest.mark.parametrize("diagonal", [False, True])

@@ -26,6 +26,7 @@ def small_configs(draw: st.DrawFn, max_steps: tuple[int, int] = (3, 30)) -> Worl
     hi = draw(st.integers(lo, 14))
     fov, phi = draw(st.sampled_from([(11, 5), (11, 11), (7, 3), (7, 5)]))
     t_hi = draw(st.integers(1, 4))
+    age = draw(st.sampled_from([0.0, 0.0, 2.0]))
     return WorldConfig(
         world_size=(lo, hi),
         n_distributions=(1, 3),
@@ -39,7 +40,8 @@ def small_configs(draw: st.DrawFn, max_steps: tuple[int, int] = (3, 30)) -> Worl
         comm_range=draw(st.sampled_from([3, 5])),
         diagonal=draw(st.booleans()),
         max_steps=draw(st.integers(*max_steps)),
-        belief_age=draw(st.sampled_from([0.0, 0.0, 2.0])),
+        belief_age=age,
+        belief_age_channel=age > 0 and draw(st.booleans()),
     )
 
 

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
+from searchrl.envs.spaces import observation_space
 from searchrl.policies.actor import Actor, sample_actions
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.world.config import WorldConfig
@@ -36,10 +37,17 @@ def checkpoint_label(path: str | Path) -> str:
 
 
 def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> Actor:
-    """The actor of a saved RecurrentPPO / PPO / A2C model.zip; ValueError if it acts in another action set."""
+    """The actor of a saved RecurrentPPO / PPO / A2C model.zip; ValueError if it sees another field of view
+    (channels, side) or acts in another action set than `config`'s world."""
     _, algo, _ = checkpoint_config(path)
     algo_class, _ = ALGORITHMS[algo]
     model = algo_class.load(str(path), device="cpu")
+    seen, shown = model.observation_space["map"].shape, observation_space(config)["map"].shape
+    if seen != shown:
+        raise ValueError(
+            f"checkpoint={str(path)!r} sees a {seen} field of view but the world shows {shown}"
+            " (channels, side, side: fov and belief_age_channel must be the checkpoint's)"
+        )
     actor = Actor(model.policy, optimize=optimize)
     if actor.n_actions != config.n_actions:
         raise ValueError(

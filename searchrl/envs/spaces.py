@@ -6,15 +6,16 @@ import numpy as np
 from gymnasium import spaces
 
 from searchrl.world.config import WorldConfig
-from searchrl.world.observe import N_CHANNELS, VECTOR_SIZE
+from searchrl.world.observe import VECTOR_SIZE, n_channels
 
 
 def observation_space(config: WorldConfig) -> spaces.Dict:
-    """{"map": (5, fov, fov), "vector": (3,)} float32 in [0, 1]: beliefs never exceed the prior, whose peak is
-    scaled to 1; positions are divided by n; remaining targets by their count."""
+    """{"map": (C, fov, fov), "vector": (3,)} float32 in [0, 1], C = 5 or 6 (`n_channels`): beliefs never exceed
+    the prior, whose peak is scaled to 1; freshness is a factor in (0, 1]; positions are divided by n; remaining
+    targets by their count."""
     return spaces.Dict(
         {
-            "map": spaces.Box(0.0, 1.0, (N_CHANNELS, config.fov, config.fov), np.float32),
+            "map": spaces.Box(0.0, 1.0, (n_channels(config), config.fov, config.fov), np.float32),
             "vector": spaces.Box(0.0, 1.0, (VECTOR_SIZE,), np.float32),
         }
     )

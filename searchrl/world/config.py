@@ -64,6 +64,10 @@ class WorldConfig:
     # the rate at which an evenly spread team senses a cell. Without merging (model C) a belief off the agent's
     # own path stays the prior; this shows how stale it is (README, "Deviations and choices").
     belief_age: float = 0.0
+    # With belief_age > 0: show that factor as a sixth channel (the belief channels keep their scale) instead of
+    # multiplying the belief channels by it. Scaled views fade to nearly nothing in crowded worlds, where the
+    # factor is small almost everywhere; a channel keeps both what the agent believes and how stale it is.
+    belief_age_channel: bool = False
 
     # --- rewards (Table 1, eq. 5, eq. 17)
     step_reward: float = -0.05
@@ -121,6 +125,12 @@ class WorldConfig:
             f"Φ must fit inside the field of view (fov={self.fov})",
         )
         _need(0 <= self.belief_age <= 4, "belief_age", self.belief_age, "0 <= belief_age <= 4 (0: beliefs do not age)")
+        _need(
+            isinstance(self.belief_age_channel, bool) and (not self.belief_age_channel or self.belief_age > 0),
+            "belief_age_channel",
+            self.belief_age_channel,
+            "True or False, and False unless belief_age > 0 (the channel shows the belief's age)",
+        )
         _need(self.max_steps >= 1, "max_steps", self.max_steps, ">= 1")
         _need(self.xi >= 0, "xi", self.xi, ">= 0")
         _need(self.tau >= 0, "tau", self.tau, ">= 0")

@@ -262,8 +262,9 @@ def communicate(belief, belief_box, occupant, pos, radius, h, merge, comm_pairs,
 @njit(cache=_CACHE)
 def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, age_rate, t, pos, size, n_targets,
                  n_found, h, maps, vec):  # fmt: skip
-    """Observation of §3.2.1 into maps (K,N,5,F,F) float32 and vec (K,N,3) float32 (see SPEC.md). Where
-    age_rate[k] > 0 the belief channels are scaled by exp(−age_rate·(t − belief_time)).
+    """Observation of §3.2.1 into maps (K,N,C,F,F) float32 and vec (K,N,3) float32 (see SPEC.md). Where
+    age_rate[k] > 0 the freshness exp(−age_rate·(t − belief_time)) scales the belief channels (C = 5) or fills
+    channel 5 (C = 6).
 
     Written channel by channel so every inner loop runs over contiguous memory. (A numba `prange` over agents
     was 15x slower on the 2-core machine: thread wake-ups cost more than the work.)
@@ -271,6 +272,7 @@ def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, 
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     fov = maps.shape[3]
     half = fov // 2
+    as_channel = maps.shape[2] > 5
     for flat in range(n_worlds * n_agents):
         k, i = flat // n_agents, flat % n_agents
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
@@ -297,8 +299,11 @@ def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, 
                 r = r0 + a
                 for b in range(fov):
                     fresh = np.float32(np.exp(-age_rate[k] * (t[k] - seen_at[r, c0 + b])))
-                    out[3, a, b] *= fresh
-                    out[4, a, b] *= fresh
+                    if as_channel:
+                        out[5, a, b] = fresh
+                    else:
+                        out[3, a, b] *= fresh
+                        out[4, a, b] *= fresh
         out[0, half, half] = 0.0  # the agent itself stands at the centre and is not shown
         vec[k, i, 0] = pos[k, i, 1] / size[k]
         vec[k, i, 1] = pos[k, i, 0] / size[k]
