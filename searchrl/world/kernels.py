@@ -272,7 +272,7 @@ def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, 
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     fov = maps.shape[3]
     half = fov // 2
-    as_channel = maps.shape[2] > 5
+    as_channel = maps.shape[2] > 5  # a sixth channel (observe.n_channels) holds the freshness
     for flat in range(n_worlds * n_agents):
         k, i = flat // n_agents, flat % n_agents
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
