@@ -14,7 +14,7 @@ from searchrl.controllers.base import RandomWalk
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.extractor import SearchCNN
-from searchrl.train.imitation import clone, collect, discounted_returns, make_teacher
+from searchrl.train.imitation import clone, collect, discounted_returns, lr_factor, make_teacher
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 
@@ -109,3 +109,22 @@ def test_cloning_fits_the_teacher(algo):
     assert history[11]["accuracy"] > 0.5  # the teacher's most common action is 0.41 of these
     assert history[-1]["value_loss"] < history[12]["value_loss"] < history[11]["value_loss"]
     assert history[-1]["accuracy"] == pytest.approx(history[12]["accuracy"], abs=1e-6)  # the actor is left alone
+    assert {r["learning_rate"] for r in history} == {1e-3}  # the default schedule is constant
+
+
+def test_linear_schedule_takes_each_phase_down_to_zero():
+    """lr_schedule="linear": each phase starts at learning_rate and its last minibatch runs at learning_rate/steps;
+    an unknown schedule is refused by name."""
+    torch.manual_seed(0)
+    demos = collect([(WORLD, 4)], "surfing", episodes=1, gamma=0.9, seed=0)
+    n = -(-len(demos) // 2)  # minibatches of 2 sequences per epoch
+    env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
+    kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
+    model = PPO("MultiInputPolicy", env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
+    history = clone(model.policy, demos, 2, 1, 2, 1e-3, seed=0, lr_schedule="linear")
+    rates = [r["learning_rate"] for r in history]
+    # the rate of each epoch's last step: policy 2 epochs (2n steps), value 1 epoch (n steps)
+    assert rates == pytest.approx([1e-3 * (n + 1) / (2 * n), 1e-3 / (2 * n), 1e-3 / n])
+    assert lr_factor("linear", 0, 4) == 1.0 and lr_factor("constant", 3, 4) == 1.0
+    with pytest.raises(ValueError, match="lr_schedule='cosine'"):
+        lr_factor("cosine", 0, 4)

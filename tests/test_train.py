@@ -275,6 +275,7 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("imitation.teacher=greedy +imitation.teacher_args.contested=2", "contested=2"),
         ("imitation.teacher=surfing imitation.learning_rate=0", "imitation.learning_rate=0"),
         ("imitation.teacher=greedy imitation.dagger_rounds=-1", "imitation.dagger_rounds=-1"),
+        ("imitation.teacher=greedy imitation.lr_schedule=cosine", "imitation.lr_schedule='cosine'.*constant, linear"),
     ],
 )
 def test_check_config_names_the_bad_value(override, message):

@@ -135,7 +135,8 @@ def warm_start(cfg: DictConfig, model: BaseAlgorithm, run_dir: Path) -> None:
         write_text_atomic(run_dir / "imitation.csv", pd.DataFrame(rows).to_csv(index=False))
 
     fit = (int(im.epochs), int(im.value_epochs), int(im.batch_sequences), float(im.learning_rate))
-    clone(model.policy, demos, *fit, seed, on_epoch=record)
+    schedule = str(im.get("lr_schedule", "constant"))
+    clone(model.policy, demos, *fit, seed, on_epoch=record, lr_schedule=schedule)
     for dagger_round in range(1, int(im.get("dagger_rounds", 0)) + 1):
         device = model.policy.device
         actor = Actor(model.policy.to("cpu"))  # the clone as it is now; Actor runs on CPU
@@ -148,7 +149,7 @@ def warm_start(cfg: DictConfig, model: BaseAlgorithm, run_dir: Path) -> None:
         clone_found = played.found_fraction
         print(f"imitation round {dagger_round}: the clone found {clone_found:.3f}", file=sys.stderr)
         demos = demos.join(played)
-        clone(model.policy, demos, *fit, seed + dagger_round, on_epoch=record, fresh_head=False)
+        clone(model.policy, demos, *fit, seed + dagger_round, on_epoch=record, fresh_head=False, lr_schedule=schedule)
     write_atomic(run_dir / "imitation.zip", lambda tmp: model.save(tmp))  # the clone before RL, to evaluate
 
 

@@ -14,7 +14,7 @@ from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
-from searchrl.train.imitation import make_teacher
+from searchrl.train.imitation import lr_factor, make_teacher
 from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig
 from searchrl.world.config import ConfigError, WorldConfig
 
@@ -122,6 +122,7 @@ def check_config(cfg: DictConfig) -> None:
                 raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 0")
         if float(imitation.learning_rate) <= 0:
             raise ConfigError(f"imitation.learning_rate={imitation.learning_rate!r} is not allowed: must be > 0")
+        lr_factor(str(imitation.get("lr_schedule", "constant")), 0, 1)  # an unknown schedule, named
     net = cfg.network
     SearchCNN.check_sizes(list(net.conv_channels), int(net.vector_size), list(net.fc_sizes), world.fov)
 

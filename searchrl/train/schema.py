@@ -117,6 +117,8 @@ class ImitationConfig:
     dagger_rounds: int = 0
     batch_sequences: int = 16  # whole episodes per minibatch
     learning_rate: float = 1e-3
+    # "linear": each fit's rate falls from learning_rate to 0 over its minibatches; "constant" keeps it.
+    lr_schedule: str = "constant"
 
 
 @dataclass
