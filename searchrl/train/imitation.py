@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 import torch
@@ -209,8 +210,7 @@ def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_e
     for phase, parameters, n_epochs in phases:
         optimizer = torch.optim.Adam(parameters, lr=learning_rate)  # its own: PPO's Adam starts afresh
         steps = n_epochs * -(-len(demos) // batch_sequences)
-        factor = lambda i, steps=steps: lr_factor(lr_schedule, i, steps)  # noqa: E731 (binds this phase's steps)
-        scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, factor)
+        scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, partial(lr_factor, lr_schedule, steps=steps))
         for _ in range(n_epochs):
             sums = {"imitation_loss": 0.0, "value_loss": 0.0, "accuracy": 0.0}
             order = rng.permutation(len(demos))
