@@ -18,6 +18,7 @@ from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import cell_config
 from searchrl.train.imitation import make_teacher
+from searchrl.train.schema import ImitationConfig
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_world
@@ -54,6 +55,10 @@ def test_shipped_policy_is_complete_and_acts(model):
         make_teacher(saved.imitation.teacher, WorldConfig.from_dict(world_dict), 0, args)
         readme = (REFERENCE / "README.md").read_text()
         assert all(f"+imitation.teacher_args.{k}={v}" in readme for k, v in args.items())
+        # So does every imitation setting the run changed from its default (episodes, epochs, lr_schedule, …).
+        changed = {k: v for k, v in saved.imitation.items()
+                   if k not in ("teacher", "teacher_args") and v != getattr(ImitationConfig, k)}  # fmt: skip
+        assert all(f"imitation.{k}={v}" in readme for k, v in changed.items()), changed
     else:
         rows = list(csv.DictReader(open(folder / "progress.csv")))
         assert int(rows[-1]["time/total_timesteps"]) == trained
