@@ -126,5 +126,6 @@ def test_linear_schedule_takes_each_phase_down_to_zero():
     # the rate of each epoch's last step: policy 2 epochs (2n steps), value 1 epoch (n steps)
     assert rates == pytest.approx([1e-3 * (n + 1) / (2 * n), 1e-3 / (2 * n), 1e-3 / n])
     assert lr_factor("linear", 0, 4) == 1.0 and lr_factor("constant", 3, 4) == 1.0
+    assert len(clone(model.policy, demos, 1, 0, 2, 1e-3, seed=0, lr_schedule="linear")) == 1  # no value phase
     with pytest.raises(ValueError, match="lr_schedule='cosine'"):
         lr_factor("cosine", 0, 4)

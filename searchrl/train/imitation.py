@@ -180,7 +180,7 @@ def lr_factor(schedule: str, step: int, steps: int) -> float:
     """Multiplier of the fit's learning rate at minibatch `step` of `steps` (0-based): 1, or 1 − step/steps."""
     if schedule not in LR_SCHEDULES:
         raise ConfigError(f"imitation.lr_schedule={schedule!r} is not allowed: one of {', '.join(LR_SCHEDULES)}")
-    return 1.0 if schedule == "constant" else 1.0 - step / steps
+    return 1.0 if schedule == "constant" else 1.0 - step / max(steps, 1)  # a phase of 0 epochs has 0 steps
 
 
 def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_epochs: int, batch_sequences: int,
@@ -190,8 +190,8 @@ def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_e
     `value_epochs` of (V − return)² on the value-only parameters. One row of metrics per epoch (phase, imitation
     loss, value loss, accuracy = argmax action is the teacher's, averaged over the epoch's minibatches; learning
     rate of the epoch's last step). `lr_schedule` "linear" takes each phase's rate from `learning_rate` down to 0
-    over its minibatches ("constant" keeps it): the small late steps settle the fit that a constant rate leaves
-    jittering (accuracy was still rising after 4 epochs at 1e-3).
+    over its minibatches ("constant" keeps it); the shipped C is fitted so, and its small late steps leave fewer
+    slips than a constant rate (runs/reference/README.md).
 
     Why two phases: the returns' squared error is ~20× the imitation loss at the start, and through the shared
     extractor it drowned the imitation gradient (accuracy stayed at the majority action). Why a unit-gain action
