@@ -23,6 +23,7 @@ Two steps, both before `model.learn`:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
@@ -209,7 +210,7 @@ def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_e
     phases = [("policy", list(policy.parameters()), epochs), ("value", _value_parameters(policy), value_epochs)]
     for phase, parameters, n_epochs in phases:
         optimizer = torch.optim.Adam(parameters, lr=learning_rate)  # its own: PPO's Adam starts afresh
-        steps = n_epochs * -(-len(demos) // batch_sequences)
+        steps = n_epochs * math.ceil(len(demos) / batch_sequences)  # minibatches in the phase
         scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, partial(lr_factor, lr_schedule, steps=steps))
         for _ in range(n_epochs):
             sums = {"imitation_loss": 0.0, "value_loss": 0.0, "accuracy": 0.0}
