@@ -135,6 +135,22 @@ def _refresh_beliefs(config: WorldConfig, state: WorldState, k: int) -> None:
                     state.belief_time[k, i, pr, pc] = state.t[k] + 1
 
 
+def _see_neighbours(config: WorldConfig, state: WorldState, k: int) -> None:
+    """SPEC step 4b (belief_seen): each other agent in the field of view scales belief_seen under its footprint
+    by (1 − Γ); then the agent's own Φ is set back to 1."""
+    r_f, r_phi, h = config.fov // 2, config.explicit_area // 2, state.halo
+    for i in range(state.n_agents):
+        row, col = int(state.pos[k, i, 0]) + h, int(state.pos[k, i, 1]) + h
+        for j in range(state.n_agents):
+            jr, jc = int(state.pos[k, j, 0]) + h, int(state.pos[k, j, 1]) + h
+            if j == i or abs(jr - row) > r_f or abs(jc - col) > r_f:
+                continue
+            for dr in range(-2, 3):
+                for dc in range(-2, 3):
+                    state.belief_seen[k, i, jr + dr, jc + dc] *= 1.0 - float(GAMMA[dr + 2, dc + 2])
+        state.belief_seen[k, i, row - r_phi : row + r_phi + 1, col - r_phi : col + r_phi + 1] = 1.0
+
+
 def _neighbours(config: WorldConfig, state: WorldState, k: int) -> list[list[int]]:
     """Agents within the square communication area (§5.1) of each agent, Chebyshev distance <= r_C."""
     r_c = config.comm_range // 2
@@ -191,6 +207,8 @@ def oracle_step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng
         credited = _detect(state, k, detect)
         m_p, m_u = _sense(config, state, k)
         _refresh_beliefs(config, state, k)
+        if config.belief_seen:
+            _see_neighbours(config, state, k)
         pairs, gain_p, gain_u = _communicate(config, state, k)
         team_return = 0.0
         for i in range(n_agents):
@@ -243,6 +261,8 @@ def oracle_observe(config: WorldConfig, state: WorldState) -> tuple[np.ndarray, 
                         free = int((~state.blocked[k]).sum())
                         rate = config.belief_age * n_agents * float(GAMMA.sum()) / free
                         fresh = np.exp(-rate * (int(state.t[k]) - int(state.belief_time[k, i, pr, pc])))
+                        if config.belief_seen:  # what the neighbours it saw have sensed
+                            fresh *= float(state.belief_seen[k, i, pr, pc])
                     if config.belief_age_channel:  # shown on its own; the belief keeps its scale
                         maps[k, i, 5, wr, wc], fresh = fresh, 1.0
                     maps[k, i, 3, wr, wc] = state.belief[k, i, 0, pr, pc] * state.obs_scale[k, 0] * fresh

@@ -37,6 +37,8 @@ from searchrl.world.config import ConfigError, WorldConfig
         ({"belief_age": 5.0}, "belief_age"),
         ({"belief_age_channel": True}, "belief_age_channel"),
         ({"belief_age": 1.0, "belief_age_channel": "yes"}, "belief_age_channel"),
+        ({"belief_seen": True}, "belief_seen"),
+        ({"belief_age": 1.0, "belief_seen": 1}, "belief_seen"),
     ],
 )
 def test_bad_values_raise_config_error_naming_the_field(kwargs: dict, field: str) -> None:

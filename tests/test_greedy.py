@@ -167,6 +167,35 @@ def test_age_prefers_what_the_agent_saw_lately_to_what_it_never_saw():
     assert _act(greedy, state)[0] == E
 
 
+def test_the_worlds_belief_seen_shows_what_greedy_with_age_and_seen_scores():
+    """`env.world.belief_seen` exists so that a clone sees the factor its teacher (greedy with `age` and `seen`)
+    scales its belief by: along a crowded episode, channel 5 of every agent's view equals that factor."""
+    from searchrl.world.reset import reset_worlds
+    from searchrl.world.state import allocate
+    from searchrl.world.step import step
+
+    config = WorldConfig(world_size=(16, 24), n_agents=24, communication=False, belief_age=0.5,
+                         belief_age_channel=True, belief_seen=True)  # fmt: skip
+    state = allocate(config, 2)
+    reset_worlds(config, state, np.ones(2, bool), np.random.default_rng(3))
+    greedy = FootprintGreedy(config, age=0.5, seen=True, seed=4)
+    rng, view, h = np.random.default_rng(5), config.fov // 2, state.halo
+    lowered = 0
+    for _ in range(30):
+        maps, vec = observe(config, state)
+        actions = greedy.act(state, maps, vec)  # updates what greedy remembers, at this step's positions
+        rates = greedy._rates[:, None, None, None]
+        factor = np.exp(-rates * (state.t[:, None, None, None] - greedy._known)) * greedy._seen
+        for k in range(2):
+            for i in range(config.n_agents):
+                r, c = state.pos[k, i] + h
+                window = factor[k, i, r - view : r + view + 1, c - view : c + view + 1]
+                np.testing.assert_allclose(maps[k, i, 5], window, rtol=1e-5, atol=1e-7)
+        lowered += int((greedy._seen < 1).sum())
+        step(config, state, actions, rng)
+    assert lowered > 0  # neighbours were seen, so the check covered the seen factor
+
+
 BAD = [({"horizon": 0}, "horizon"), ({"horizon": 6}, "horizon"), ({"discount": 0.0}, "discount"),
        ({"w_p": 0.0, "w_u": 0.0}, "w_p"), ({"w_t": -1.0}, "w_t"), ({"contested": 1.5}, "contested"),
        ({"contested": -0.1}, "contested"), ({"reach": -1.0}, "reach"), ({"reach": 5.0}, "reach"),

@@ -68,6 +68,11 @@ class WorldConfig:
     # multiplying the belief channels by it. Scaled views fade to nearly nothing in crowded worlds, where the
     # factor is small almost everywhere; a channel keeps both what the agent believes and how stale it is.
     belief_age_channel: bool = False
+    # With belief_age > 0: the freshness also falls by (1 − Γ) under the footprint of every neighbour the agent
+    # sees in its field of view, back to 1 where it next sees the truth in Φ (searchrl/world/seen.py). Without
+    # merging (model C) this is all an agent can learn of what others cleared, and it is what C's teacher keeps
+    # in memory (greedy's `seen`); shown, a clone need not remember it. Costs K·N·S² float32 more when on.
+    belief_seen: bool = False
 
     # --- rewards (Table 1, eq. 5, eq. 17)
     step_reward: float = -0.05
@@ -130,6 +135,12 @@ class WorldConfig:
             "belief_age_channel",
             self.belief_age_channel,
             "True or False, and False unless belief_age > 0 (the channel shows the belief's age)",
+        )
+        _need(
+            isinstance(self.belief_seen, bool) and (not self.belief_seen or self.belief_age > 0),
+            "belief_seen",
+            self.belief_seen,
+            "True or False, and False unless belief_age > 0 (it scales the belief's freshness)",
         )
         _need(self.max_steps >= 1, "max_steps", self.max_steps, ">= 1")
         _need(self.xi >= 0, "xi", self.xi, ">= 0")

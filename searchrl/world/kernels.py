@@ -260,11 +260,11 @@ def communicate(belief, belief_box, occupant, pos, radius, h, merge, comm_pairs,
 
 
 @njit(cache=_CACHE)
-def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, age_rate, t, pos, size, n_targets,
-                 n_found, h, maps, vec):  # fmt: skip
+def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, belief_seen, age_rate, t, pos,
+                 size, n_targets, n_found, h, maps, vec):  # fmt: skip
     """Observation of §3.2.1 into maps (K,N,C,F,F) float32 and vec (K,N,3) float32 (see SPEC.md). Where
-    age_rate[k] > 0 the freshness exp(−age_rate·(t − belief_time)) scales the belief channels (C = 5) or fills
-    channel 5 (C = 6).
+    age_rate[k] > 0 the freshness exp(−age_rate·(t − belief_time)), times belief_seen where that is allocated (not
+    (K, N, 0, 0)), scales the belief channels (C = 5) or fills channel 5 (C = 6).
 
     Written channel by channel so every inner loop runs over contiguous memory. (A numba `prange` over agents
     was 15x slower on the 2-core machine: thread wake-ups cost more than the work.)
@@ -273,6 +273,7 @@ def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, 
     fov = maps.shape[3]
     half = fov // 2
     as_channel = maps.shape[2] > 5  # a sixth channel (observe.n_channels) holds the freshness
+    with_seen = belief_seen.shape[2] > 0
     for flat in range(n_worlds * n_agents):
         k, i = flat // n_agents, flat % n_agents
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
@@ -299,6 +300,8 @@ def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, 
                 r = r0 + a
                 for b in range(fov):
                     fresh = np.float32(np.exp(-age_rate[k] * (t[k] - seen_at[r, c0 + b])))
+                    if with_seen:
+                        fresh *= belief_seen[k, i, r, c0 + b]
                     if as_channel:
                         out[5, a, b] = fresh
                     else:

@@ -35,12 +35,13 @@ def observe(
 
     p and u are scaled by 1 / max of the world's prior map, so the prior peaks at 1 in every world whatever
     its size (the raw maps sum to 1 and shrink as 1/n²). With `config.belief_age` > 0 they also show how stale the
-    agent's belief of each cell is (`WorldConfig.belief_age`), by scaling them or, with `belief_age_channel`, in a
-    sixth channel. Pass `out` to reuse buffers.
+    agent's belief of each cell is (`WorldConfig.belief_age`; with `belief_seen` also what the neighbours it saw
+    have sensed), by scaling them or, with `belief_age_channel`, in a sixth channel. Pass `out` to reuse buffers.
     """
     maps, vec = observation_buffers(config, state.n_worlds) if out is None else out
     kernels.observe_into(
         state.occupant, state.blocked, state.found_grid, state.belief, state.obs_scale, state.belief_time,
-        state.age_rate, state.t, state.pos, state.size, state.n_targets, state.n_found, state.halo, maps, vec,
+        state.belief_seen, state.age_rate, state.t, state.pos, state.size, state.n_targets, state.n_found,
+        state.halo, maps, vec,
     )  # fmt: skip
     return maps, vec

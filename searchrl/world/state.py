@@ -35,6 +35,9 @@ class WorldState:
     belief_box: np.ndarray  # (K, N, 4) int64
     # Step at which each agent last saw a cell's truth in Φ (0: never), for `belief_age`; (K, N, 0, 0) when off.
     belief_time: np.ndarray  # (K, N, S, S) int32
+    # Π (1 − Γ) over the neighbours' footprints each agent saw since it last saw a cell's truth, for
+    # `belief_seen` (searchrl/world/seen.py); (K, N, 0, 0) when off.
+    belief_seen: np.ndarray  # (K, N, S, S) float32
     age_rate: np.ndarray  # (K,) float64, belief_age · N · ΣΓ / free cells (0: beliefs do not age)
     pos: np.ndarray  # (K, N, 2) int64, agent (row, col), unpadded
     occupant: np.ndarray  # (K, S, S) int32, index of the agent on a cell or -1
@@ -69,7 +72,7 @@ class WorldState:
 
 def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
     """Zeroed arrays for `n_worlds` worlds; `reset_worlds` fills them. Memory is dominated by the beliefs:
-    K · N · 2 · S² · 4 bytes (K · N · 3 · S² · 4 with `belief_age`)."""
+    K · N · 2 · S² · 4 bytes (K · N · 3 · S² · 4 with `belief_age`, K · N · 4 · S² · 4 with `belief_seen` too)."""
     if n_worlds < 1:
         raise ValueError(f"n_worlds={n_worlds!r} is not allowed: need at least 1 world")
     k, n = n_worlds, config.n_agents
@@ -85,6 +88,7 @@ def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
         belief=np.zeros((k, n, 2, side, side), np.float32),
         belief_box=np.tile(np.array([side, -1, side, -1], np.int64), (k, n, 1)),
         belief_time=np.zeros((k, n, side, side) if config.belief_age > 0 else (k, n, 0, 0), np.int32),
+        belief_seen=np.ones((k, n, side, side) if config.belief_seen else (k, n, 0, 0), np.float32),
         age_rate=np.zeros(k, np.float64),
         pos=np.zeros((k, n, 2), np.int64),
         occupant=np.full((k, side, side), -1, np.int32),

@@ -10,6 +10,7 @@ import numpy as np
 from searchrl.world import kernels
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import GAMMA, MOVES
+from searchrl.world.seen import see_neighbours
 from searchrl.world.state import WorldState
 
 # The 13 non-zero cells of Γ as offsets from the centre, row-major.
@@ -90,6 +91,12 @@ def step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.ra
         state.belief, state.belief_box, state.belief_time, state.p, state.u, state.pos, state.t,
         config.explicit_area // 2, h,
     )  # fmt: skip
+
+    if state.belief_seen.size:  # observation only: what each agent infers from the neighbours it sees
+        see_neighbours(
+            state.belief_seen, state.occupant, state.pos, SUPPORT_DR, SUPPORT_DC, SUPPORT_G, config.fov // 2,
+            config.explicit_area // 2, h,
+        )  # fmt: skip
 
     comm_pairs = np.empty(k, np.int64)
     comm_gain = np.empty((k, n), np.float64)
