@@ -59,6 +59,13 @@ def test_shipped_policy_is_complete_and_acts(model):
         changed = {k: v for k, v in saved.imitation.items()
                    if k not in ("teacher", "teacher_args") and v != getattr(ImitationConfig, k)}  # fmt: skip
         assert all(f"imitation.{k}={v}" in readme for k, v in changed.items()), changed
+        # And every world setting it was fitted in beyond its model's (`env.world.belief_age=0.5`, …): the
+        # observation it needs comes from them, and a rerun without them fits a different clone.
+        preset = OmegaConf.load(REFERENCE.parents[1] / "conf" / "model" / f"{name}.yaml").env.world
+        default = WorldConfig()
+        world = {k: str(v).lower() if isinstance(v, bool) else v for k, v in world_dict.items()
+                 if k not in preset and (tuple(v) if isinstance(v, list) else v) != getattr(default, k)}  # fmt: skip
+        assert all(f"env.world.{k}={v}" in readme for k, v in world.items()), world
     else:
         rows = list(csv.DictReader(open(folder / "progress.csv")))
         assert int(rows[-1]["time/total_timesteps"]) == trained
