@@ -9,6 +9,9 @@ from searchrl.controllers.greedy import FootprintGreedy, reach_weights
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import GAMMA
 from searchrl.world.observe import observe
+from searchrl.world.reset import reset_worlds
+from searchrl.world.state import allocate
+from searchrl.world.step import step
 from tests.handmade import make_world
 
 N_, E, S, W = 1, 2, 3, 4
@@ -170,10 +173,6 @@ def test_age_prefers_what_the_agent_saw_lately_to_what_it_never_saw():
 def test_the_worlds_belief_seen_shows_what_greedy_with_age_and_seen_scores():
     """`env.world.belief_seen` exists so that a clone sees the factor its teacher (greedy with `age` and `seen`)
     scales its belief by: along a crowded episode, channel 5 of every agent's view equals that factor."""
-    from searchrl.world.reset import reset_worlds
-    from searchrl.world.state import allocate
-    from searchrl.world.step import step
-
     config = WorldConfig(world_size=(16, 24), n_agents=24, communication=False, belief_age=0.5,
                          belief_age_channel=True, belief_seen=True)  # fmt: skip
     state = allocate(config, 2)
