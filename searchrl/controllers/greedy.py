@@ -54,9 +54,8 @@ from numba import njit
 
 from searchrl.controllers.base import FallbackHeuristic
 from searchrl.world.config import WorldConfig
-from searchrl.world.footprint import GAMMA, MOVES, team_sensing_rate
+from searchrl.world.footprint import GAMMA, MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G, team_sensing_rate
 from searchrl.world.state import WorldState
-from searchrl.world.step import SUPPORT_DC, SUPPORT_DR, SUPPORT_G
 
 
 @njit(cache=True)

@@ -14,6 +14,12 @@ def make_footprint(radius: int = 2) -> np.ndarray:
 
 GAMMA: np.ndarray = make_footprint(2)  # (5, 5) float64; the paper prints it to 4 decimals
 
+# The 13 non-zero cells of Γ as offsets from the centre, row-major (the kernels' footprint arguments).
+_SUPPORT = np.argwhere(GAMMA > 0)
+SUPPORT_DR: np.ndarray = (_SUPPORT[:, 0] - 2).astype(np.int64)  # (13,)
+SUPPORT_DC: np.ndarray = (_SUPPORT[:, 1] - 2).astype(np.int64)  # (13,)
+SUPPORT_G: np.ndarray = GAMMA[GAMMA > 0].astype(np.float64)  # (13,)
+
 
 def team_sensing_rate(blocked: np.ndarray, n_agents: int) -> np.ndarray:
     """ρ = N·ΣΓ / free cells per world, (K,) float64 from blocked (K, S, S) bool: the footprint mass a team of N

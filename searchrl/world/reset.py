@@ -7,9 +7,8 @@ import numpy as np
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import team_sensing_rate
 from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
-from searchrl.world.seen import see_neighbours
+from searchrl.world.seen import update_seen
 from searchrl.world.state import WorldState
-from searchrl.world.step import SUPPORT_DC, SUPPORT_DR, SUPPORT_G
 
 _MAX_TARGET_ROUNDS = 1_000
 
@@ -114,11 +113,7 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
     state.occupant[k, pos[:, 0] + h, pos[:, 1] + h] = np.arange(n_agents, dtype=np.int32)
     if state.belief_seen.size:  # the first observation already counts the neighbours in view, as greedy does
         state.belief_seen[k] = 1.0
-        w = slice(k, k + 1)
-        see_neighbours(
-            state.belief_seen[w], state.occupant[w], state.pos[w], SUPPORT_DR, SUPPORT_DC, SUPPORT_G,
-            config.fov // 2, config.explicit_area // 2, h,
-        )  # fmt: skip
+        update_seen(config, state, slice(k, k + 1))
     state.target_valid[k] = False
     state.target_found[k] = False
     state.target_valid[k, :j] = True

@@ -11,7 +11,18 @@ from __future__ import annotations
 
 from numba import njit
 
+from searchrl.world.config import WorldConfig
+from searchrl.world.footprint import SUPPORT_DC, SUPPORT_DR, SUPPORT_G
 from searchrl.world.kernels import _CACHE
+from searchrl.world.state import WorldState
+
+
+def update_seen(config: WorldConfig, state: WorldState, worlds: slice) -> None:
+    """Apply `see_neighbours` to state.belief_seen of `worlds` (all of them after a step, one after its reset)."""
+    see_neighbours(
+        state.belief_seen[worlds], state.occupant[worlds], state.pos[worlds], SUPPORT_DR, SUPPORT_DC, SUPPORT_G,
+        config.fov // 2, config.explicit_area // 2, state.halo,
+    )  # fmt: skip
 
 
 @njit(cache=_CACHE)

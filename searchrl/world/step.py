@@ -9,15 +9,9 @@ import numpy as np
 
 from searchrl.world import kernels
 from searchrl.world.config import WorldConfig
-from searchrl.world.footprint import GAMMA, MOVES
-from searchrl.world.seen import see_neighbours
+from searchrl.world.footprint import MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G
+from searchrl.world.seen import update_seen
 from searchrl.world.state import WorldState
-
-# The 13 non-zero cells of Γ as offsets from the centre, row-major.
-_SUPPORT = np.argwhere(GAMMA > 0)
-SUPPORT_DR: np.ndarray = (_SUPPORT[:, 0] - 2).astype(np.int64)  # (13,)
-SUPPORT_DC: np.ndarray = (_SUPPORT[:, 1] - 2).astype(np.int64)  # (13,)
-SUPPORT_G: np.ndarray = GAMMA[GAMMA > 0].astype(np.float64)  # (13,)
 
 
 @dataclass
@@ -93,10 +87,7 @@ def step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.ra
     )  # fmt: skip
 
     if state.belief_seen.size:  # observation only: what each agent infers from the neighbours it sees
-        see_neighbours(
-            state.belief_seen, state.occupant, state.pos, SUPPORT_DR, SUPPORT_DC, SUPPORT_G, config.fov // 2,
-            config.explicit_area // 2, h,
-        )  # fmt: skip
+        update_seen(config, state, slice(None))
 
     comm_pairs = np.empty(k, np.int64)
     comm_gain = np.empty((k, n), np.float64)
