@@ -49,41 +49,52 @@ def frame(state: WorldState, agent: int, cell: int) -> np.ndarray:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m searchrl.render", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    p.add_argument("--controller", choices=["surfing", "greedy", "coverage", "random"], default="surfing")
+    p.add_argument("--controller", choices=["surfing", "greedy", "coverage", "random"],
+                   help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
     p.add_argument("--checkpoint", help="a trained model.zip (its run's world settings are used)")
-    p.add_argument("--model", choices=sorted(MODELS), default="b", help="world settings for heuristics")
+    p.add_argument("--model", choices=sorted(MODELS), help="world settings for heuristics (default b)")
     p.add_argument("--n", type=int, default=40, help="world side")
     p.add_argument("--agents", type=int, default=8)
     p.add_argument("--targets", type=int, default=8)
     p.add_argument("--distributions", type=int, default=16)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="the episode's seed (>= 0)")
     p.add_argument("--agent", type=int, default=0, help="whose belief is drawn")
-    p.add_argument("--cell", type=int, default=6, help="pixels per cell")
-    p.add_argument("--fps", type=float, default=10.0)
+    p.add_argument("--cell", type=int, default=6, help="pixels per cell (1 to 64)")
+    p.add_argument("--fps", type=float, default=10.0, help="frames per second (GIF delays are whole 1/100 s: <= 100)")
     p.add_argument("--out", default="runs/render/episode.gif")
     args = p.parse_args(argv)
-    if not args.out.endswith(".gif"):
-        p.error(f"--out={args.out!r} is not allowed: a .gif path")
-    if not 0 <= args.agent < args.agents or args.cell < 1 or args.fps <= 0:
-        p.error(f"--agent={args.agent} needs 0 <= agent < --agents={args.agents}; --cell >= 1; --fps > 0")
+    if args.checkpoint and (args.controller or args.model):
+        given = " and ".join(f"--{k}" for k in ("controller", "model") if getattr(args, k))
+        p.error(f"{given} cannot apply with --checkpoint: the policy acts in its run's world (its config.yaml)")
+    checks = [
+        (args.out.endswith(".gif"), "--out", args.out, "a .gif path"),
+        (not Path(args.out).is_dir(), "--out", args.out, "a file path (this is a folder)"),
+        (args.seed >= 0, "--seed", args.seed, ">= 0"),
+        (0 <= args.agent < args.agents, "--agent", args.agent, f"0 <= agent < --agents={args.agents}"),
+        (1 <= args.cell <= 64, "--cell", args.cell, "1 <= cell <= 64 pixels"),
+        (0 < args.fps <= 100, "--fps", args.fps, "0 < fps <= 100 (a GIF frame lasts a whole number of 1/100 s)"),
+    ]
+    for ok, name, value, allowed in checks:
+        if not ok:
+            p.error(f"{name}={value!r} is not allowed: {allowed}")
     try:
         if args.checkpoint:
             from searchrl.controllers.policy import PolicyController, checkpoint_config
 
             world = WorldConfig.from_dict(checkpoint_config(args.checkpoint)[0])
         else:
-            world = WorldConfig(**MODELS[args.model])
+            world = WorldConfig(**MODELS[args.model or "b"])
         config = replace(world, world_size=(args.n, args.n), n_agents=args.agents,
                          n_targets=(args.targets, args.targets),
                          n_distributions=(args.distributions, args.distributions))  # fmt: skip
+        if args.checkpoint:
+            controller = PolicyController.load(args.checkpoint, config, seed=args.seed)
+        else:
+            from searchrl.evaluate.__main__ import CONTROLLERS
+
+            controller = CONTROLLERS[args.controller or "surfing"](config)
     except (ConfigError, FileNotFoundError, ValueError) as err:
         p.error(str(err))
-    if args.checkpoint:
-        controller = PolicyController.load(args.checkpoint, config, seed=args.seed)
-    else:
-        from searchrl.evaluate.__main__ import CONTROLLERS
-
-        controller = CONTROLLERS[args.controller](config)
     state = allocate(config, 1)
     reset_world(config, state, 0, np.random.default_rng(args.seed))
     controller.reset(state, np.ones(1, bool))

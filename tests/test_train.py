@@ -103,6 +103,10 @@ def test_imitation_warm_start_clones_before_rl(tmp_path):
     clone = RecurrentPPO.load(tmp_path / "imitation.zip")
     trained = RecurrentPPO.load(final)
     assert clone.num_timesteps == 0 and trained.num_timesteps >= 2048
+    # The clone is also the run's first checkpoint: a kill before the first RL checkpoint resumes from it.
+    first = RecurrentPPO.load(tmp_path / "checkpoints" / "step_0.zip").policy.state_dict()
+    for name, value in clone.policy.state_dict().items():
+        assert torch.equal(value, first[name]), name
 
 
 def test_clone_only_run_saves_the_clone_as_its_model(tmp_path):

@@ -27,16 +27,21 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--maps", type=int, default=10, help="eval: maps per cell (>= 1)")
     parser.add_argument("--checkpoint", help="eval: a policy model.zip instead of --controller; policy: required")
     args = parser.parse_args(argv)
-    if not args.seconds > 0:
-        parser.error(f"--seconds={args.seconds} is not allowed: must be > 0")
+    if not 0 < args.seconds <= 3600:
+        parser.error(f"--seconds={args.seconds} is not allowed: 0 < seconds <= 3600")
     if args.maps < 1:
         parser.error(f"--maps={args.maps} is not allowed: must be >= 1")
     if args.updates < 1 or args.threads < 1:
         parser.error(f"--updates={args.updates}, --threads={args.threads} are not allowed: both must be >= 1")
     if args.suite == "policy" and not args.checkpoint:
         parser.error("policy needs --checkpoint=<model.zip>, e.g. runs/reference/b/model.zip")
-    if args.checkpoint and not os.path.isfile(args.checkpoint):
-        parser.error(f"--checkpoint={args.checkpoint!r} does not exist")
+    if args.checkpoint:  # read it now: a corrupt file or run config is named before any measurement
+        from searchrl.controllers.policy import checkpoint_config, load_checkpoint
+
+        try:
+            load_checkpoint(args.checkpoint, checkpoint_config(args.checkpoint)[1], device="cpu")
+        except (ValueError, FileNotFoundError) as err:
+            parser.error(str(err))
     log = None if args.json else sys.stdout
     if args.suite == "world":
         from searchrl.bench import world

@@ -10,10 +10,9 @@ from typing import TextIO
 import numpy as np
 import torch
 
-from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor
+from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor, load_checkpoint
 from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.runner import cell_config
-from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_world
@@ -41,7 +40,7 @@ def run(checkpoint: str, threads: int = 2, worlds: int = 128, seconds: float = 3
     batch = worlds * config.n_agents
     obs = {"map": maps.reshape(batch, *maps.shape[2:]), "vector": vector.reshape(batch, -1)}
 
-    model = ALGORITHMS[algo][0].load(checkpoint, device="cpu")
+    model = load_checkpoint(checkpoint, algo, device="cpu")
     lstm = [None]
     starts = np.zeros(batch, bool)
 

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 from omegaconf import OmegaConf
+from stable_baselines3.common.base_class import BaseAlgorithm
 
 from searchrl.envs.spaces import observation_space
 from searchrl.policies.actor import Actor, sample_actions
@@ -22,9 +23,16 @@ def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
         raise FileNotFoundError(f"checkpoint={str(path)!r} does not exist (expected a model.zip of a run)")
     for folder in (path.parent, path.parent.parent):
         if (folder / "config.yaml").exists():
-            cfg = OmegaConf.load(folder / "config.yaml")
-            model = str(cfg.model.name) if cfg.get("model") else "unknown"
-            return OmegaConf.to_container(cfg.env.world, resolve=True), str(cfg.algo.name), model
+            try:
+                cfg = OmegaConf.load(folder / "config.yaml")
+                model = str(cfg.model.name) if cfg.get("model") else "unknown"
+                return OmegaConf.to_container(cfg.env.world, resolve=True), str(cfg.algo.name), model
+            except Exception as err:  # not YAML, not a mapping, no env.world or algo.name: all say the same
+                raise ValueError(
+                    f"checkpoint={str(path)!r}: its run's {folder / 'config.yaml'} cannot be read as a run config "
+                    f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}); restore the file "
+                    "that searchrl.train wrote"
+                ) from None
     raise FileNotFoundError(f"checkpoint={str(path)!r} has no run config.yaml beside it or one folder up")
 
 
@@ -36,12 +44,25 @@ def checkpoint_label(path: str | Path) -> str:
     return run.name if path.name == "model.zip" else f"{run.name}@{path.stem}"
 
 
+def load_checkpoint(path: str | Path, algo: str, **kwargs: object) -> BaseAlgorithm:
+    """The SB3 model saved at `path` by algorithm `algo`; ValueError naming the file if it cannot be read
+    (truncated, not an SB3 zip, another algorithm's)."""
+    if algo not in ALGORITHMS:
+        raise ValueError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
+    try:
+        return ALGORITHMS[algo][0].load(str(path), **kwargs)
+    except Exception as err:  # BadZipFile, EOFError, KeyError, RuntimeError of torch.load, ...
+        raise ValueError(
+            f"checkpoint={str(path)!r} cannot be read as a {algo} model ({type(err).__name__}: "
+            f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a searchrl model"
+        ) from None
+
+
 def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> Actor:
     """The actor of a saved RecurrentPPO / PPO / A2C model.zip; ValueError if it sees another field of view
     (channels, side) or acts in another action set than `config`'s world."""
     _, algo, _ = checkpoint_config(path)
-    algo_class, _ = ALGORITHMS[algo]
-    model = algo_class.load(str(path), device="cpu")
+    model = load_checkpoint(path, algo, device="cpu")
     seen, shown = model.observation_space["map"].shape, observation_space(config)["map"].shape
     if seen != shown:
         raise ValueError(

@@ -13,7 +13,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from searchrl.envs.spaces import action_space, observation_space
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import WorldConfig, check_seed, is_int
 from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.render import world_frame
@@ -32,6 +32,8 @@ class SearchParallelEnv(ParallelEnv):
     def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None) -> None:
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
+        if config is not None and not isinstance(config, WorldConfig):
+            raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
         self.config = config if config is not None else WorldConfig()
         self.render_mode = render_mode
         self.possible_agents: list[AgentID] = [f"agent_{i}" for i in range(self.config.n_agents)]
@@ -49,6 +51,7 @@ class SearchParallelEnv(ParallelEnv):
         return self._action_space
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        check_seed(seed)  # ConfigError, a ValueError
         if seed is not None:
             self._rng = np.random.default_rng(seed)
         reset_worlds(self.config, self.world_state, np.ones(1, bool), self._rng)
@@ -61,6 +64,14 @@ class SearchParallelEnv(ParallelEnv):
         missing = [agent for agent in self.agents if agent not in actions]
         if missing:
             raise KeyError(f"actions missing for {missing}: every live agent acts at every step")
+        unknown = [agent for agent in actions if agent not in self.agents]
+        if unknown:
+            raise ValueError(f"actions for {unknown} are not allowed: the live agents are {self.agents}")
+        n = self.config.n_actions
+        for agent in self.agents:
+            a = actions[agent]
+            if not (is_int(a) or (isinstance(a, np.ndarray) and a.shape == () and is_int(a[()]))) or not 0 <= a < n:
+                raise ValueError(f"actions[{agent!r}]={a!r} is not allowed: an integer in [0, {n})")
         joint = np.array([[int(actions[agent]) for agent in self.possible_agents]], np.int64)
         result = step(self.config, self.world_state, joint, self._rng)
         obs = self._observations()

@@ -4,6 +4,8 @@ Runs the controller on the Table 2/3 grid and writes one parquet file per cell, 
 (one row per episode), atomically; cells already written are skipped, so a rerun resumes and `shard=` /
 `num_shards=` split the grid across multirun jobs. `<out_dir>/evaluation.yaml` records the settings the cells were
 run with; a run with other settings into the same folder stops before any work (`searchrl/evaluate/record.py`).
+Every setting and every grid cell is checked before the folder is claimed; a job runs a cell only while it holds
+that cell's lock (`<out_dir>/.locks/`), so jobs sharing a folder never write one cell twice (docs/files.md).
 Load the results with `searchrl.evaluate.results.load`.
 """
 
@@ -13,16 +15,18 @@ import os
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # see searchrl/train/__main__.py
 
+import math
 import sys
 import time
 from pathlib import Path
 
 import hydra
+from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from tqdm import tqdm
 
-from searchrl.atomic import write_atomic
+from searchrl.atomic import FolderBusy, hold, remove_temporaries, write_atomic
 from searchrl.controllers.base import RandomWalk
 from searchrl.controllers.coverage import GeometricCoverage
 from searchrl.controllers.greedy import FootprintGreedy
@@ -30,11 +34,12 @@ from searchrl.controllers.policy import PolicyController, checkpoint_config, che
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
-from searchrl.evaluate.runner import run_cell
+from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
-from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig, need
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+LOCKS = ".locks"  # <out_dir>/.locks/: the folder's record lock and one lock per cell being run
 CONTROLLERS = {
     "surfing": InformationSurfing,
     "greedy": FootprintGreedy,
@@ -84,22 +89,51 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
     return world, c.name, model_name, factory, False
 
 
-def evaluate(cfg: DictConfig) -> Path:
-    """Evaluate every cell of this shard that has no result yet; returns the output directory."""
+# With checkpoint=, the world, model and controller come from the checkpoint's run: these overrides cannot apply.
+FIXED_BY_CHECKPOINT = ("env", "model", "controller")
+
+
+def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path]:
+    """Every check of an evaluation's settings, before any work or file: (grid cells, output folder). Raises
+    ConfigError naming the bad value and what is allowed."""
+    if cfg.checkpoint is not None:
+        fixed = [o for o in overrides if o.lstrip("+~").split("=", 1)[0].split(".")[0] in FIXED_BY_CHECKPOINT]
+        if fixed:
+            raise ConfigError(
+                f"{', '.join(fixed)} cannot apply with checkpoint={cfg.checkpoint!r}: a checkpoint is evaluated in "
+                "the world, model and action set of its run (its config.yaml); remove them"
+            )
+    need(int(cfg.seed) >= 0, "seed", cfg.seed, "an integer >= 0 (map seeds are seed + 100000·cell + map)")
+    need(int(cfg.threads) >= 1, "threads", cfg.threads, "an integer >= 1 (torch threads)")
+    need(math.isfinite(cfg.batch_mb) and cfg.batch_mb > 0, "batch_mb", cfg.batch_mb, "a number of MiB > 0")
+    need(int(cfg.num_shards) >= 1, "num_shards", cfg.num_shards, "an integer >= 1")
+    need(0 <= int(cfg.shard) < int(cfg.num_shards), "shard", cfg.shard, f"0 <= shard < num_shards={cfg.num_shards}")
+    for name in ("maps_per_cell", "repeats"):
+        need(int(cfg.grid[name]) >= 1, f"grid.{name}", cfg.grid[name], "must be >= 1")
+    cells = table2_cells(
+        list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
+        list(cfg.grid.max_agents),
+    )  # fmt: skip
+    out_dir = Path(cfg.out_dir) if cfg.out_dir else None
+    need(out_dir is None or not out_dir.is_file(), "out_dir", cfg.out_dir, "a folder (this is a file)")
+    return cells, out_dir
+
+
+def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
+    """Evaluate every cell of this shard that has no result yet; returns the output directory. `overrides` are the
+    command line's (Hydra's task overrides), to refuse those a checkpoint cannot apply."""
     try:
+        cells, out_dir = check_evaluation(cfg, overrides or [])
         world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
-        cells = table2_cells(
-            list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
-            list(cfg.grid.max_agents),
-        )  # fmt: skip
-        for name in ("maps_per_cell", "repeats"):
-            if int(cfg.grid[name]) < 1:
-                raise ConfigError(f"grid.{name}={cfg.grid[name]!r} is not allowed: must be >= 1")
-        if not 0 <= int(cfg.shard) < int(cfg.num_shards):
-            raise ConfigError(f"shard={cfg.shard!r} is not allowed: 0 <= shard < num_shards={cfg.num_shards}")
-        out_dir = Path(cfg.out_dir or f"runs/eval/{controller_name.replace(':', '_')}")
-        claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name), option_defaults(cfg))
-    except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException) as err:
+        for index, cell in enumerate(cells):  # a cell impossible for its n or N fails now, not when reached
+            try:
+                factory(cell_config(world, cell))
+            except ConfigError as err:
+                raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
+        out_dir = out_dir or Path(f"runs/eval/{controller_name.replace(':', '_')}")
+        with hold(out_dir / LOCKS / "evaluation.lock", f"out_dir={str(out_dir)!r}", wait_s=60):
+            claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name), option_defaults(cfg))
+    except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException, FolderBusy) as err:
         fail(str(err))
     import torch
 
@@ -112,11 +146,20 @@ def evaluate(cfg: DictConfig) -> Path:
     start, done_steps = time.perf_counter(), 0
     with tqdm(total=total, unit="agent-step", unit_scale=True, disable=not cfg.progress_bar) as bar:
         for index, cell in todo:
-            frame = run_cell(factory, world, cell, index, maps, repeats, int(cfg.seed), float(cfg.batch_mb),
-                             needs_obs, on_steps=bar.update)  # fmt: skip
-            frame.insert(0, "model", model_name)
-            frame.insert(0, "controller", controller_name)
-            write_atomic(out_dir / "cells" / f"{cell.key}.parquet", lambda tmp, f=frame: f.to_parquet(tmp))
+            target = out_dir / "cells" / f"{cell.key}.parquet"
+            try:  # one writer per cell: a job running the same folder elsewhere keeps the cells it has started
+                with hold(out_dir / LOCKS / f"{cell.key}.lock", f"cell {cell.key} of {out_dir}"):
+                    if target.exists():  # finished by another job since the list was made
+                        continue
+                    remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
+                    frame = run_cell(factory, world, cell, index, maps, repeats, int(cfg.seed), float(cfg.batch_mb),
+                                     needs_obs, on_steps=bar.update)  # fmt: skip
+                    frame.insert(0, "model", model_name)
+                    frame.insert(0, "controller", controller_name)
+                    write_atomic(target, lambda tmp, f=frame: f.to_parquet(tmp))
+            except FolderBusy as busy:
+                print(f"skipped: {busy}", file=sys.stderr)
+                continue
             done_steps += int(((frame["L"]) * cell.n_agents).sum())
     elapsed = time.perf_counter() - start
     if todo:
@@ -127,7 +170,7 @@ def evaluate(cfg: DictConfig) -> Path:
 
 @hydra.main(version_base="1.3", config_path="../../conf", config_name="evaluate")
 def main(cfg: DictConfig) -> None:
-    evaluate(cfg)
+    evaluate(cfg, list(HydraConfig.get().overrides.task))
 
 
 if __name__ == "__main__":

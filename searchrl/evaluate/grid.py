@@ -3,7 +3,10 @@ each size's limit (§6.3), and the fixed map seeds of each cell."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
+
+CELL_FILE_RE = re.compile(r"n\d+_N\d+\.parquet")  # the file name of a finished cell (Cell.key)
 
 
 @dataclass(frozen=True)

@@ -83,7 +83,13 @@ def claim_folder(out_dir: str | Path, settings: dict[str, Any], defaults: dict[s
     path = Path(out_dir) / RECORD
     mine = OmegaConf.to_container(OmegaConf.create(settings))  # the types a YAML round trip gives
     if path.exists():
-        theirs = _flatten(OmegaConf.to_container(OmegaConf.load(path)))
+        try:
+            theirs = _flatten(OmegaConf.to_container(OmegaConf.load(path)))
+        except Exception as err:  # not YAML or not a mapping: the record cannot say what the cells hold
+            raise ConfigError(
+                f"out_dir={str(out_dir)!r}: its {RECORD} cannot be read ({type(err).__name__}); restore it, or "
+                "remove that folder to start it afresh"
+            ) from None
         ours = _flatten(mine)
         differ = [f"{key}: {theirs.get(key, '(absent)')!r} there, {ours.get(key, '(absent)')!r} here"
                   for key in sorted(theirs.keys() | ours.keys())

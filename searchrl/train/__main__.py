@@ -2,8 +2,9 @@
 
 Trains one shared policy for all agents (parameter sharing) and writes under the run directory: the resolved
 `config.yaml`, `progress.csv` and TensorBoard logs (team metrics, losses, validation), `checkpoints/`, and
-`model.zip` at the end, every file written atomically. `resume=<run dir>` continues a killed run from its last
-checkpoint with step count and optimiser state intact.
+`model.zip` at the end, every file written atomically. `resume=<run dir>` continues a killed run from its newest
+readable checkpoint with step count and optimiser state intact. The run folder is locked while in use
+(docs/files.md).
 """
 
 from __future__ import annotations
@@ -27,8 +28,10 @@ from omegaconf.errors import OmegaConfBaseException
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.utils import get_device
+from stable_baselines3.common.vec_env import VecEnv
 
-from searchrl.atomic import write_atomic, write_text_atomic
+from searchrl.atomic import FolderBusy, hold, remove_temporaries, write_atomic, write_text_atomic
 from searchrl.controllers.policy import PolicyController
 from searchrl.policies.actor import Actor
 from searchrl.train.build import (
@@ -45,7 +48,7 @@ from searchrl.train.callbacks import (
     AtomicCheckpointCallback,
     TeamMetricsCallback,
     ValidationCallback,
-    latest_checkpoint,
+    checkpoints,
 )
 from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
 from searchrl.train.imitation import clone, collect
@@ -76,19 +79,18 @@ def check_model(cfg: DictConfig) -> None:
 RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints")
 
 
-def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tuple[DictConfig, Path, Path | None, int]:
-    """(config, run dir, checkpoint to resume or None, its agent-steps).
+def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tuple[DictConfig, Path, bool]:
+    """(config, run dir, whether it resumes).
 
     A resumed run keeps its saved config; only RESUME_OVERRIDES may be changed on the command line (say
     `total_timesteps=` to train longer).
     """
     if cfg.resume is None:
-        return cfg, output_dir, None, 0
+        return cfg, output_dir, False
     run_dir = Path(cfg.resume)
-    if not (run_dir / "config.yaml").exists():
+    if not (run_dir / "config.yaml").is_file():
         fail(f"resume={cfg.resume!r} is not a run directory: it has no config.yaml")
-    found = latest_checkpoint(run_dir / "checkpoints")
-    if found is None:
+    if not checkpoints(run_dir / "checkpoints"):
         fail(f"resume={cfg.resume!r} has no checkpoint under checkpoints/ to continue from")
     keys = [o.split("=", 1)[0].lstrip("+~") for o in overrides]
     other = [k for k in keys if k not in (*RESUME_OVERRIDES, "resume") and not k.startswith("hydra")]
@@ -97,13 +99,28 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     # Merged into the schema: a run saved by an older version gains new fields' defaults, and types are checked.
     try:
         saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), OmegaConf.load(run_dir / "config.yaml"))
-    except OmegaConfBaseException as err:
-        fail(f"resume={cfg.resume!r}: its config.yaml does not fit the current schema: {err}")
+    except Exception as err:  # not YAML, not a mapping, wrong types, unreadable: the run's record is damaged
+        detail = str(err).splitlines()[0] if str(err) else type(err).__name__
+        fail(f"resume={cfg.resume!r}: its config.yaml does not fit the current schema or cannot be read ({detail})")
     saved.resume = cfg.resume
     for key in keys:
         if key in RESUME_OVERRIDES:
             saved[key] = cfg[key]
-    return saved, run_dir, found[0], found[1]
+    return saved, run_dir, True
+
+
+def load_newest_checkpoint(cfg: DictConfig, run_dir: Path, env: VecEnv) -> tuple[BaseAlgorithm, Path]:
+    """The newest checkpoint of the run that loads, with its step count and optimiser state. One that cannot be
+    read (truncated by a full disk, a broken copy) is set aside as `<name>.unreadable`, said so, and the one
+    before it is tried."""
+    for _, path in sorted(checkpoints(run_dir / "checkpoints"), reverse=True):
+        try:
+            return load_algorithm(cfg, str(path), env), path
+        except ValueError as err:
+            aside = path.with_name(f"{path.name}.unreadable")
+            path.rename(aside)
+            print(f"warning: {err}; set aside as {aside.name}, trying the checkpoint before it", file=sys.stderr)
+    fail(f"resume={cfg.resume!r}: no checkpoint under checkpoints/ can be read (set aside as *.unreadable)")
 
 
 def init_weights(model: BaseAlgorithm, path: str) -> None:
@@ -154,35 +171,57 @@ def warm_start(cfg: DictConfig, model: BaseAlgorithm, run_dir: Path) -> None:
 
 
 def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None) -> Path:
-    """Run (or resume) one training run; returns the path of the final model.zip."""
-    cfg, run_dir, checkpoint, start_step = resolve_run(cfg, Path(output_dir), overrides or [])
+    """Run (or resume) one training run; returns the path of the final model.zip. Every setting is checked before
+    any file is written, and the run folder is locked for the whole run (a second resume of it is refused)."""
+    cfg, run_dir, resuming = resolve_run(cfg, Path(output_dir), overrides or [])
     check_model(cfg)
     try:
         check_config(cfg)
     except (ConfigError, ValueError, OmegaConfBaseException) as err:
         fail(str(err))
+    try:
+        with hold(run_dir / ".lock", f"run folder {str(run_dir)!r}"):
+            return _train_locked(cfg, run_dir, resuming)
+    except FolderBusy as err:
+        fail(str(err))
+
+
+def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
+    if not resuming and ((run_dir / "config.yaml").exists() or checkpoints(run_dir / "checkpoints")):
+        fail(f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder")
+    for folder in (run_dir, run_dir / "checkpoints"):  # left by a killed writer; we hold the folder's lock
+        remove_temporaries(folder)
     torch.set_num_threads(int(cfg.threads))
-    # The run's record: a resume writes back what it changed (say total_timesteps) but never what it resumes from.
+    cfg.device = str(get_device(cfg.device))  # recorded as used (device=auto becomes cpu or cuda)
+
+    # Environment and algorithm: fresh, or the newest readable checkpoint with its step count and optimiser state.
+    env = make_vec_env(cfg)
+    if not resuming:
+        model = make_algorithm(cfg, env, tensorboard_log=None)
+        start_step = 0
+        if cfg.init is not None:
+            init_weights(model, str(cfg.init))
+    else:
+        model, checkpoint = load_newest_checkpoint(cfg, run_dir, env)
+        start_step = model.num_timesteps
+        if int(cfg.total_timesteps) < start_step:
+            fail(f"total_timesteps={cfg.total_timesteps} is not allowed: {run_dir} has trained {start_step} "
+                 f"agent-steps already ({checkpoint.name}); give total_timesteps >= {start_step}")  # fmt: skip
+        model.set_random_seed(int(cfg.seed) + start_step)  # new scenarios, not a replay of the first ones
+        print(f"resuming {run_dir} from {checkpoint.name} at {start_step} agent-steps", file=sys.stderr)
+    # The run's record, written once the run has started well: a resume writes back what it changed (say
+    # total_timesteps) but never what it resumes from.
     record = copy.deepcopy(cfg)
     record.resume = None
     write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(record, resolve=True))
-
-    # Environment and algorithm: fresh, or the checkpoint with its step count and optimiser state.
-    env = make_vec_env(cfg)
-    if checkpoint is None:
-        model = make_algorithm(cfg, env, tensorboard_log=None)
-        if cfg.init is not None:
-            init_weights(model, str(cfg.init))
-        if cfg.imitation.teacher is not None:
-            warm_start(cfg, model, run_dir)
-    else:
-        model = load_algorithm(cfg, str(checkpoint), env)
-        model.set_random_seed(int(cfg.seed) + start_step)  # new scenarios, not a replay of the first ones
-        print(f"resuming {run_dir} from {checkpoint.name} at {model.num_timesteps} agent-steps", file=sys.stderr)
+    if not resuming and cfg.imitation.teacher is not None:
+        warm_start(cfg, model, run_dir)
+        # A kill before the first RL checkpoint then resumes from the clone rather than losing it.
+        write_atomic(run_dir / "checkpoints" / "step_0.zip", lambda tmp: model.save(tmp))
 
     # Logs: one CSV across resumed segments, plus TensorBoard.
-    csv_writer = AppendingCSV(run_dir / "progress.csv", resume_step=start_step if checkpoint else None)
-    tensorboard = ResumableTensorBoard(str(run_dir / "tensorboard"), purge_step=start_step + 1 if checkpoint else None)
+    csv_writer = AppendingCSV(run_dir / "progress.csv", resume_step=start_step if resuming else None)
+    tensorboard = ResumableTensorBoard(str(run_dir / "tensorboard"), purge_step=start_step + 1 if resuming else None)
     model.set_logger(Logger(str(run_dir), [csv_writer, tensorboard]))
 
     callbacks = [
@@ -201,7 +240,7 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
             total_timesteps=remaining,
             callback=CallbackList(callbacks),
             log_interval=int(cfg.log_interval),
-            reset_num_timesteps=checkpoint is None,
+            reset_num_timesteps=not resuming,
             progress_bar=bool(cfg.progress_bar),
         )
     final = write_atomic(run_dir / "model.zip", lambda tmp: model.save(tmp))

@@ -2,21 +2,24 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
+import torch
 from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 
+from searchrl.controllers.policy import load_checkpoint
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
 from searchrl.train.imitation import lr_factor, make_teacher
 from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig
-from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig, need
 
 ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "ppo": PPOConfig, "a2c": A2CConfig}
 TRAINABLE_MODELS = ("a", "b", "c", "diagonal")
@@ -82,6 +85,21 @@ def check_config(cfg: DictConfig) -> None:
             f"choose the algorithm with algo={cfg.algo.name}, not algo.name="
         )
     world = world_config(cfg)  # raises ConfigError naming the field
+    check_device(str(cfg.device))
+    algo = cfg.algo
+    numbers = [  # (name, value, ok, allowed); NaN fails every comparison
+        ("seed", cfg.seed, cfg.seed >= 0, "an integer >= 0"),
+        ("validation.seed", cfg.validation.seed, cfg.validation.seed >= 0, "an integer >= 0"),
+        ("algo.learning_rate", algo.learning_rate, 0 < algo.learning_rate < math.inf, "a number > 0"),
+        ("algo.gamma", algo.gamma, 0 < algo.gamma <= 1, "0 < gamma <= 1"),
+        ("algo.gae_lambda", algo.gae_lambda, 0 <= algo.gae_lambda <= 1, "0 <= gae_lambda <= 1"),
+        ("algo.ent_coef", algo.ent_coef, 0 <= algo.ent_coef < math.inf, "a number >= 0"),
+        ("algo.vf_coef", algo.vf_coef, 0 <= algo.vf_coef < math.inf, "a number >= 0"),
+        ("algo.max_grad_norm", algo.max_grad_norm, 0 < algo.max_grad_norm < math.inf, "a number > 0"),
+        ("algo.clip_range", algo.get("clip_range", 0.2), 0 < algo.get("clip_range", 0.2) < math.inf, "a number > 0"),
+    ]
+    for name, value, ok, allowed in numbers:
+        need(bool(ok), name, value, allowed)
     positive = {
         "env.n_worlds": cfg.env.n_worlds,
         "checkpoint_every": cfg.checkpoint_every,
@@ -120,11 +138,30 @@ def check_config(cfg: DictConfig) -> None:
         for name in ("value_epochs", "dagger_rounds"):
             if int(imitation.get(name, 0)) < 0:
                 raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 0")
-        if float(imitation.learning_rate) <= 0:
-            raise ConfigError(f"imitation.learning_rate={imitation.learning_rate!r} is not allowed: must be > 0")
+        lr = float(imitation.learning_rate)
+        need(0 < lr < math.inf, "imitation.learning_rate", imitation.learning_rate, "must be > 0")
         lr_factor(str(imitation.get("lr_schedule", "constant")), 0, 1)  # an unknown schedule, named
     net = cfg.network
     SearchCNN.check_sizes(list(net.conv_channels), int(net.vector_size), list(net.fc_sizes), world.fov)
+
+
+def check_device(device: str) -> None:
+    """ConfigError unless torch can run on `device` here: a run never falls back to the CPU unasked."""
+    allowed = "cpu, cuda, cuda:<index>, mps or auto (cuda when torch sees one, else cpu)"
+    if device == "auto":
+        return
+    try:
+        parsed = torch.device(device)
+    except (RuntimeError, ValueError):
+        raise ConfigError(f"device={device!r} is not allowed: {allowed}") from None
+    if parsed.type == "cuda":
+        count = torch.cuda.device_count()
+        need(count > 0, "device", device, "cpu here: torch sees no CUDA device (torch.cuda.is_available() is False)")
+        need((parsed.index or 0) < count, "device", device, f"a CUDA index below {count} (devices torch sees)")
+    elif parsed.type == "mps":
+        need(torch.backends.mps.is_available(), "device", device, "cpu here: torch sees no MPS device")
+    else:
+        need(parsed.type == "cpu", "device", device, allowed)
 
 
 def make_algorithm(cfg: DictConfig, env: VecEnv, tensorboard_log: str | None) -> BaseAlgorithm:
@@ -142,9 +179,9 @@ def make_algorithm(cfg: DictConfig, env: VecEnv, tensorboard_log: str | None) ->
 
 
 def load_algorithm(cfg: DictConfig, path: str, env: VecEnv) -> BaseAlgorithm:
-    """Load a checkpoint with its step count and optimiser state, attached to `env`."""
-    algo_class, _ = ALGORITHMS[cfg.algo.name]
-    return algo_class.load(path, env=env, device=cfg.device)
+    """Load a checkpoint with its step count and optimiser state, attached to `env`; ValueError naming the file
+    if it cannot be read."""
+    return load_checkpoint(path, cfg.algo.name, env=env, device=cfg.device)
 
 
 def teacher_args(cfg: DictConfig) -> dict[str, Any]:

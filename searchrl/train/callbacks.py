@@ -78,15 +78,6 @@ def checkpoints(directory: Path) -> list[tuple[int, Path]]:
     return [(int(m.group(1)), p) for p in Path(directory).glob("step_*.zip") if (m := CHECKPOINT_RE.match(p.name))]
 
 
-def latest_checkpoint(directory: Path) -> tuple[Path, int] | None:
-    """(path, agent-steps) of the newest complete checkpoint in `directory`, or None."""
-    found = checkpoints(directory)
-    if not found:
-        return None
-    step, path = max(found)
-    return path, step
-
-
 class ValidationCallback(BaseCallback):
     """Every `every` agent-steps, runs the policy on fixed validation worlds and logs `val/<metric>`; the
     random-walk level on the same worlds is logged once as `val/random_<metric>` for reference."""

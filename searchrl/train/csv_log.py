@@ -1,19 +1,30 @@
 """SB3 logger outputs that survive a resume: one CSV appended across the segments of a run, and TensorBoard.
 
 SB3's own CSV output truncates its file when opened, so a resumed run would lose its history; this one keeps it,
-drops rows past the checkpoint it resumes from (they will be logged again), and widens the header when a new
-key appears (team metrics only show up once the first episodes end).
+drops rows past the checkpoint it resumes from (they will be logged again) and a last row a kill cut short, and
+widens the header when a new key appears (team metrics only show up once the first episodes end).
 """
 
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 from typing import Any
 
 from stable_baselines3.common.logger import KVWriter, TensorBoardOutputFormat
 
+from searchrl.atomic import write_atomic
+
 STEP_KEY = "time/total_timesteps"
+
+
+def _step(row: dict[str, str | None]) -> float:
+    """The row's agent-step count; a row without one sorts before every checkpoint."""
+    try:
+        return float(row.get(STEP_KEY) or 0)
+    except ValueError:
+        return 0.0
 
 
 class AppendingCSV(KVWriter):
@@ -22,10 +33,12 @@ class AppendingCSV(KVWriter):
         self.columns: list[str] = []
         self.rows: list[dict[str, str]] = []
         if self.path.exists():
-            with open(self.path, newline="") as f:
-                reader = csv.DictReader(f)
-                self.columns = list(reader.fieldnames or [])
-                self.rows = [r for r in reader if resume_step is None or float(r.get(STEP_KEY) or 0) <= resume_step]
+            text = self.path.read_text()
+            if not text.endswith("\n"):  # a row cut short by a kill or a crash: drop it, it is logged again
+                text = text[: text.rfind("\n") + 1]
+            reader = csv.DictReader(io.StringIO(text, newline=""))
+            self.columns = list(reader.fieldnames or [])
+            self.rows = [r for r in reader if resume_step is None or _step(r) <= resume_step]
         self._rewrite()
 
     def write(self, key_values: dict[str, Any], key_excluded: dict[str, Any], step: int = 0) -> None:
@@ -40,12 +53,13 @@ class AppendingCSV(KVWriter):
                 csv.DictWriter(f, self.columns, restval="").writerow(row)
 
     def _rewrite(self) -> None:
-        tmp = self.path.with_name(f".{self.path.name}.tmp")
-        with open(tmp, "w", newline="") as f:
-            writer = csv.DictWriter(f, self.columns, restval="")
-            writer.writeheader()
-            writer.writerows(self.rows)
-        tmp.replace(self.path)
+        def write(tmp: Path) -> None:
+            with open(tmp, "w", newline="") as f:
+                writer = csv.DictWriter(f, self.columns, restval="")
+                writer.writeheader()
+                writer.writerows(self.rows)
+
+        write_atomic(self.path, write)
 
     def close(self) -> None:
         pass

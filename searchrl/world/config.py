@@ -7,7 +7,10 @@ with a default and a reason in the README's "Deviations and choices".
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields
+
+import numpy as np
 
 from searchrl.world.footprint import GAMMA
 
@@ -16,13 +19,40 @@ class ConfigError(ValueError):
     """A configuration value outside its allowed range; the message names the field."""
 
 
-def _need(ok: bool, name: str, value: object, allowed: str) -> None:
+def need(ok: bool, name: str, value: object, allowed: str) -> None:
+    """Raise ConfigError "name=value is not allowed: allowed" unless `ok`: the one wording of every refusal."""
     if not ok:
         raise ConfigError(f"{name}={value!r} is not allowed: {allowed}")
 
 
+def is_int(value: object) -> bool:
+    """A Python or numpy integer, not a bool."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def check_seed(seed: object, name: str = "seed") -> None:
+    """ConfigError unless `seed` is None or an integer >= 0 (what np.random.default_rng takes)."""
+    need(seed is None or (is_int(seed) and seed >= 0), name, seed, "None or an integer >= 0")
+
+
+def _is_number(value: object) -> bool:
+    return (is_int(value) or isinstance(value, (float, np.floating))) and math.isfinite(value)
+
+
+# What each annotation of WorldConfig allows, checked for every field before its range.
+_KINDS = {
+    "int": (is_int, "an integer"),
+    "float": (_is_number, "a finite number"),
+    "bool": (lambda v: isinstance(v, (bool, np.bool_)), "True or False"),
+    "tuple[int, int]": (
+        lambda v: isinstance(v, (tuple, list)) and len(v) == 2 and all(is_int(x) for x in v),
+        "a pair of integers (low, high)",
+    ),
+}
+
+
 def _check_range(name: str, rng: tuple, low: float, high: float | None = None) -> None:
-    _need(
+    need(
         isinstance(rng, (tuple, list)) and len(rng) == 2,
         name,
         rng,
@@ -30,7 +60,7 @@ def _check_range(name: str, rng: tuple, low: float, high: float | None = None) -
     )
     lo, hi = rng
     upper = "" if high is None else f" and high <= {high}"
-    _need(low <= lo <= hi and (high is None or hi <= high), name, rng, f"need {low} <= low <= high{upper}")
+    need(low <= lo <= hi and (high is None or hi <= high), name, rng, f"need {low} <= low <= high{upper}")
 
 
 @dataclass(frozen=True)
@@ -96,25 +126,28 @@ class WorldConfig:
         return max(self.fov, self.explicit_area, self.comm_range, GAMMA.shape[0]) // 2
 
     def validate(self) -> None:
+        for f in fields(self):  # types first: a string, NaN or fractional count never reaches a comparison
+            is_kind, kind = _KINDS[f.type]
+            need(is_kind(getattr(self, f.name)), f.name, getattr(self, f.name), kind)
         _check_range("world_size", self.world_size, 5)
         _check_range("n_distributions", self.n_distributions, 1)
         _check_range("n_targets", self.n_targets, 1)
-        _need(1 <= self.n_agents <= 4096, "n_agents", self.n_agents, "1 <= n_agents <= 4096")
-        _need(self.prob_variance_scale > 0, "prob_variance_scale", self.prob_variance_scale, "> 0")
-        _need(self.unc_variance_scale > 0, "unc_variance_scale", self.unc_variance_scale, "> 0")
+        need(1 <= self.n_agents <= 4096, "n_agents", self.n_agents, "1 <= n_agents <= 4096")
+        need(self.prob_variance_scale > 0, "prob_variance_scale", self.prob_variance_scale, "> 0")
+        need(self.unc_variance_scale > 0, "unc_variance_scale", self.unc_variance_scale, "> 0")
         smallest_scale = min(self.prob_variance_scale, self.unc_variance_scale)
-        _need(
+        need(
             0 < self.variance_floor < smallest_scale * self.world_size[0],
             "variance_floor",
             self.variance_floor,
             "0 < variance_floor < min(prob_variance_scale, unc_variance_scale) * smallest world size",
         )
-        _need(0 <= self.rho_max < 1, "rho_max", self.rho_max, "0 <= rho_max < 1")
-        _need(0 <= self.eta <= 1, "eta", self.eta, "0 <= eta <= 1")
-        _need(0 <= self.obstacle_density < 1, "obstacle_density", self.obstacle_density, "0 <= density < 1")
-        _need(self.lam > 0, "lam", self.lam, "> 0")
-        _need(self.k > 0, "k", self.k, "> 0")
-        _need(
+        need(0 <= self.rho_max < 1, "rho_max", self.rho_max, "0 <= rho_max < 1")
+        need(0 <= self.eta <= 1, "eta", self.eta, "0 <= eta <= 1")
+        need(0 <= self.obstacle_density < 1, "obstacle_density", self.obstacle_density, "0 <= density < 1")
+        need(self.lam > 0, "lam", self.lam, "> 0")
+        need(self.k > 0, "k", self.k, "> 0")
+        need(
             self.lam * self.k * float(GAMMA.max()) <= 1.0 + 1e-12,
             "k",
             self.k,
@@ -122,40 +155,40 @@ class WorldConfig:
         )
         for name in ("fov", "explicit_area", "comm_range"):
             v = getattr(self, name)
-            _need(isinstance(v, int) and v >= 1 and v % 2 == 1, name, v, "an odd positive integer")
-        _need(
+            need(isinstance(v, int) and v >= 1 and v % 2 == 1, name, v, "an odd positive integer")
+        need(
             self.explicit_area <= self.fov,
             "explicit_area",
             self.explicit_area,
             f"Φ must fit inside the field of view (fov={self.fov})",
         )
-        _need(0 <= self.belief_age <= 4, "belief_age", self.belief_age, "0 <= belief_age <= 4 (0: beliefs do not age)")
-        _need(
+        need(0 <= self.belief_age <= 4, "belief_age", self.belief_age, "0 <= belief_age <= 4 (0: beliefs do not age)")
+        need(
             isinstance(self.belief_age_channel, bool) and (not self.belief_age_channel or self.belief_age > 0),
             "belief_age_channel",
             self.belief_age_channel,
             "True or False, and False unless belief_age > 0 (the channel shows the belief's age)",
         )
-        _need(
+        need(
             isinstance(self.belief_seen, bool) and (not self.belief_seen or self.belief_age > 0),
             "belief_seen",
             self.belief_seen,
             "True or False, and False unless belief_age > 0 (it scales the belief's freshness)",
         )
-        _need(self.max_steps >= 1, "max_steps", self.max_steps, ">= 1")
-        _need(self.xi >= 0, "xi", self.xi, ">= 0")
-        _need(self.tau >= 0, "tau", self.tau, ">= 0")
+        need(self.max_steps >= 1, "max_steps", self.max_steps, ">= 1")
+        need(self.xi >= 0, "xi", self.xi, ">= 0")
+        need(self.tau >= 0, "tau", self.tau, ">= 0")
         # Agents need distinct free cells in the smallest world; obstacles are drawn per world so we
         # require room even at the expected density, and re-check exactly at reset.
         smallest = self.world_size[0] ** 2
         free = int(smallest * (1.0 - self.obstacle_density))
-        _need(
+        need(
             self.n_agents <= free,
             "n_agents",
             self.n_agents,
             f"at most {free} agents fit on the free cells of the smallest world (n={self.world_size[0]})",
         )
-        _need(
+        need(
             self.n_agents + self.n_targets[1] <= free,
             "n_targets",
             self.n_targets,

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import WorldConfig, check_seed, is_int, need
 from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_worlds
@@ -34,6 +34,8 @@ class SearchWorld:
     """
 
     def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None) -> None:
+        need(is_int(n_worlds) and n_worlds >= 1, "n_worlds", n_worlds, "an integer >= 1")
+        check_seed(seed)
         self.config = config
         self.state: WorldState = allocate(config, n_worlds)
         self.rng = np.random.default_rng(seed)
@@ -47,6 +49,7 @@ class SearchWorld:
     def reset(self, seed: int | None = None, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Reset the worlds in `mask` (all by default); `seed` reseeds the generator first."""
         if seed is not None:
+            check_seed(seed)
             self.rng = np.random.default_rng(seed)
         mask = np.ones(self.n_worlds, bool) if mask is None else np.asarray(mask, bool)
         reset_worlds(self.config, self.state, mask, self.rng)

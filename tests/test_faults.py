@@ -1,0 +1,258 @@
+"""Nothing lost, nothing silent: one test per class of fault a careful user met (issue 25), each failing before its
+fix. Files survive kills, folders have one owner, resume survives damage, a failed run claims nothing, no setting is
+dropped without a word, bad values get one line before any work, and the PettingZoo env checks what it is given."""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+from hydra import compose, initialize_config_dir
+from sb3_contrib import RecurrentPPO
+
+from searchrl.atomic import hold, temporary_path
+from searchrl.envs.parallel_env import SearchParallelEnv
+from searchrl.evaluate.__main__ import CONF_DIR, evaluate
+from searchrl.evaluate.results import load
+from searchrl.train.__main__ import train
+from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world.engine import SearchWorld
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE_B = ROOT / "runs" / "reference" / "b"
+SLICE = ["grid.world_sizes=[20]", "grid.n_targets=[4]", "grid.n_distributions=[8]", "grid.max_agents=[2]",
+         "grid.maps_per_cell=2", "grid.repeats=1", "progress_bar=false", "threads=1"]  # fmt: skip
+TINY = ["+model=b", "total_timesteps=2048", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,20]",
+        "env.world.n_targets=[2,4]", "env.world.n_distributions=[4,8]", "network=small", "algo.batch_size=128",
+        "checkpoint_every=1024", "validation.every=0", "progress_bar=false", "threads=1"]  # fmt: skip
+
+
+def _compose(app: str, overrides: list[str]):
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        return compose(config_name=app, overrides=overrides)
+
+
+def _evaluate(out: Path, *overrides: str) -> Path:
+    args = [*SLICE, f"out_dir={out}", *overrides]
+    return evaluate(_compose("evaluate", args), list(overrides))
+
+
+def _refused(capsys, call, *needles: str) -> str:
+    """`call` exits with 2 and one `error:` line naming every needle, no traceback."""
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exit_:
+        call()
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and "Traceback" not in err, err
+    line = err.strip().splitlines()[-1]
+    assert "error:" in line and all(n in line for n in needles), err
+    return line
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory) -> Path:
+    """A finished tiny run with checkpoints at 1024 and 2048 agent-steps; tests copy it before they damage it."""
+    run = tmp_path_factory.mktemp("tiny") / "run"
+    train(_compose("train", TINY), run, TINY)
+    return run
+
+
+def _copy(run: Path, to: Path) -> Path:
+    shutil.copytree(run, to)
+    (to / "model.zip").unlink()
+    return to
+
+
+# 1. Evaluation results are never corrupted by a writer's temporary.
+def test_loader_and_rerun_ignore_and_clear_what_a_killed_writer_left(tmp_path):
+    out = _evaluate(tmp_path / "eval")
+    clean = load(out)
+    cells = out / "cells"
+    (cells / "n20_N2.parquet").rename(tmp_path / "n20_N2.parquet")  # as if killed while writing this cell:
+    temporary_path(cells / "n20_N2.parquet").write_bytes(b"PAR1 half a file")  # a partial temporary
+    shutil.copy(tmp_path / "n20_N2.parquet", cells / ".n20_N1.4242.tmp.parquet")  # a whole one, earlier naming
+    assert len(load(out)) == len(clean) // 2  # no ArrowInvalid, nothing counted twice
+    _evaluate(tmp_path / "eval")  # the rerun finishes the cell and clears its temporary
+    pd.testing.assert_frame_equal(load(out), clean)
+    assert sorted(p.name for p in cells.iterdir()) == [".n20_N1.4242.tmp.parquet", "n20_N1.parquet", "n20_N2.parquet"]
+
+
+def test_evaluation_killed_at_any_moment_resumes_to_the_same_results(tmp_path):
+    args = [*SLICE, "grid.max_agents=[8]", "grid.maps_per_cell=4", "controller=greedy"]
+    whole = load(_evaluate(tmp_path / "whole", *args[len(SLICE) :]))
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "searchrl.evaluate", *args, f"out_dir={out}"]
+    proc = subprocess.Popen(cmd, cwd=ROOT, stderr=subprocess.PIPE, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while not (out / "cells" / "n20_N2.parquet").exists():
+        assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()[-2000:]
+        time.sleep(0.01)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    pd.testing.assert_frame_equal(load(_evaluate(out, *args[len(SLICE) :])), whole)
+
+
+# 2. A run folder has one owner.
+def test_a_run_folder_in_use_is_refused(tmp_path, tiny_run, capsys):
+    run = _copy(tiny_run, tmp_path / "run")
+    files = lambda: {p.name: p.read_bytes() for p in run.iterdir() if p.is_file() and p.name != ".lock"}  # noqa: E731
+    before = files()
+    overrides = [f"resume={run}", "total_timesteps=4096"]
+    with hold(run / ".lock", "the test's run"):  # as a first resume of it would, still running
+        _refused(capsys, lambda: train(_compose("train", overrides), run / "resumed", overrides), "is in use by")
+        _refused(capsys, lambda: train(_compose("train", TINY), run, TINY), "is in use by")
+    assert files() == before
+    _refused(capsys, lambda: train(_compose("train", TINY), run, TINY), "already holds a run", f"resume={run}")
+
+
+# 3. Resume survives a damaged newest checkpoint, a small budget and killed temporaries.
+def test_resume_falls_back_from_a_truncated_checkpoint_and_clears_temporaries(tmp_path, tiny_run, capsys):
+    run = _copy(tiny_run, tmp_path / "run")
+    newest = run / "checkpoints" / "step_2048.zip"
+    newest.write_bytes(newest.read_bytes()[: newest.stat().st_size // 2])
+    killed = [temporary_path(run / "checkpoints" / "step_3072.zip"), run / "checkpoints" / ".step_3072.77.tmp.zip"]
+    for path in killed:
+        path.write_bytes(b"half")
+    with open(run / "progress.csv", "a") as f:
+        f.write("0.5,12")  # a row cut short by the kill
+    overrides = [f"resume={run}", "total_timesteps=1536"]
+    final = train(_compose("train", overrides), run / "resumed", overrides)
+    assert "step_2048.zip" in capsys.readouterr().err and (run / "checkpoints" / "step_2048.zip.unreadable").exists()
+    assert RecurrentPPO.load(final).num_timesteps == 1536
+    assert not any(path.exists() for path in killed)
+    assert pd.read_csv(run / "progress.csv")["time/total_timesteps"].tolist() == list(range(256, 1537, 256))
+
+
+def test_resume_that_cannot_start_leaves_the_run_as_it_was(tmp_path, tiny_run, capsys):
+    run = _copy(tiny_run, tmp_path / "run")
+    record = (run / "config.yaml").read_bytes()
+    overrides = [f"resume={run}", "total_timesteps=1000"]  # below the 2048 agent-steps it has trained
+    _refused(capsys, lambda: train(_compose("train", overrides), run / "r", overrides), "total_timesteps=1000", "2048")
+    for path in (run / "checkpoints").glob("step_*.zip"):
+        path.write_bytes(b"not a zip")
+    overrides = [f"resume={run}", "total_timesteps=9999"]
+    _refused(capsys, lambda: train(_compose("train", overrides), run / "r", overrides), "no checkpoint", "be read")
+    assert (run / "config.yaml").read_bytes() == record and not (run / "model.zip").exists()
+
+
+# 4. A failed evaluation claims nothing; cells impossible for their n or N fail before any other cell runs.
+@pytest.mark.parametrize(
+    "bad, needle",
+    [
+        ("seed=-1", "seed=-1"),
+        ("threads=0", "threads=0"),
+        ("batch_mb=0", "batch_mb=0"),
+        ("grid.world_sizes=[20,5] grid.n_targets=[4,2] grid.n_distributions=[8,2] grid.max_agents=[2,32]", "n=5, N=32"),
+    ],
+)
+def test_a_failed_evaluation_claims_no_folder(tmp_path, capsys, bad, needle):
+    out = tmp_path / "eval"
+    _refused(capsys, lambda: _evaluate(out, *bad.split()), needle)
+    assert not out.exists() or not any(p.name != ".locks" for p in out.iterdir())
+    assert len(load(_evaluate(out))) == 4  # the corrected run takes the folder
+
+
+# 5. Settings that cannot apply are refused, naming them; none is dropped without a word.
+@pytest.mark.parametrize("ignored", ["env.world.k=500", "controller=greedy", "controller.w_p=0.3", "+model=a"])
+def test_a_checkpoint_refuses_world_model_and_controller_settings(tmp_path, capsys, ignored):
+    checkpoint = f"checkpoint={REFERENCE_B / 'model.zip'}"
+    _refused(capsys, lambda: _evaluate(tmp_path, checkpoint, ignored), ignored, "cannot apply")
+    assert not (tmp_path / "evaluation.yaml").exists()
+
+
+def test_render_refuses_heuristic_options_with_a_checkpoint(tmp_path, capsys):
+    from searchrl.render import main
+
+    call = lambda: main(["--checkpoint", str(REFERENCE_B / "model.zip"), "--controller", "greedy",  # noqa: E731
+                         "--out", str(tmp_path / "x.gif")])  # fmt: skip
+    with pytest.raises(SystemExit):
+        call()
+    assert "--controller cannot apply with --checkpoint" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="needs a machine without CUDA")
+def test_device_cuda_without_cuda_is_refused_not_run_on_cpu(tmp_path, capsys):
+    _refused(capsys, lambda: train(_compose("train", [*TINY, "device=cuda"]), tmp_path, []), "device='cuda'", "cpu")
+    assert not (tmp_path / "config.yaml").exists()
+
+
+# 6. One line, not a traceback, before any work or file.
+@pytest.mark.parametrize(
+    "override, needle",
+    [
+        ("seed=-1", "seed=-1"),
+        ("algo.learning_rate=-0.1", "algo.learning_rate=-0.1"),
+        ("algo.gamma=1.5", "algo.gamma=1.5"),
+        ("algo.ent_coef=nan", "algo.ent_coef=nan"),
+        ("device=foo", "device='foo'"),
+        ("threads=0", "threads=0"),
+        ("validation.seed=-3", "validation.seed=-3"),
+    ],
+)
+def test_bad_training_values_get_one_line_before_any_file(tmp_path, capsys, override, needle):
+    _refused(capsys, lambda: train(_compose("train", [*TINY, override]), tmp_path, [override]), needle)
+    assert not tmp_path.exists() or not any(tmp_path.iterdir())
+
+
+def test_unreadable_run_files_get_one_line(tmp_path, tiny_run, capsys):
+    from searchrl.bench.__main__ import main as bench
+    from searchrl.render import main as render
+
+    run = _copy(tiny_run, tmp_path / "run")
+    (run / "config.yaml").write_bytes(b"\x00\xff: [unclosed")
+    overrides = [f"resume={run}"]
+    _refused(capsys, lambda: train(_compose("train", overrides), run / "r", overrides), "config.yaml")
+    shutil.copy(REFERENCE_B / "config.yaml", run / "config.yaml")
+    corrupt = run / "model.zip"
+    corrupt.write_bytes((REFERENCE_B / "model.zip").read_bytes()[:5000])
+    gif = tmp_path / "x.gif"
+    _refused(capsys, lambda: render(["--checkpoint", str(corrupt), "--out", str(gif)]), "cannot be read")
+    _refused(capsys, lambda: bench(["policy", "--checkpoint", str(corrupt)]), "cannot be read")
+    _refused(capsys, lambda: _evaluate(tmp_path / "eval", f"checkpoint={corrupt}"), "cannot be read")
+    for fps in ("nan", "inf", "0", "1000"):
+        _refused(capsys, lambda fps=fps: render(["--fps", fps, "--out", str(gif)]), f"--fps={float(fps)!r}")
+    _refused(capsys, lambda: render(["--seed", "-1", "--out", str(gif)]), "--seed=-1")
+    assert not gif.exists() and not (tmp_path / "eval" / "evaluation.yaml").exists()
+
+
+# 7. The PettingZoo env checks types and names.
+def test_parallel_env_refuses_wrong_types_and_names():
+    env = SearchParallelEnv(WorldConfig(world_size=(10, 10), n_targets=(2, 2), n_agents=2, max_steps=5))
+    for seed in (-1, 1.5, "7"):
+        with pytest.raises(ValueError, match=f"seed={seed!r} is not allowed"):
+            env.reset(seed=seed)
+    env.reset(seed=np.int64(3))
+    for action in (1.0, "1", True, 5, np.float32(2)):
+        with pytest.raises(ValueError, match=r"actions\['agent_0'\]=.* is not allowed: an integer in \[0, 5\)"):
+            env.step({"agent_0": action, "agent_1": 0})
+    with pytest.raises(ValueError, match=r"actions for \['agent_7'\] are not allowed"):
+        env.step({"agent_0": 0, "agent_1": 0, "agent_7": 1})
+    env.step({"agent_0": np.int32(4), "agent_1": np.array(2)})  # numpy integers are integers
+    with pytest.raises(ValueError, match="seed=-1 is not allowed"):
+        SearchWorld(env.config, 2, seed=-1)  # the engine under the VecEnv and the env checks its seed the same way
+
+
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"communication": "yes"}, "communication='yes' is not allowed: True or False"),
+        ({"diagonal": 1}, "diagonal=1 is not allowed: True or False"),
+        ({"max_steps": 2.5}, "max_steps=2.5 is not allowed: an integer"),
+        ({"target_reward": math.nan}, "target_reward=nan is not allowed: a finite number"),
+        ({"collision_reward": math.inf}, "collision_reward=inf is not allowed: a finite number"),
+        ({"world_size": (20, 30.5)}, r"world_size=\(20, 30.5\) is not allowed: a pair of integers"),
+    ],
+)
+def test_world_config_checks_types(kwargs, needle):
+    with pytest.raises(ConfigError, match=needle):
+        SearchParallelEnv(WorldConfig(**kwargs))
