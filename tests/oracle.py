@@ -95,7 +95,7 @@ def _sense(config: WorldConfig, state: WorldState, k: int) -> tuple[list[float],
     """SPEC step 3, eq. 1-2 of the paper: Δp = λkΓp per footprint, several footprints on one cell combined as
     a product of survivals, and what the cell lost split among the agents in proportion to their c·Γ.
     Returns (M_p, M_u) per agent, eq. 3-4."""
-    c = config.lam * config.k
+    c = config.lam * (config.k + config.k_per_n * int(state.size[k]))  # k related to the world's side n
     h = state.halo
     covers: dict[tuple[int, int], list[tuple[int, float]]] = {}  # padded cell -> [(agent, f_i)] by index
     for i in range(state.n_agents):

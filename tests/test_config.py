@@ -18,6 +18,10 @@ from searchrl.world.config import ConfigError, WorldConfig
         ({"lam": 0.002, "k": 1000.0}, "k"),  # λk·max Γ = 2 would remove more than a cell holds
         ({"lam": 0.0}, "lam"),
         ({"k": -1.0}, "k"),
+        ({"k": 0.0}, "k"),  # no sensing at all
+        ({"k_per_n": -1.0}, "k_per_n"),
+        ({"k": 0.0, "k_per_n": 10.0}, "k"),  # λ·10·128 > 1 in the largest world
+        ({"k": 0.0, "k_per_n": 1.0, "belief_age": 1.0}, "belief_age"),  # age models λk = 1
         ({"world_size": (-5, 10)}, "world_size"),
         ({"world_size": (12, 10)}, "world_size"),
         ({"world_size": (4, 10)}, "world_size"),

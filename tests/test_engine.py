@@ -167,3 +167,19 @@ def test_belief_age_channel_shows_the_factor_beside_an_unscaled_belief():
     fresh = chan.maps[0, 0, 5]
     assert fresh.min() < 1.0 and fresh.max() == 1.0  # Φ was seen this step; the rest of the view earlier
     np.testing.assert_allclose(old.maps[0, 0, 3:], plain.maps[0, 0, 3:] * fresh, rtol=1e-6)
+
+
+@pytest.mark.parametrize("n", [12, 20])
+def test_k_per_n_senses_each_world_with_its_own_side(n):
+    """k = k + k_per_n·n: with k = 0, k_per_n = 1 one footprint scales the cell under a lone agent by 1 − λ·n·Γ."""
+    from searchrl.world.footprint import GAMMA
+
+    config = WorldConfig(world_size=(n, n), n_agents=1, n_targets=(1, 1), k=0.0, k_per_n=1.0)
+    world = SearchWorld(config, n_worlds=1, seed=0)
+    world.reset()
+    r, c = world.state.pos[0, 0] + world.state.halo
+    before = float(world.state.p[0, r, c])
+    world.step(np.zeros((1, 1), np.int64))  # stay
+    factor = 1 - config.lam * n * float(GAMMA[2, 2])
+    assert world.state.p[0, r, c] == pytest.approx(before * factor, rel=1e-6)
+    np.testing.assert_allclose(config.sensing_rate(np.array([20, 40])), [0.02, 0.04])

@@ -26,14 +26,17 @@ def small_configs(draw: st.DrawFn, max_steps: tuple[int, int] = (3, 30)) -> Worl
     hi = draw(st.integers(lo, 14))
     fov, phi = draw(st.sampled_from([(11, 5), (11, 11), (7, 3), (7, 5)]))
     t_hi = draw(st.integers(1, 4))
-    age = draw(st.sampled_from([0.0, 0.0, 2.0]))
+    # λk = 1 (the Bayesian update), a partial one, or k = n and 40·n (k related to each world's side)
+    sensings = [{"k": 1000.0}, {"k": 500.0}, {"k": 0.0, "k_per_n": 1.0}, {"k": 0.0, "k_per_n": 40.0}]
+    sensing = draw(st.sampled_from(sensings))
+    age = draw(st.sampled_from([0.0, 0.0, 2.0])) if sensing == {"k": 1000.0} else 0.0  # age needs λk = 1
     return WorldConfig(
         world_size=(lo, hi),
         n_distributions=(1, 3),
         n_targets=(draw(st.integers(1, t_hi)), t_hi),
         n_agents=draw(st.integers(1, 6)),
         obstacle_density=draw(st.sampled_from([0.0, 0.1])),
-        k=draw(st.sampled_from([1000.0, 500.0])),  # λk = 1 (paper's Bayesian update) or a partial one
+        **sensing,
         explicit_area=phi,
         fov=fov,
         communication=draw(st.booleans()),

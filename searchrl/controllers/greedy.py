@@ -179,6 +179,11 @@ class FootprintGreedy(FallbackHeuristic):
             raise ValueError(f"reach={reach!r} is not allowed: 0 <= reach <= 4 (0: every cell counts the same)")
         if not 0 <= age <= 4:
             raise ValueError(f"age={age!r} is not allowed: 0 <= age <= 4 (0: a belief does not age)")
+        if (seen or age > 0) and not config.bayesian_sensing:
+            raise ValueError(
+                f"seen={seen!r}, age={age!r} are not allowed in this world: both model sensing as p·(1 − Γ), so they "
+                f"need lam * k = 1 and k_per_n = 0 (here k={config.k}, k_per_n={config.k_per_n})"
+            )
         super().__init__(config, seed)
         self.horizon, self.discount, self.w_p, self.w_u = int(horizon), float(discount), float(w_p), float(w_u)
         self.w_t = float(w_t)

@@ -90,7 +90,7 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
 
 
 # With checkpoint=, the world, model and controller come from the checkpoint's run: these overrides cannot apply.
-FIXED_BY_CHECKPOINT = ("env", "model", "controller")
+FIXED_BY_CHECKPOINT = ("env", "world", "model", "controller")
 
 
 def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path]:
@@ -154,6 +154,7 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
                     remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
                     frame = run_cell(factory, world, cell, index, maps, repeats, int(cfg.seed), float(cfg.batch_mb),
                                      needs_obs, on_steps=bar.update)  # fmt: skip
+                    frame.insert(0, "world", world.sensing_label)
                     frame.insert(0, "model", model_name)
                     frame.insert(0, "controller", controller_name)
                     write_atomic(target, lambda tmp, f=frame: f.to_parquet(tmp))

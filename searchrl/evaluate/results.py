@@ -5,8 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pandas as pd
+from omegaconf import OmegaConf
 
 from searchrl.evaluate.grid import CELL_FILE_RE
+from searchrl.world.config import WorldConfig
 
 
 def cell_files(out_dir: str | Path) -> list[Path]:
@@ -15,9 +17,23 @@ def cell_files(out_dir: str | Path) -> list[Path]:
     return sorted(p for p in Path(out_dir).glob("cells/*.parquet") if CELL_FILE_RE.fullmatch(p.name))
 
 
+def world_of(out_dir: str | Path) -> str:
+    """The sensing label of a folder whose cells predate the `world` column: from its evaluation.yaml's world
+    settings (heuristics), else "unknown" (a checkpoint's record names the file, not its world)."""
+    record = Path(out_dir) / "evaluation.yaml"
+    world = OmegaConf.to_container(OmegaConf.load(record)).get("world") if record.exists() else None
+    return WorldConfig.from_dict(world).sensing_label if world else "unknown"
+
+
 def load(*out_dirs: str | Path) -> pd.DataFrame:
     """Every episode row of the given evaluation directories (`<dir>/cells/<cell>.parquet`), one frame."""
-    files = [f for d in out_dirs for f in cell_files(d)]
-    if not files:
+    frames = []
+    for d in out_dirs:
+        for f in cell_files(d):
+            frame = pd.read_parquet(f)
+            if "world" not in frame:
+                frame.insert(2, "world", world_of(d))
+            frames.append(frame)
+    if not frames:
         raise FileNotFoundError(f"no cells/*.parquet under {[str(d) for d in out_dirs]}")
-    return pd.concat([pd.read_parquet(f) for f in files], ignore_index=True)
+    return pd.concat(frames, ignore_index=True)

@@ -17,7 +17,9 @@ from searchrl.world.reset import reset_world
 from searchrl.world.state import WorldState, allocate
 from searchrl.world.step import step
 
-COLUMNS = ["controller", "model", "n", "N", "targets", "map_seed", "repeat", "found_fraction", "L", "R", "F", "M_bar"]
+# `world` names the sensing the episodes ran under (WorldConfig.sensing_label: "bayes" λk = 1, "paper" k = n).
+COLUMNS = ["controller", "model", "world", "n", "N", "targets", "map_seed", "repeat", "found_fraction", "L", "R",
+           "F", "M_bar"]  # fmt: skip
 
 
 def cell_config(world: WorldConfig, cell: Cell) -> WorldConfig:
@@ -51,7 +53,7 @@ def run_cell(
     on_steps: Callable[[int], None] | None = None,
     on_done: Callable[[WorldState, np.ndarray], None] | None = None,
 ) -> pd.DataFrame:
-    """One row per episode (COLUMNS minus controller/model). Every repeat of a map starts from the same world
+    """One row per episode (COLUMNS minus controller, model and world). Every repeat of a map starts from the same world
     (map, targets and start cells come from the map seed); repeats differ in the step draws and the
     controller's own randomness, both seeded from `seed` and the cell. `on_done(state, first)` sees the batch's
     state when the worlds in `first` (K,) bool end their episode (analysis/missed_targets.py reads it)."""

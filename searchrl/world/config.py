@@ -79,9 +79,12 @@ class WorldConfig:
     eta: float = 0.1  # baseline share of probability spread evenly over cells (eq. 7)
     obstacle_density: float = 0.0  # share of cells that are obstacles (not in the paper's experiments)
 
-    # --- sensing (§3.1): Δp = λ k Γ p
+    # --- sensing (§3.1): Δp = λ k Γ p, with k = k + k_per_n · n for a world of side n ("k a coefficient related
+    # to world size n"; the paper gives no formula). k = 1000, k_per_n = 0 (λk = 1) makes sensing the Bayesian
+    # non-detection update p <- p (1 - Γ); k = 0, k_per_n = 1 is the paper's reading k = n (conf/world/).
     lam: float = 0.001  # λ, paper value
-    k: float = 1000.0  # λk = 1 makes sensing the Bayesian non-detection update p <- p (1 - Γ)
+    k: float = 1000.0
+    k_per_n: float = 0.0
 
     # --- agent model (§3.2, §6.1.2): Φ and communication distinguish models A, B, C
     explicit_area: int = 5  # Φ side: 11 (model A) or 5 (B, C, diagonal)
@@ -121,6 +124,25 @@ class WorldConfig:
         return 9 if self.diagonal else 5
 
     @property
+    def bayesian_sensing(self) -> bool:
+        """λk = 1 in every world: one footprint scales p and u by (1 − Γ), the non-detection update."""
+        return self.k_per_n == 0 and abs(self.lam * self.k - 1.0) < 1e-9
+
+    @property
+    def sensing_label(self) -> str:
+        """The world's name in result tables: "bayes" (λk = 1), "paper" (k = n), else "k<k>+<k_per_n>n"."""
+        if self.bayesian_sensing:
+            return "bayes"
+        if self.k == 0 and self.k_per_n == 1 and self.lam == 0.001:
+            return "paper"
+        label = f"k{self.k:g}+{self.k_per_n:g}n"
+        return label if self.lam == 0.001 else f"lam{self.lam:g}_{label}"
+
+    def sensing_rate(self, sides: np.ndarray) -> np.ndarray:
+        """(K,) float64: c = λ·k of each world, k = k + k_per_n · n for its side n (`sides`, (K,) ints)."""
+        return self.lam * (self.k + self.k_per_n * np.asarray(sides, np.float64))
+
+    @property
     def halo(self) -> int:
         """Padding around every map so windows (FOV, Φ, Γ, communication) never leave the array."""
         return max(self.fov, self.explicit_area, self.comm_range, GAMMA.shape[0]) // 2
@@ -146,12 +168,16 @@ class WorldConfig:
         need(0 <= self.eta <= 1, "eta", self.eta, "0 <= eta <= 1")
         need(0 <= self.obstacle_density < 1, "obstacle_density", self.obstacle_density, "0 <= density < 1")
         need(self.lam > 0, "lam", self.lam, "> 0")
-        need(self.k > 0, "k", self.k, "> 0")
+        need(self.k >= 0, "k", self.k, ">= 0")
+        need(self.k_per_n >= 0, "k_per_n", self.k_per_n, ">= 0")
+        lo, hi = self.world_size
+        need(self.k + self.k_per_n * lo > 0, "k", self.k, "k + k_per_n * n > 0 in the smallest world (sensing)")
+        largest = self.lam * (self.k + self.k_per_n * hi)
         need(
-            self.lam * self.k * float(GAMMA.max()) <= 1.0 + 1e-12,
+            largest * float(GAMMA.max()) <= 1.0 + 1e-12,
             "k",
             self.k,
-            f"lam * k * max(Γ) <= 1 so no cell loses more than it holds (here lam * k = {self.lam * self.k})",
+            f"lam * (k + k_per_n * n) * max(Γ) <= 1 so no cell loses more than it holds (here {largest:g} at n={hi})",
         )
         for name in ("fov", "explicit_area", "comm_range"):
             v = getattr(self, name)
@@ -163,6 +189,12 @@ class WorldConfig:
             f"Φ must fit inside the field of view (fov={self.fov})",
         )
         need(0 <= self.belief_age <= 4, "belief_age", self.belief_age, "0 <= belief_age <= 4 (0: beliefs do not age)")
+        need(
+            self.belief_age == 0 or self.bayesian_sensing,
+            "belief_age",
+            self.belief_age,
+            "0 unless lam * k = 1 and k_per_n = 0: a belief's age and belief_seen model sensing as p·(1 − Γ)",
+        )
         need(
             isinstance(self.belief_age_channel, bool) and (not self.belief_age_channel or self.belief_age > 0),
             "belief_age_channel",

@@ -104,8 +104,9 @@ def detect_targets(
 
 @njit(cache=_CACHE)
 def sense(p, u, pos, dr, dc, g, c_coef, h, surv, fsum, removed, done, collected):
-    """Phase 3 (eq. 1-4). True maps decay by Π_i (1 - λkΓ_i) under overlapping footprints; each agent is
-    credited the Γ-weighted share of what its cells lost. collected (K,N) float64 = M_p + M_u.
+    """Phase 3 (eq. 1-4). True maps decay by Π_i (1 - λkΓ_i) under overlapping footprints, c_coef (K,) float64
+    the λk of each world; each agent is credited the Γ-weighted share of what its cells lost. collected (K,N)
+    float64 = M_p + M_u.
 
     Scratch (S,S): surv, fsum float64; removed (2,S,S) float64; done bool (all False on entry and exit).
     """
@@ -115,7 +116,7 @@ def sense(p, u, pos, dr, dc, g, c_coef, h, surv, fsum, removed, done, collected)
         for i in range(n_agents):  # agent index order: the product is taken in that order
             for s in range(n_support):
                 r, c = pos[k, i, 0] + h + dr[s], pos[k, i, 1] + h + dc[s]
-                f = c_coef * g[s]
+                f = c_coef[k] * g[s]
                 if done[r, c]:  # `done` marks cells already started in this world
                     surv[r, c] *= 1.0 - f
                     fsum[r, c] += f
@@ -139,7 +140,7 @@ def sense(p, u, pos, dr, dc, g, c_coef, h, surv, fsum, removed, done, collected)
             for s in range(n_support):
                 r, c = pos[k, i, 0] + h + dr[s], pos[k, i, 1] + h + dc[s]
                 if fsum[r, c] > 0.0:
-                    total += (removed[0, r, c] + removed[1, r, c]) * (c_coef * g[s]) / fsum[r, c]
+                    total += (removed[0, r, c] + removed[1, r, c]) * (c_coef[k] * g[s]) / fsum[r, c]
             collected[k, i] = total
 
 

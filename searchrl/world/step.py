@@ -77,7 +77,7 @@ def step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.ra
 
     info = np.empty((k, n), np.float64)
     kernels.sense(
-        state.p, state.u, state.pos, SUPPORT_DR, SUPPORT_DC, SUPPORT_G, config.lam * config.k, h,
+        state.p, state.u, state.pos, SUPPORT_DR, SUPPORT_DC, SUPPORT_G, config.sensing_rate(state.size), h,
         surv, fsum, removed, done, info,
     )  # fmt: skip
 
