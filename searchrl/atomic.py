@@ -53,6 +53,23 @@ def remove_temporaries(folder: str | Path, target: str | None = None) -> list[Pa
     return gone
 
 
+def check_writable(path: str | Path, name: str, folder: bool = False) -> None:
+    """ValueError "name=path is not allowed: ..." unless `path` (a file, or a folder if `folder`) can be made
+    here: each part of it that exists is a folder (its last part a file or a folder, as asked), and the nearest
+    existing one is writable. Checked before any work, so a run never ends unable to write its result."""
+    path = Path(path)
+    what = "a folder" if folder else "a file path"
+    if path.exists() and path.is_dir() != folder:
+        raise ValueError(f"{name}={str(path)!r} is not allowed: {what} (this is {'a file' if folder else 'a folder'})")
+    parent = path if folder else path.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ValueError(f"{name}={str(path)!r} is not allowed: {parent} is a file, not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{name}={str(path)!r} is not allowed: {parent} is not writable")
+
+
 def write_atomic(path: str | Path, write: Callable[[Path], None]) -> Path:
     """Call `write(tmp)` to produce a temporary file next to `path`, fsync it, then move it over `path`; if any of
     that fails, `path` keeps what it held before. `tmp` ends in `.tmp`: writers must not add a suffix."""

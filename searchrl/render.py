@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from searchrl.atomic import write_atomic
+from searchrl.atomic import check_writable, write_atomic
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.observe import observe
 from searchrl.world.render import world_frame
@@ -60,7 +60,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0, help="the episode's seed (>= 0)")
     p.add_argument("--agent", type=int, default=0, help="whose belief is drawn")
     p.add_argument("--cell", type=int, default=6, help="pixels per cell (1 to 64)")
-    p.add_argument("--fps", type=float, default=10.0, help="frames per second (GIF delays are whole 1/100 s: <= 100)")
+    p.add_argument(
+        "--fps", type=float, default=10.0, help="frames per second, 0.01 to 100 (GIF delays are whole 1/100 s)"
+    )
     p.add_argument("--out", default="runs/render/episode.gif")
     args = p.parse_args(argv)
     if args.checkpoint and (args.controller or args.model):
@@ -68,15 +70,19 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"{given} cannot apply with --checkpoint: the policy acts in its run's world (its config.yaml)")
     checks = [
         (args.out.endswith(".gif"), "--out", args.out, "a .gif path"),
-        (not Path(args.out).is_dir(), "--out", args.out, "a file path (this is a folder)"),
         (args.seed >= 0, "--seed", args.seed, ">= 0"),
+        (args.agents >= 1, "--agents", args.agents, ">= 1"),
         (0 <= args.agent < args.agents, "--agent", args.agent, f"0 <= agent < --agents={args.agents}"),
         (1 <= args.cell <= 64, "--cell", args.cell, "1 <= cell <= 64 pixels"),
-        (0 < args.fps <= 100, "--fps", args.fps, "0 < fps <= 100 (a GIF frame lasts a whole number of 1/100 s)"),
+        (0.01 <= args.fps <= 100, "--fps", args.fps, "0.01 <= fps <= 100 (a GIF frame lasts 1 to 10000 / 100 s)"),
     ]
     for ok, name, value, allowed in checks:
         if not ok:
             p.error(f"{name}={value!r} is not allowed: {allowed}")
+    try:
+        check_writable(args.out, "--out")
+    except ValueError as err:
+        p.error(str(err))
     try:
         if args.checkpoint:
             from searchrl.controllers.policy import PolicyController, checkpoint_config

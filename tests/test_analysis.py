@@ -49,6 +49,8 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
     if notebook == "missed_targets.py":  # it runs a controller itself: a small greedy on two small cells
         args = ["controller=greedy", "controller.reach=2", "controller.seen=true", "grid.maps_per_cell=3",
                 "grid.repeats=2"]  # fmt: skip
+    if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
+        args = [str(eval_dirs[0].parent.parent), str(out_dir)]
     env = {
         "SEARCHRL_CELLS": "n20_N1,n20_N2",
         "SEARCHRL_LABEL": "small",
@@ -74,6 +76,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "claims.py": ["margins.csv", "margins.md", "claims.md"],
         "compare.py": ["compare.csv", "compare.md"],
         "missed_targets.py": ["small.csv", "missed_targets.md"],
+        "calibration.py": ["calibration.csv", "calibration.md", "calibration.png"],
     }[notebook]
     for name in expected:
         assert (tmp_path / name).stat().st_size > 0, name

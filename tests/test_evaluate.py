@@ -25,7 +25,7 @@ SLICE = ["grid.world_sizes=[20,40]", "grid.n_targets=[4,8]", "grid.n_distributio
 def _evaluate(out: Path, *overrides: str) -> pd.DataFrame:
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose(config_name="evaluate", overrides=[*SLICE, f"out_dir={out}", *overrides])
-    return load(evaluate(cfg))
+    return load(evaluate(cfg, list(overrides)))  # the command line's overrides, as Hydra gives them
 
 
 def test_table2_grid_has_the_papers_30_cells():
@@ -77,7 +77,7 @@ def test_checkpoint_settings_come_from_its_run(tmp_path, capsys):
     from tests.test_train import TINY, _run
 
     model = _run(tmp_path / "run", ["+model=diagonal", *TINY, "total_timesteps=256", "validation.every=0"])
-    frame = _evaluate(tmp_path / "eval", f"checkpoint={model}", "+model=a")  # +model ignored: the run decides
+    frame = _evaluate(tmp_path / "eval", f"checkpoint={model}")  # the run decides the model (+model= is refused)
     assert (frame.model == "diagonal").all() and (frame.controller == "policy:run").all()
     assert len(frame) == 18
     again = _evaluate(tmp_path / "again", f"checkpoint={model}")  # sampled actions come from the eval seed

@@ -136,8 +136,8 @@ def test_resume_falls_back_from_a_truncated_checkpoint_and_clears_temporaries(tm
 def test_resume_that_cannot_start_leaves_the_run_as_it_was(tmp_path, tiny_run, capsys):
     run = _copy(tiny_run, tmp_path / "run")
     record = (run / "config.yaml").read_bytes()
-    overrides = [f"resume={run}", "total_timesteps=1000"]  # below the 2048 agent-steps it has trained
-    _refused(capsys, lambda: train(_compose("train", overrides), run / "r", overrides), "total_timesteps=1000", "2048")
+    overrides = [f"resume={run}", "total_timesteps=1024"]  # below the 2048 agent-steps it has trained
+    _refused(capsys, lambda: train(_compose("train", overrides), run / "r", overrides), "total_timesteps=1024", "2048")
     for path in (run / "checkpoints").glob("step_*.zip"):
         path.write_bytes(b"not a zip")
     overrides = [f"resume={run}", "total_timesteps=9999"]
@@ -256,3 +256,125 @@ def test_parallel_env_refuses_wrong_types_and_names():
 def test_world_config_checks_types(kwargs, needle):
     with pytest.raises(ConfigError, match=needle):
         SearchParallelEnv(WorldConfig(**kwargs))
+
+
+# Found by a second round of probing (issue 25's note lists them).
+@pytest.mark.parametrize(
+    "overrides, needle",
+    [
+        (["imitation.epochs=7"], "note: imitation.epochs has no effect here"),
+        (["validation.deterministic=true"], "note: validation.deterministic has no effect here"),
+        (["algo=ppo", "network.lstm_hidden_size=64"], "note: network.lstm_hidden_size has no effect here"),
+        (["imitation.teacher=greedy", "imitation.episodes=1", "imitation.epochs=1", "imitation.batch_sequences=99"],
+         "note: imitation.batch_sequences=99 is more than the 8 teacher sequences"),
+    ],
+)  # fmt: skip
+def test_training_settings_without_effect_are_said(tmp_path, capsys, overrides, needle):
+    """Said, not refused: one sweep command line may set them for jobs that use them and jobs that do not."""
+    overrides = [*overrides, "total_timesteps=0" if "imitation.teacher=greedy" in overrides else "total_timesteps=256"]
+    train(_compose("train", [*TINY, *overrides]), tmp_path, overrides)
+    assert needle in capsys.readouterr().err
+
+
+def test_seeds_beyond_numpy_are_refused(tmp_path, capsys):
+    _refused(capsys, lambda: train(_compose("train", [*TINY, "seed=4294967296"]), tmp_path, []), "seed=4294967296")
+    assert not any(tmp_path.iterdir())
+
+
+def test_budgets_round_to_whole_rollouts_and_are_recorded_so(tmp_path, capsys):
+    from omegaconf import OmegaConf
+
+    overrides = ["total_timesteps=300", "checkpoint_every=100"]  # rollouts of 256 agent-steps
+    final = train(_compose("train", [*TINY, *overrides]), tmp_path, overrides)
+    assert "total_timesteps=300 rounds up to 512" in capsys.readouterr().err
+    record = OmegaConf.load(tmp_path / "config.yaml")
+    assert (record.total_timesteps, record.checkpoint_every) == (512, 256)
+    assert RecurrentPPO.load(final).num_timesteps == 512
+
+
+def test_a_run_killed_before_its_first_checkpoint_resumes_from_step_0(tmp_path, tiny_run, capsys):
+    run = _copy(tiny_run, tmp_path / "run")
+    shutil.rmtree(run / "checkpoints")
+    overrides = [f"resume={run}", "total_timesteps=512"]
+    final = train(_compose("train", overrides), run / "r", overrides)
+    assert "no checkpoint yet" in capsys.readouterr().err and RecurrentPPO.load(final).num_timesteps == 512
+
+
+@pytest.mark.parametrize(
+    "overrides, needle",
+    [
+        (["env.world.n_agents=3"], "env.world.n_agents cannot apply"),
+        (["deterministic=true"], "deterministic cannot apply"),
+        (["env.n_worlds=7"], "env.n_worlds cannot apply"),
+        (["controller=random", "+controller.horizon=3"], "controller.horizon=3 is not allowed"),
+        (["+model=surfing"], "+model=surfing is not allowed"),
+        (["controller.w_p=nan"], "controller.w_p=nan"),
+        (["controller=greedy", "controller.w_p=inf"], "controller.w_p=inf"),
+        (["seed=99999999999999999999"], "seed=99999999999999999999"),
+        (["grid.world_sizes=[]", "grid.n_targets=[]", "grid.n_distributions=[]", "grid.max_agents=[]"], "one or more"),
+        (["grid.world_sizes=[20,20]", "grid.n_targets=[4,2]", "grid.n_distributions=[8,8]", "grid.max_agents=[2,2]"],
+         "each size once"),
+    ],
+)  # fmt: skip
+def test_evaluation_settings_that_cannot_apply_are_refused(tmp_path, capsys, overrides, needle):
+    _refused(capsys, lambda: _evaluate(tmp_path / "eval", *overrides), needle)
+    assert not (tmp_path / "eval").exists()
+
+
+def test_evaluation_output_folders_are_checked_first(tmp_path, capsys):
+    (tmp_path / "afile").write_text("")
+    _refused(capsys, lambda: _evaluate(tmp_path / "afile" / "sub"), "is a file, not a folder")
+    (tmp_path / "eval").mkdir()
+    (tmp_path / "eval" / "cells").write_text("")
+    _refused(capsys, lambda: _evaluate(tmp_path / "eval"), "out_dir/cells=", "a folder")
+    (tmp_path / "eval2").mkdir()
+    (tmp_path / "eval2" / "evaluation.yaml").write_text("")
+    _refused(capsys, lambda: _evaluate(tmp_path / "eval2"), "evaluation.yaml cannot be read")
+    assert len(load(_evaluate(tmp_path / "cov", "controller=coverage", "controller.radius=9"))) == 4  # thin blocks
+
+
+def test_cli_flags_and_world_bounds_are_checked_before_work(tmp_path, capsys):
+    from searchrl.bench.__main__ import main as bench
+    from searchrl.render import main as render
+    from searchrl.train.__main__ import check_resume_argument
+
+    gif = tmp_path / "x.gif"
+    (tmp_path / "afile").write_text("")
+    _refused(capsys, lambda: render(["--fps", "0.001", "--out", str(gif)]), "--fps=0.001")
+    _refused(capsys, lambda: render(["--agents", "0", "--out", str(gif)]), "--agents=0")
+    _refused(capsys, lambda: render(["--out", str(tmp_path / "afile" / "x.gif")]), "is a file, not a folder")
+    _refused(capsys, lambda: render(["--n", "100000", "--out", str(gif)]), "world_size=(100000, 100000)")
+    _refused(capsys, lambda: bench(["memory", "--maps", "3"]), "unrecognized arguments: --maps 3")
+    _refused(capsys, lambda: bench(["train", "--updates", "1000000000"]), "--updates=1000000000")
+    checkpoint = str(REFERENCE_B / "model.zip")
+    _refused(capsys, lambda: bench(["eval", "--checkpoint", checkpoint, "--controller", "greedy"]), "cannot apply")
+    _refused(capsys, lambda: check_resume_argument([f"resume={tmp_path / 'afile'}"]), "a run folder")
+    assert not gif.exists()
+    for kwargs, needle in (({"fov": 103}, "fov=103"), ({"prob_variance_scale": 1e308}, "prob_variance_scale")):
+        with pytest.raises(ConfigError, match=needle):
+            WorldConfig(**kwargs)
+
+
+def test_env_apis_refuse_wrong_arguments_with_value_errors():
+    from searchrl.envs.single_env import SearchEnv
+    from searchrl.envs.vec_env import SearchVecEnv
+
+    config = WorldConfig(world_size=(10, 10), n_targets=(2, 2), n_agents=2, max_steps=5)
+    single = SearchEnv(config)
+    with pytest.raises(ValueError, match="seed=-1"):
+        single.reset(seed=-1)
+    for make in (lambda: SearchEnv({"world_size": (10, 10)}), lambda: SearchVecEnv({"n_agents": 2}, 1, 0)):
+        with pytest.raises(ValueError, match=r"config=.* is not allowed"):
+            make()
+    env = SearchParallelEnv(config)
+    with pytest.raises(RuntimeError, match="before reset"):
+        env.step({})
+    env.reset(seed=0)
+    for call, needle in ((lambda: env.step([0, 0]), "a dict"), (lambda: env.observation_space("agent_9"), "agent_9")):
+        with pytest.raises(ValueError, match=needle):
+            call()
+    vec = SearchVecEnv(config, 2, seed=0)
+    vec.reset()
+    for actions, needle in ((np.full(4, 1.7), "dtype float64"), (np.zeros(3, np.int64), r"one action per slot")):
+        with pytest.raises(ValueError, match=needle):
+            vec.step(actions)

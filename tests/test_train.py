@@ -270,7 +270,7 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("env.extra_teams=[{n_agents:0,n_worlds:1}]", r"env.extra_teams\[0\]: n_agents=0"),
         ("env.extra_teams=[{n_agents:8,n_worlds:0}]", r"env.extra_teams\[0\].n_worlds=0"),
         ("env.extra_teams=[{n_agents:8,n_worlds:1,world_size:[40,4]}]", r"env.extra_teams\[0\]: world_size"),
-        ("init=/nowhere/model.zip", "init='/nowhere/model.zip' does not exist"),
+        ("init=/nowhere/model.zip", "init='/nowhere/model.zip' is not allowed: an existing model.zip"),
         ("imitation.teacher=planner", "imitation.teacher='planner' is not allowed"),
         ("total_timesteps=0", "total_timesteps=0 is not allowed"),
         ("total_timesteps=-5 imitation.teacher=greedy", "total_timesteps=-5 is not allowed"),

@@ -1,4 +1,8 @@
-"""`python -m searchrl.bench {world,memory,train,eval,policy} [--json]`: figures measured in one run."""
+"""`python -m searchrl.bench {world,memory,train,eval,policy} [options] [--json]`: figures measured in one run.
+
+Each suite takes only its own options (`python -m searchrl.bench <suite> --help`); an option of another suite is
+refused by argparse rather than ignored.
+"""
 
 from __future__ import annotations
 
@@ -10,36 +14,59 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import argparse
 import json
+import math
 import sys
+
+SUITES = {
+    "world": "engine throughput, batched against the oracle (--seconds)",
+    "memory": "bytes of world state per configuration",
+    "train": "agent-steps/s of RL updates (--updates, --threads, --network)",
+    "eval": "evaluation throughput on the grid (--controller or --checkpoint, --maps, --threads)",
+    "policy": "inference of a checkpoint: SB3 predict against the traced actor (--checkpoint, --threads, --seconds)",
+}
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m searchrl.bench", description=__doc__)
+    suites = parser.add_subparsers(dest="suite", required=True, metavar="{" + ",".join(SUITES) + "}")
+    sub = {name: suites.add_parser(name, help=text, description=text) for name, text in SUITES.items()}
+    for name, p in sub.items():
+        p.add_argument("--json", action="store_true", help="print one JSON object per case")
+        if name in ("world", "policy"):
+            p.add_argument("--seconds", type=float, default=3.0, help="time budget per engine or case (0, 3600]")
+        if name in ("train", "eval", "policy"):
+            p.add_argument("--threads", type=int, default=2, help="torch threads (1 to 256)")
+    sub["train"].add_argument("--updates", type=int, default=4, help="timed rollouts + updates (1 to 1000)")
+    sub["train"].add_argument("--network", choices=["paper", "small"], default="paper", help="network config")
+    sub["eval"].add_argument("--controller", choices=["surfing", "greedy", "coverage", "random"],
+                             help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
+    sub["eval"].add_argument("--maps", type=int, default=10, help="maps per cell (1 to 1000)")
+    sub["eval"].add_argument("--checkpoint", help="a policy model.zip instead of --controller")
+    sub["policy"].add_argument("--checkpoint", required=True, help="a model.zip, e.g. runs/reference/b/model.zip")
+    return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m searchrl.bench", description=__doc__)
-    parser.add_argument("suite", choices=["world", "memory", "train", "eval", "policy"], help="what to measure")
-    parser.add_argument("--json", action="store_true", help="print one JSON object per case")
-    parser.add_argument("--seconds", type=float, default=3.0, help="world: time budget per engine per case (> 0)")
-    parser.add_argument("--updates", type=int, default=4, help="train: timed rollouts+updates (>= 1)")
-    parser.add_argument("--threads", type=int, default=2, help="train, eval, policy: torch threads (>= 1)")
-    parser.add_argument("--network", choices=["paper", "small"], default="paper", help="train: network config")
-    parser.add_argument(
-        "--controller", choices=["surfing", "greedy", "coverage", "random"], default="surfing", help="eval"
-    )
-    parser.add_argument("--maps", type=int, default=10, help="eval: maps per cell (>= 1)")
-    parser.add_argument("--checkpoint", help="eval: a policy model.zip instead of --controller; policy: required")
+    parser = _parser()
     args = parser.parse_args(argv)
-    if not 0 < args.seconds <= 3600:
-        parser.error(f"--seconds={args.seconds} is not allowed: 0 < seconds <= 3600")
-    if args.maps < 1:
-        parser.error(f"--maps={args.maps} is not allowed: must be >= 1")
-    if args.updates < 1 or args.threads < 1:
-        parser.error(f"--updates={args.updates}, --threads={args.threads} are not allowed: both must be >= 1")
-    if args.suite == "policy" and not args.checkpoint:
-        parser.error("policy needs --checkpoint=<model.zip>, e.g. runs/reference/b/model.zip")
-    if args.checkpoint:  # read it now: a corrupt file or run config is named before any measurement
+    checks = [  # (name, value, ok, allowed) for the options this suite has
+        ("--seconds", "seconds", lambda v: 0 < v <= 3600, "0 < seconds <= 3600"),
+        ("--threads", "threads", lambda v: 1 <= v <= 256, "1 <= threads <= 256"),
+        ("--updates", "updates", lambda v: 1 <= v <= 1000, "1 <= updates <= 1000"),
+        ("--maps", "maps", lambda v: 1 <= v <= 1000, "1 <= maps <= 1000"),
+    ]
+    for flag, attr, ok, allowed in checks:
+        value = getattr(args, attr, None)
+        if value is not None and not (ok(value) and math.isfinite(value)):
+            parser.error(f"{flag}={value} is not allowed: {allowed}")
+    checkpoint = getattr(args, "checkpoint", None)
+    if checkpoint and getattr(args, "controller", None):
+        parser.error("--controller cannot apply with --checkpoint: give one of them")
+    if checkpoint:  # read it now: a corrupt file or run config is named before any measurement
         from searchrl.controllers.policy import checkpoint_config, load_checkpoint
 
         try:
-            load_checkpoint(args.checkpoint, checkpoint_config(args.checkpoint)[1], device="cpu")
+            load_checkpoint(checkpoint, checkpoint_config(checkpoint)[1], device="cpu")
         except (ValueError, FileNotFoundError) as err:
             parser.error(str(err))
     log = None if args.json else sys.stdout
@@ -54,11 +81,11 @@ def main(argv: list[str] | None = None) -> int:
     elif args.suite == "eval":
         from searchrl.bench import evaluate
 
-        rows = evaluate.run(args.controller, args.maps, args.checkpoint, args.threads, log=log)
+        rows = evaluate.run(args.controller or "surfing", args.maps, checkpoint, args.threads, log=log)
     elif args.suite == "policy":
         from searchrl.bench import policy
 
-        rows = policy.run(args.checkpoint, threads=args.threads, seconds=args.seconds, log=log)
+        rows = policy.run(checkpoint, threads=args.threads, seconds=args.seconds, log=log)
     else:
         from searchrl.bench import train
 

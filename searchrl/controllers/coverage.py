@@ -39,6 +39,8 @@ def sweep(block: tuple[int, int, int, int], start: tuple[int, int], radius: int)
     r0, r1, c0, c1 = block
     spacing = 2 * radius + 1
     top, bottom = min(r0 + radius, r1 - 1), max(r1 - 1 - radius, r0)
+    if top > bottom:  # a block thinner than two lanes' reach: one lane through its middle
+        top = bottom = (r0 + r1 - 1) // 2
     lanes = list(range(top, bottom + 1, spacing))
     if lanes[-1] < bottom:  # the last rows are covered by one more lane
         lanes.append(bottom)

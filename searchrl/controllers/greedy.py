@@ -49,6 +49,8 @@ It is not one of the paper's baselines.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -171,7 +173,7 @@ class FootprintGreedy(FallbackHeuristic):
             raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the field of view)")
         if not 0 < discount <= 1:
             raise ValueError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
-        if min(w_p, w_u, w_t) < 0 or w_p + w_u + w_t == 0:
+        if not all(0 <= w < math.inf for w in (w_p, w_u, w_t)) or w_p + w_u + w_t == 0:
             raise ValueError(f"w_p={w_p}, w_u={w_u}, w_t={w_t} are not allowed: all >= 0, not all 0")
         if not 0 <= contested <= 1:
             raise ValueError(f"contested={contested!r} is not allowed: 0 <= contested <= 1")

@@ -99,8 +99,10 @@ class InformationSurfing(FallbackHeuristic):
                  w_u: float = 0.4, repulsion: float = 0.4, seed: int = 0) -> None:  # fmt: skip
         if not scales or min(scales) < 1:
             raise ValueError(f"scales={list(scales)!r} is not allowed: one or more positive block sizes")
-        if w_p < 0 or w_u < 0 or repulsion < 0:
-            raise ValueError(f"w_p={w_p}, w_u={w_u}, repulsion={repulsion} are not allowed: all must be >= 0")
+        if not (0 <= w_p < math.inf and 0 <= w_u < math.inf and 0 <= repulsion < math.inf) or w_p + w_u == 0:
+            raise ValueError(
+                f"w_p={w_p}, w_u={w_u}, repulsion={repulsion} are not allowed: finite, >= 0, w_p + w_u > 0"
+            )
         super().__init__(config, seed)
         self.scales = np.asarray(scales, np.int64)
         self.w_p, self.w_u, self.repulsion = w_p, w_u, repulsion

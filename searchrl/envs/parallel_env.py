@@ -45,10 +45,17 @@ class SearchParallelEnv(ParallelEnv):
         self._rng = np.random.default_rng()
 
     def observation_space(self, agent: AgentID) -> spaces.Dict:
+        self._check_agent(agent)
         return self._observation_space
 
     def action_space(self, agent: AgentID) -> spaces.Discrete:
+        self._check_agent(agent)
         return self._action_space
+
+    def _check_agent(self, agent: AgentID) -> None:
+        if agent not in self.possible_agents:
+            last = len(self.possible_agents) - 1
+            raise ValueError(f"agent={agent!r} is not allowed: one of possible_agents, agent_0 … agent_{last}")
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         check_seed(seed)  # ConfigError, a ValueError
@@ -60,7 +67,9 @@ class SearchParallelEnv(ParallelEnv):
 
     def step(self, actions: dict[AgentID, Any]) -> tuple[dict, dict, dict, dict, dict]:
         if not self.agents:
-            raise RuntimeError("step() called on a finished episode: call reset() first")
+            raise RuntimeError("step() called before reset() or after the episode ended: call reset() first")
+        if not isinstance(actions, dict):
+            raise ValueError(f"actions={actions!r} is not allowed: a dict {{agent name: action}}")
         missing = [agent for agent in self.agents if agent not in actions]
         if missing:
             raise KeyError(f"actions missing for {missing}: every live agent acts at every step")

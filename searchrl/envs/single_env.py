@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 
 from searchrl.envs.parallel_env import SearchParallelEnv
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import WorldConfig, check_seed
 
 
 class SearchEnv(gym.Env):
@@ -18,6 +18,8 @@ class SearchEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012
 
     def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None) -> None:
+        if config is not None and not isinstance(config, WorldConfig):
+            raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
         config = replace(config if config is not None else WorldConfig(), n_agents=1)
         self._env = SearchParallelEnv(config, render_mode=render_mode)
         self._agent = self._env.possible_agents[0]
@@ -26,6 +28,7 @@ class SearchEnv(gym.Env):
         self.action_space = self._env.action_space(self._agent)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
+        check_seed(seed)  # a ValueError naming it, as the other envs raise
         super().reset(seed=seed)
         # gymnasium seeds self.np_random; the world draws from its own generator, seeded from it.
         obs, infos = self._env.reset(seed=int(self.np_random.integers(2**63)))

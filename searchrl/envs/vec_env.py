@@ -32,6 +32,8 @@ class SearchVecEnv(VecEnv):
     def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None, render_mode: str | None = None):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
+        if not isinstance(config, WorldConfig):
+            raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig")
         self.config = config
         self.render_mode = render_mode
         self.world = SearchWorld(config, n_worlds, seed=seed)
@@ -50,12 +52,15 @@ class SearchVecEnv(VecEnv):
         return self._flat_obs(maps, vector)
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = np.asarray(actions).reshape(self.world.n_worlds, self.n_agents)
+        actions = np.asarray(actions)
+        if actions.size != self.num_envs:
+            raise ValueError(f"actions have shape {actions.shape}: one action per slot, ({self.num_envs},)")
+        self._actions = actions.reshape(self.world.n_worlds, self.n_agents)  # the world checks dtype and range
 
     def step_wait(self) -> VecEnvStepReturn:
         if self._actions is None:
             raise RuntimeError("step_wait() called before step_async()")
-        tr = self.world.step(self._actions.astype(np.int64, copy=False))
+        tr = self.world.step(self._actions)
         self._actions = None
         result = tr.result
         done_world = result.done

@@ -18,6 +18,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # see searchrl/train/__main
 import math
 import sys
 import time
+from dataclasses import fields, is_dataclass
 from pathlib import Path
 
 import hydra
@@ -26,7 +27,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from tqdm import tqdm
 
-from searchrl.atomic import FolderBusy, hold, remove_temporaries, write_atomic
+from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, write_atomic
 from searchrl.controllers.base import RandomWalk
 from searchrl.controllers.coverage import GeometricCoverage
 from searchrl.controllers.greedy import FootprintGreedy
@@ -39,6 +40,9 @@ from searchrl.evaluate.schema import register_configs
 from searchrl.world.config import ConfigError, WorldConfig, need
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+# Set per cell by the grid, or training-only: a heuristic's evaluation refuses them rather than drop them.
+SET_BY_GRID = ("env.n_worlds", "env.world.n_agents", "env.world.world_size", "env.world.n_targets",
+               "env.world.n_distributions", "deterministic")  # fmt: skip
 LOCKS = ".locks"  # <out_dir>/.locks/: the folder's record lock and one lock per cell being run
 CONTROLLERS = {
     "surfing": InformationSurfing,
@@ -103,7 +107,27 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path]
                 f"{', '.join(fixed)} cannot apply with checkpoint={cfg.checkpoint!r}: a checkpoint is evaluated in "
                 "the world, model and action set of its run (its config.yaml); remove them"
             )
-    need(int(cfg.seed) >= 0, "seed", cfg.seed, "an integer >= 0 (map seeds are seed + 100000·cell + map)")
+    keys = [o.lstrip("+~").split("=", 1)[0] for o in overrides]
+    if cfg.checkpoint is None:
+        set_by_grid = [k for k in keys if k in SET_BY_GRID or k.startswith("env.extra_teams")]
+        if set_by_grid:
+            raise ConfigError(
+                f"{', '.join(set_by_grid)} cannot apply to an evaluation: the grid sets N, n, targets and Gaussians "
+                "per cell (grid.*), one team per world, and deterministic is for checkpoints; remove them"
+            )
+        if cfg.model is not None and not cfg.model.trainable:
+            raise ConfigError(f"+model={cfg.model.name} is not allowed: a world preset, one of a, b, c, diagonal")
+        schema = OmegaConf.get_type(cfg.controller)
+        known = {f.name for f in fields(schema)} if is_dataclass(schema) else set(cfg.controller)
+        unknown = sorted(set(cfg.controller) - known)
+        if unknown:
+            settings = sorted(known - {"name"})
+            raise ConfigError(f"controller.{unknown[0]}={cfg.controller[unknown[0]]!r} is not allowed: "
+                              f"controller={cfg.controller.name} has the settings {settings}")  # fmt: skip
+        for key, value in cfg.controller.items():
+            if isinstance(value, float):
+                need(math.isfinite(value), f"controller.{key}", value, "a finite number")
+    need(0 <= int(cfg.seed) <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
     need(int(cfg.threads) >= 1, "threads", cfg.threads, "an integer >= 1 (torch threads)")
     need(math.isfinite(cfg.batch_mb) and cfg.batch_mb > 0, "batch_mb", cfg.batch_mb, "a number of MiB > 0")
     need(int(cfg.num_shards) >= 1, "num_shards", cfg.num_shards, "an integer >= 1")
@@ -115,8 +139,17 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path]
         list(cfg.grid.max_agents),
     )  # fmt: skip
     out_dir = Path(cfg.out_dir) if cfg.out_dir else None
-    need(out_dir is None or not out_dir.is_file(), "out_dir", cfg.out_dir, "a folder (this is a file)")
     return cells, out_dir
+
+
+def check_out_dir(out_dir: Path) -> None:
+    """ConfigError unless the evaluation can write its folder, cells and locks there."""
+    try:
+        check_writable(out_dir, "out_dir", folder=True)
+        for part in ("cells", LOCKS):
+            check_writable(out_dir / part, f"out_dir/{part}", folder=True)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
 
 
 def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
@@ -131,6 +164,7 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
             except ConfigError as err:
                 raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
         out_dir = out_dir or Path(f"runs/eval/{controller_name.replace(':', '_')}")
+        check_out_dir(out_dir)
         with hold(out_dir / LOCKS / "evaluation.lock", f"out_dir={str(out_dir)!r}", wait_s=60):
             claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name), option_defaults(cfg))
     except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException, FolderBusy) as err:

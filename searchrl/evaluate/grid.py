@@ -31,6 +31,10 @@ def table2_cells(
             f"grid lists differ in length: world_sizes={world_sizes}, n_targets={n_targets}, "
             f"n_distributions={n_distributions}, max_agents={max_agents}; give one entry per world size"
         )
+    if not world_sizes:
+        raise ValueError("grid.world_sizes=[] is not allowed: one or more world sizes (with their other lists)")
+    if len(set(world_sizes)) != len(world_sizes):
+        raise ValueError(f"grid.world_sizes={world_sizes} is not allowed: each size once (a cell is named n<n>_N<N>)")
     cells = []
     for n, targets, dists, top in zip(world_sizes, n_targets, n_distributions, max_agents, strict=True):
         if min(n, targets, dists, top) < 1:

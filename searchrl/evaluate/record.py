@@ -84,8 +84,11 @@ def claim_folder(out_dir: str | Path, settings: dict[str, Any], defaults: dict[s
     mine = OmegaConf.to_container(OmegaConf.create(settings))  # the types a YAML round trip gives
     if path.exists():
         try:
-            theirs = _flatten(OmegaConf.to_container(OmegaConf.load(path)))
-        except Exception as err:  # not YAML or not a mapping: the record cannot say what the cells hold
+            record = OmegaConf.to_container(OmegaConf.load(path))
+            if not isinstance(record, dict) or "controller" not in record:
+                raise ValueError("no controller recorded")
+            theirs = _flatten(record)
+        except Exception as err:  # empty, not YAML, not a mapping: the record cannot say what the cells hold
             raise ConfigError(
                 f"out_dir={str(out_dir)!r}: its {RECORD} cannot be read ({type(err).__name__}); restore it, or "
                 "remove that folder to start it afresh"

@@ -40,8 +40,10 @@ from searchrl.train.build import (
     load_algorithm,
     make_algorithm,
     make_vec_env,
+    rollout_size,
     teacher_args,
     team_groups,
+    unused_settings,
     world_config,
 )
 from searchrl.train.callbacks import (
@@ -90,16 +92,17 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     run_dir = Path(cfg.resume)
     if not (run_dir / "config.yaml").is_file():
         fail(f"resume={cfg.resume!r} is not a run directory: it has no config.yaml")
-    if not checkpoints(run_dir / "checkpoints"):
-        fail(f"resume={cfg.resume!r} has no checkpoint under checkpoints/ to continue from")
     keys = [o.split("=", 1)[0].lstrip("+~") for o in overrides]
     other = [k for k in keys if k not in (*RESUME_OVERRIDES, "resume") and not k.startswith("hydra")]
     if other:
         fail(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
     # Merged into the schema: a run saved by an older version gains new fields' defaults, and types are checked.
     try:
-        saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), OmegaConf.load(run_dir / "config.yaml"))
-    except Exception as err:  # not YAML, not a mapping, wrong types, unreadable: the run's record is damaged
+        loaded = OmegaConf.load(run_dir / "config.yaml")
+        if not isinstance(loaded, DictConfig) or loaded.get("model") is None or loaded.get("algo") is None:
+            raise ValueError("it names no model or algo")
+        saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), loaded)
+    except Exception as err:  # empty, not YAML, wrong types, unreadable: the run's record is damaged
         detail = str(err).splitlines()[0] if str(err) else type(err).__name__
         fail(f"resume={cfg.resume!r}: its config.yaml does not fit the current schema or cannot be read ({detail})")
     saved.resume = cfg.resume
@@ -109,11 +112,14 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     return saved, run_dir, True
 
 
-def load_newest_checkpoint(cfg: DictConfig, run_dir: Path, env: VecEnv) -> tuple[BaseAlgorithm, Path]:
+def load_newest_checkpoint(cfg: DictConfig, run_dir: Path, env: VecEnv) -> tuple[BaseAlgorithm | None, Path | None]:
     """The newest checkpoint of the run that loads, with its step count and optimiser state. One that cannot be
     read (truncated by a full disk, a broken copy) is set aside as `<name>.unreadable`, said so, and the one
-    before it is tried."""
-    for _, path in sorted(checkpoints(run_dir / "checkpoints"), reverse=True):
+    before it is tried. (None, None) if the run has none: it was killed before its first checkpoint."""
+    found = sorted(checkpoints(run_dir / "checkpoints"), reverse=True)
+    if not found:
+        return None, None
+    for _, path in found:
         try:
             return load_algorithm(cfg, str(path), env), path
         except ValueError as err:
@@ -129,7 +135,10 @@ def init_weights(model: BaseAlgorithm, path: str) -> None:
         params = type(model).load(path, device="cpu").get_parameters()
         model.set_parameters({"policy": params["policy"]}, exact_match=False, device=model.device)
     except Exception as err:  # a zip of another algorithm, a corrupt file, other shapes: all end here
-        fail(f"init={path!r} does not fit this run's policy (network, Φ and action set must match): {err}")
+        lines = str(err).strip().splitlines() or [type(err).__name__]
+        more = f" (+{len(lines) - 1} more lines)" if len(lines) > 1 else ""
+        fail(f"init={path!r} does not fit this run's policy (algo, network, observation and action spaces must "
+             f"match): {lines[0]}{more}")  # fmt: skip
     print(f"policy weights from {path}", file=sys.stderr)
 
 
@@ -177,8 +186,17 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
     check_model(cfg)
     try:
         check_config(cfg)
+        for note in unused_settings(cfg, [] if resuming else overrides or []):
+            print(f"note: {note}", file=sys.stderr)
     except (ConfigError, ValueError, OmegaConfBaseException) as err:
         fail(str(err))
+    rollout = rollout_size(cfg)
+    for key in ("total_timesteps", "checkpoint_every"):  # SB3 trains and saves whole rollouts: record what runs
+        whole = -(-int(cfg[key]) // rollout) * rollout
+        if whole != int(cfg[key]):
+            print(f"note: {key}={cfg[key]} rounds up to {whole} (whole rollouts of {rollout} agent-steps)",
+                  file=sys.stderr)  # fmt: skip
+            cfg[key] = whole
     try:
         with hold(run_dir / ".lock", f"run folder {str(run_dir)!r}"):
             return _train_locked(cfg, run_dir, resuming)
@@ -196,18 +214,24 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
 
     # Environment and algorithm: fresh, or the newest readable checkpoint with its step count and optimiser state.
     env = make_vec_env(cfg)
+    model, start_step = None, 0
     if not resuming:
         model = make_algorithm(cfg, env, tensorboard_log=None)
-        start_step = 0
         if cfg.init is not None:
             init_weights(model, str(cfg.init))
     else:
         model, checkpoint = load_newest_checkpoint(cfg, run_dir, env)
+    if model is None:  # a resume of a run killed before its first checkpoint starts it again, with its config
+        print(f"{run_dir} has no checkpoint yet: starting it again from step 0", file=sys.stderr)
+        resuming = False
+        model = make_algorithm(cfg, env, tensorboard_log=None)
+        start_step = 0
+    elif resuming:
         start_step = model.num_timesteps
         if int(cfg.total_timesteps) < start_step:
             fail(f"total_timesteps={cfg.total_timesteps} is not allowed: {run_dir} has trained {start_step} "
                  f"agent-steps already ({checkpoint.name}); give total_timesteps >= {start_step}")  # fmt: skip
-        model.set_random_seed(int(cfg.seed) + start_step)  # new scenarios, not a replay of the first ones
+        model.set_random_seed((int(cfg.seed) + start_step) % 2**32)  # new scenarios, not a replay of the first
         print(f"resuming {run_dir} from {checkpoint.name} at {start_step} agent-steps", file=sys.stderr)
     # The run's record, written once the run has started well: a resume writes back what it changed (say
     # total_timesteps) but never what it resumes from.
@@ -255,5 +279,15 @@ def main(cfg: DictConfig) -> None:
     train(cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
 
 
+def check_resume_argument(argv: list[str]) -> None:
+    """Hydra makes `<resume>/resumed/<date>/` before the app starts: a resume= that is not a folder is named here
+    first, in one line, instead of in Hydra's traceback."""
+    for arg in argv:
+        value = arg.split("=", 1)[1] if arg.startswith("resume=") else "null"
+        if value != "null" and not (value and Path(value).is_dir()):
+            fail(f"{arg} is not allowed: a run folder (with config.yaml and checkpoints/)")
+
+
 if __name__ == "__main__":
+    check_resume_argument(sys.argv[1:])
     main()

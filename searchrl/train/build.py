@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import zipfile
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
@@ -88,7 +89,7 @@ def check_config(cfg: DictConfig) -> None:
     check_device(str(cfg.device))
     algo = cfg.algo
     numbers = [  # (name, value, ok, allowed); NaN fails every comparison
-        ("seed", cfg.seed, cfg.seed >= 0, "an integer >= 0"),
+        ("seed", cfg.seed, 0 <= cfg.seed < 2**32, "0 <= seed < 2**32 (numpy and torch seeds)"),
         ("validation.seed", cfg.validation.seed, cfg.validation.seed >= 0, "an integer >= 0"),
         ("algo.learning_rate", algo.learning_rate, 0 < algo.learning_rate < math.inf, "a number > 0"),
         ("algo.gamma", algo.gamma, 0 < algo.gamma <= 1, "0 < gamma <= 1"),
@@ -122,13 +123,16 @@ def check_config(cfg: DictConfig) -> None:
         )
     if int(cfg.validation.every) < 0 or int(cfg.validation.n_worlds) < 1:
         raise ConfigError(f"validation={dict(cfg.validation)!r} is not allowed: every >= 0 and n_worlds >= 1")
-    rollout = int(cfg.algo.n_steps) * sum(k * group.n_agents for group, k in team_groups(cfg))
+    slots = sum(k * group.n_agents for group, k in team_groups(cfg))
+    rollout = int(cfg.algo.n_steps) * slots
     batch = cfg.algo.get("batch_size")
     if batch is not None and not 1 <= int(batch) <= rollout:
         raise ConfigError(f"algo.batch_size={batch!r} is not allowed: 1 <= batch_size <= rollout size {rollout}")
     # A resumed run continues from its checkpoint; the file it was initialised from is no longer needed.
-    if cfg.get("init") is not None and cfg.get("resume") is None and not Path(cfg.init).is_file():
-        raise ConfigError(f"init={cfg.init!r} does not exist: give a model.zip, imitation.zip or checkpoint of a run")
+    if cfg.get("init") is not None and cfg.get("resume") is None:
+        if not Path(cfg.init).is_file():
+            need(False, "init", cfg.init, "an existing model.zip, imitation.zip or checkpoint of a run")
+        need(zipfile.is_zipfile(cfg.init), "init", cfg.init, "a model zip written by searchrl.train (this is not one)")
     imitation = cfg.imitation
     if imitation.teacher is not None:
         make_teacher(imitation.teacher, world, 0, teacher_args(cfg))  # unknown teacher or bad arguments
@@ -143,6 +147,34 @@ def check_config(cfg: DictConfig) -> None:
         lr_factor(str(imitation.get("lr_schedule", "constant")), 0, 1)  # an unknown schedule, named
     net = cfg.network
     SearchCNN.check_sizes(list(net.conv_channels), int(net.vector_size), list(net.fc_sizes), world.fov)
+
+
+def unused_settings(cfg: DictConfig, overrides: list[str]) -> list[str]:
+    """Notes on what this run will not use that the command line set: imitation settings without a teacher, the
+    LSTM size of a feed-forward algorithm, validation settings with validation off, a minibatch larger than the
+    demonstrations. Said, not refused: a sweep over `imitation.teacher=null,greedy` or `algo=ppo,recurrent_ppo`
+    keeps one command line for all its jobs."""
+    keys = [o.lstrip("+~").split("=", 1)[0] for o in overrides]
+    unused = []
+    if cfg.imitation.teacher is None:
+        unused += [k for k in keys if k.startswith("imitation.") and k != "imitation.teacher"]
+    if cfg.algo.name != "recurrent_ppo":
+        unused += [k for k in keys if k == "network.lstm_hidden_size"]
+    if int(cfg.validation.every) == 0:
+        unused += [k for k in keys if k.startswith("validation.") and k != "validation.every"]
+    notes = [
+        f"{k} has no effect here (no imitation.teacher, a feed-forward algo, or validation.every=0)" for k in unused
+    ]
+    sequences = sum(k * g.n_agents for g, k in team_groups(cfg)) * int(cfg.imitation.episodes)
+    if cfg.imitation.teacher is not None and int(cfg.imitation.batch_sequences) > sequences:
+        notes.append(f"imitation.batch_sequences={cfg.imitation.batch_sequences} is more than the {sequences} teacher "
+                     "sequences: each minibatch holds all of them")  # fmt: skip
+    return notes
+
+
+def rollout_size(cfg: DictConfig) -> int:
+    """Agent-steps of one rollout: algo.n_steps × every slot of every world group. SB3 trains whole rollouts."""
+    return int(cfg.algo.n_steps) * sum(k * group.n_agents for group, k in team_groups(cfg))
 
 
 def check_device(device: str) -> None:

@@ -151,12 +151,12 @@ class WorldConfig:
         for f in fields(self):  # types first: a string, NaN or fractional count never reaches a comparison
             is_kind, kind = _KINDS[f.type]
             need(is_kind(getattr(self, f.name)), f.name, getattr(self, f.name), kind)
-        _check_range("world_size", self.world_size, 5)
+        _check_range("world_size", self.world_size, 5, 2048)
         _check_range("n_distributions", self.n_distributions, 1)
         _check_range("n_targets", self.n_targets, 1)
         need(1 <= self.n_agents <= 4096, "n_agents", self.n_agents, "1 <= n_agents <= 4096")
-        need(self.prob_variance_scale > 0, "prob_variance_scale", self.prob_variance_scale, "> 0")
-        need(self.unc_variance_scale > 0, "unc_variance_scale", self.unc_variance_scale, "> 0")
+        for name in ("prob_variance_scale", "unc_variance_scale"):
+            need(0 < getattr(self, name) <= 1e6, name, getattr(self, name), "0 < scale <= 1e6 (σ² < scale · n)")
         smallest_scale = min(self.prob_variance_scale, self.unc_variance_scale)
         need(
             0 < self.variance_floor < smallest_scale * self.world_size[0],
@@ -181,7 +181,7 @@ class WorldConfig:
         )
         for name in ("fov", "explicit_area", "comm_range"):
             v = getattr(self, name)
-            need(isinstance(v, int) and v >= 1 and v % 2 == 1, name, v, "an odd positive integer")
+            need(1 <= v <= 101 and v % 2 == 1, name, v, "an odd integer from 1 to 101")
         need(
             self.explicit_area <= self.fov,
             "explicit_area",
