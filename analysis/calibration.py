@@ -29,7 +29,7 @@ import pandas as pd
 
 from searchrl.analysis.stats import markdown, paper_table3, summarize
 from searchrl.atomic import write_atomic, write_text_atomic
-from searchrl.evaluate.results import load
+from searchrl.evaluate.results import load, world_config_of
 
 ROOT = Path.cwd()
 args = [a for a in sys.argv[1:] if not a.startswith("-")]  # a notebook kernel passes its own flags
@@ -40,12 +40,12 @@ if not folders:
     sys.exit(f"error: no evaluation folders under {CAL}: run `bash analysis/calibrate.sh` first")
 summaries = []
 for folder in folders:  # the folder names the controller variant (greedy and target-greedy are both `greedy`)
-    episodes = load(folder)
-    summaries.append(summarize(episodes).assign(world=episodes.world.iloc[0], controller=folder.name))
+    episodes, world = load(folder), world_config_of(folder)
+    cells = summarize(episodes).assign(world=episodes.world.iloc[0], controller=folder.name)
+    # λk of each cell: k + k_per_n·n of the world the folder records (a checkpoint folder records none)
+    cells["lam_k"] = world.sensing_rate(cells.n.to_numpy()) if world else np.nan
+    summaries.append(cells)
 summary = pd.concat(summaries, ignore_index=True)
-# λk of each cell's world: k + k_per_n·n, read back from the world's label
-K_OF = {"bayes": lambda n: 1.0, "paper": lambda n: n / 1000, "k0+0.5n": lambda n: n / 2000, "k0+2n": lambda n: n / 500}
-summary["lam_k"] = [K_OF[w](n) for w, n in zip(summary.world, summary.n, strict=True)]
 paper = paper_table3(ROOT / "analysis" / "paper_table3.csv")
 drl_b = paper[paper.model == "B"].set_index(["n", "N"]).found_fraction  # the paper's DRL in B's world
 summary["paper_B"] = [drl_b.get((n, agents), np.nan) for n, agents in zip(summary.n, summary.N, strict=True)]

@@ -37,6 +37,7 @@ from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
+from searchrl.train.schema import override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -101,13 +102,14 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path]
     """Every check of an evaluation's settings, before any work or file: (grid cells, output folder). Raises
     ConfigError naming the bad value and what is allowed."""
     if cfg.checkpoint is not None:
-        fixed = [o for o in overrides if o.lstrip("+~").split("=", 1)[0].split(".")[0] in FIXED_BY_CHECKPOINT]
+        fixed = [o for o, k in zip(overrides, override_keys(overrides), strict=True)
+                 if k.split(".")[0] in FIXED_BY_CHECKPOINT]  # fmt: skip
         if fixed:
             raise ConfigError(
                 f"{', '.join(fixed)} cannot apply with checkpoint={cfg.checkpoint!r}: a checkpoint is evaluated in "
                 "the world, model and action set of its run (its config.yaml); remove them"
             )
-    keys = [o.lstrip("+~").split("=", 1)[0] for o in overrides]
+    keys = override_keys(overrides)
     if cfg.checkpoint is None:
         set_by_grid = [k for k in keys if k in SET_BY_GRID or k.startswith("env.extra_teams")]
         if set_by_grid:

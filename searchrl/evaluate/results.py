@@ -17,12 +17,18 @@ def cell_files(out_dir: str | Path) -> list[Path]:
     return sorted(p for p in Path(out_dir).glob("cells/*.parquet") if CELL_FILE_RE.fullmatch(p.name))
 
 
-def world_of(out_dir: str | Path) -> str:
-    """The sensing label of a folder whose cells predate the `world` column: from its evaluation.yaml's world
-    settings (heuristics), else "unknown" (a checkpoint's record names the file, not its world)."""
+def world_config_of(out_dir: str | Path) -> WorldConfig | None:
+    """The world settings a heuristic's evaluation folder records (evaluation.yaml), or None (a checkpoint's
+    record names the file, whose run holds its world)."""
     record = Path(out_dir) / "evaluation.yaml"
     world = OmegaConf.to_container(OmegaConf.load(record)).get("world") if record.exists() else None
-    return WorldConfig.from_dict(world).sensing_label if world else "unknown"
+    return WorldConfig.from_dict(world) if world else None
+
+
+def world_of(out_dir: str | Path) -> str:
+    """The sensing label of a folder whose cells predate the `world` column, else "unknown"."""
+    config = world_config_of(out_dir)
+    return config.sensing_label if config else "unknown"
 
 
 def load(*out_dirs: str | Path) -> pd.DataFrame:

@@ -54,7 +54,7 @@ from searchrl.train.callbacks import (
 )
 from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
 from searchrl.train.imitation import clone, collect
-from searchrl.train.schema import TrainConfig, register_configs
+from searchrl.train.schema import TrainConfig, override_keys, register_configs
 from searchrl.world.config import ConfigError, WorldConfig
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -92,7 +92,7 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     run_dir = Path(cfg.resume)
     if not (run_dir / "config.yaml").is_file():
         fail(f"resume={cfg.resume!r} is not a run directory: it has no config.yaml")
-    keys = [o.split("=", 1)[0].lstrip("+~") for o in overrides]
+    keys = override_keys(overrides)
     other = [k for k in keys if k not in (*RESUME_OVERRIDES, "resume") and not k.startswith("hydra")]
     if other:
         fail(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")

@@ -19,7 +19,7 @@ from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
 from searchrl.train.imitation import lr_factor, make_teacher
-from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig
+from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig, override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
 
 ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "ppo": PPOConfig, "a2c": A2CConfig}
@@ -123,8 +123,7 @@ def check_config(cfg: DictConfig) -> None:
         )
     if int(cfg.validation.every) < 0 or int(cfg.validation.n_worlds) < 1:
         raise ConfigError(f"validation={dict(cfg.validation)!r} is not allowed: every >= 0 and n_worlds >= 1")
-    slots = sum(k * group.n_agents for group, k in team_groups(cfg))
-    rollout = int(cfg.algo.n_steps) * slots
+    rollout = rollout_size(cfg)
     batch = cfg.algo.get("batch_size")
     if batch is not None and not 1 <= int(batch) <= rollout:
         raise ConfigError(f"algo.batch_size={batch!r} is not allowed: 1 <= batch_size <= rollout size {rollout}")
@@ -154,7 +153,7 @@ def unused_settings(cfg: DictConfig, overrides: list[str]) -> list[str]:
     LSTM size of a feed-forward algorithm, validation settings with validation off, a minibatch larger than the
     demonstrations. Said, not refused: a sweep over `imitation.teacher=null,greedy` or `algo=ppo,recurrent_ppo`
     keeps one command line for all its jobs."""
-    keys = [o.lstrip("+~").split("=", 1)[0] for o in overrides]
+    keys = override_keys(overrides)
     unused = []
     if cfg.imitation.teacher is None:
         unused += [k for k in keys if k.startswith("imitation.") and k != "imitation.teacher"]
@@ -165,16 +164,21 @@ def unused_settings(cfg: DictConfig, overrides: list[str]) -> list[str]:
     notes = [
         f"{k} has no effect here (no imitation.teacher, a feed-forward algo, or validation.every=0)" for k in unused
     ]
-    sequences = sum(k * g.n_agents for g, k in team_groups(cfg)) * int(cfg.imitation.episodes)
+    sequences = team_slots(cfg) * int(cfg.imitation.episodes)
     if cfg.imitation.teacher is not None and int(cfg.imitation.batch_sequences) > sequences:
         notes.append(f"imitation.batch_sequences={cfg.imitation.batch_sequences} is more than the {sequences} teacher "
                      "sequences: each minibatch holds all of them")  # fmt: skip
     return notes
 
 
+def team_slots(cfg: DictConfig) -> int:
+    """Slots (agents) of every world of every group: K·N summed over env.world and env.extra_teams."""
+    return sum(k * group.n_agents for group, k in team_groups(cfg))
+
+
 def rollout_size(cfg: DictConfig) -> int:
-    """Agent-steps of one rollout: algo.n_steps × every slot of every world group. SB3 trains whole rollouts."""
-    return int(cfg.algo.n_steps) * sum(k * group.n_agents for group, k in team_groups(cfg))
+    """Agent-steps of one rollout: algo.n_steps × team_slots. SB3 trains and saves whole rollouts."""
+    return int(cfg.algo.n_steps) * team_slots(cfg)
 
 
 def check_device(device: str) -> None:

@@ -143,6 +143,11 @@ class TrainConfig:
     log_interval: int = 1  # rollouts between log rows
 
 
+def override_keys(overrides: list[str]) -> list[str]:
+    """The keys a command line's Hydra overrides set: `+a.b=1`, `~a.b`, `a.b=1` -> `a.b`."""
+    return [o.split("=", 1)[0].lstrip("+~") for o in overrides]
+
+
 def run_dir(resume: str | None, model: str, seed: int, now: str) -> str:
     """Hydra's output folder: a new run under runs/train/, or, on resume, a log folder inside the resumed run."""
     return f"{resume}/resumed/{now}" if resume else f"runs/train/{model}/{now}_seed{seed}"
