@@ -1,0 +1,155 @@
+"""The README is a user guide that stays short and runs; the docs say only what their cited outputs say.
+
+- README.md has at most 250 lines, and every command in its `bash` blocks parses: Hydra composes the train and
+  evaluate overrides, render and bench accept their flags, and every file a command names exists.
+- Every relative link and image in README.md and docs/*.md points at a file of the repository.
+- A block that follows `<!-- cite: <path> -->` (a table, a list or a fenced block, up to the next blank line or
+  closing fence) quotes `<path>`: each of its lines is a line of that file, so a rerun that changes a number
+  without the docs following fails here.
+"""
+
+from __future__ import annotations
+
+import re
+import shlex
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+
+import searchrl.evaluate.__main__  # noqa: F401  (registers the evaluate schemas)
+from searchrl.train.__main__ import CONF_DIR
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+PAGES = [README, *sorted((ROOT / "docs").glob("*.md"))]
+CITE = re.compile(r"<!-- cite: (\S+) -->")
+LINK = re.compile(r"\]\(([^)\s]+)\)")
+
+
+def bash_commands(text: str) -> list[str]:
+    """The commands of the ```bash blocks: continuation lines joined, comments and shell assignments dropped."""
+    commands: list[str] = []
+    for block in re.findall(r"```bash\n(.*?)```", text, flags=re.S):
+        joined = re.sub(r"\\\n\s*", " ", block)
+        for line in joined.splitlines():
+            line = line.split(" #")[0].strip()
+            if line and not line.startswith("#"):
+                commands.extend(part.strip() for part in line.split("&&"))
+    return commands
+
+
+def test_readme_is_a_short_guide():
+    lines = README.read_text().splitlines()
+    assert len(lines) <= 250, f"README.md has {len(lines)} lines; results and history belong in docs/"
+
+
+def test_readme_test_command_is_what_ci_runs():
+    ci = (ROOT / ".ci" / "run").read_text()
+    command = "pip install torch==2.13.0 && pip install -e '.[dev]' && python -m pytest"
+    assert command in README.read_text()
+    assert "pip install torch==2.13.0" in ci and "'.[dev]'" in ci and "pytest" in ci
+
+
+def _compose(app: str, overrides: list[str]) -> None:
+    hydra_keys = [o for o in overrides if o.startswith(("hydra/", "hydra."))]
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        compose(config_name=app, overrides=overrides, return_hydra_config=bool(hydra_keys))
+
+
+def _check_paths(words: list[str]) -> None:
+    for word in words:
+        value = word.split("=", 1)[-1]
+        if value.endswith((".zip", ".py", ".yaml")) and "<" not in value:
+            assert (ROOT / value).is_file(), f"{word}: no file {value}"
+
+
+def _help(module, capsys) -> str:
+    with pytest.raises(SystemExit):
+        module.main(["--help"])
+    return capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command", bash_commands(README.read_text()))
+def test_readme_command_parses(command, capsys):
+    words = shlex.split(command)
+    if words[0] == "pip":
+        return
+    assert words[0] == "python", f"unexpected command {command!r}"
+    if "<" in command:  # a placeholder the user fills in (a run folder): the rest is checked in its other examples
+        return
+    if words[1] == "-m":
+        module, args = words[2], words[3:]
+        if "-m" in args:  # a multirun sweep: compose its first job (the first value of each swept list)
+            args = [re.sub(r"=([^\[,]*),.*", r"=\1", a) for a in args if a != "-m"]
+        args = [a for a in args if a not in ("--cfg", "job")]
+        _check_paths(args)
+        if module in ("searchrl.train", "searchrl.evaluate"):
+            _compose(module.split(".")[1], args)
+        elif module in ("searchrl.render", "searchrl.bench"):
+            import importlib
+
+            mod = importlib.import_module(module if module == "searchrl.render" else "searchrl.bench.__main__")
+            text = _help(mod, capsys)
+            for flag in (a.split("=")[0] for a in args if a.startswith("--")):
+                assert flag in text, f"{command!r}: {flag} is not an option of {module}"
+            for subcommand in (a for a in args if not a.startswith("-") and module == "searchrl.bench"):
+                assert subcommand in text, f"{command!r}: no subcommand {subcommand}"
+                break
+        elif module != "pytest":
+            raise AssertionError(f"unexpected module in {command!r}")
+    else:
+        assert (ROOT / words[1]).is_file(), f"{command!r}: no script {words[1]}"
+
+
+def test_readme_python_example_runs():
+    block = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)[0]
+    exec(compile(block, "README.md", "exec"), {})
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_links_point_at_files(page):
+    text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+    for target in LINK.findall(text):
+        if target.startswith(("http://", "https://", "#", "mailto:")):
+            continue
+        path = (page.parent / target.split("#")[0]).resolve()
+        assert path.exists(), f"{page.name}: link to {target}, which does not exist"
+
+
+def cited_blocks(text: str) -> list[tuple[str, list[str]]]:
+    """(cited path, quoted lines) for every cite marker of a page."""
+    blocks = []
+    for match in CITE.finditer(text):
+        rest = text[match.end() :].lstrip("\n").splitlines()
+        quoted: list[str] = []
+        if rest and rest[0].startswith("```"):
+            for line in rest[1:]:
+                if line.startswith("```"):
+                    break
+                quoted.append(line)
+        else:
+            for line in rest:
+                if not line.strip():
+                    break
+                quoted.append(line)
+        blocks.append((match.group(1), [q for q in quoted if q.strip()]))
+    return blocks
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
+def test_cited_blocks_quote_their_outputs(page):
+    for path, quoted in cited_blocks(page.read_text()):
+        source = ROOT / path
+        assert source.is_file(), f"{page.name} cites {path}, which does not exist"
+        assert quoted, f"{page.name}: the citation of {path} quotes nothing"
+        lines = set(source.read_text().splitlines())
+        for line in quoted:
+            assert line in lines, f"{page.name} quotes {path}, which has no line {line!r}"
+
+
+def test_the_cite_check_catches_a_changed_number(tmp_path):
+    page = "<!-- cite: analysis/out/claims.md -->\n- b − c: better on 3 of 30 cells\n"
+    [(path, quoted)] = cited_blocks(page)
+    assert path == "analysis/out/claims.md" and quoted == ["- b − c: better on 3 of 30 cells"]
+    assert quoted[0] not in set((ROOT / path).read_text().splitlines())
