@@ -1,0 +1,123 @@
+"""Recipes as config: every shipped policy (runs/reference/<folder>/) is reproduced by one override,
+`python -m searchrl.train +experiment=<name>` (conf/experiment/<name>.yaml), and that file composes to the run's
+recorded config.yaml on every setting that decides what is trained."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from searchrl.train.__main__ import CONF_DIR
+from searchrl.train.build import check_config
+from searchrl.train.schema import TrainConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+REFERENCE = ROOT / "runs" / "reference"
+# The one table of which experiment reproduces which shipped folder (runs/reference/<folder>).
+EXPERIMENTS = {
+    "clone_a": "a",
+    "clone_b": "b",
+    "clone_c": "c",
+    "clone_diagonal": "diagonal",
+    "rl_a": "rl/a",
+    "rl_b": "rl/b",
+    "rl_c": "rl/c",
+    "rl_diagonal": "rl/diagonal",
+    "rl_b_tau0": "ablations/b_tau0",
+}
+# Settings that do not decide what is trained, so a rerun may change them: speed and place (threads, device),
+# display (progress_bar, log_interval: rows of the log, not updates), what is kept on disk (checkpoint_every,
+# keep_checkpoints) and the folder a killed run continues from (resume). `init` does decide (the start weights).
+NOT_TRAINING = {"threads", "device", "progress_bar", "log_interval", "checkpoint_every", "keep_checkpoints", "resume"}
+# Settings added to the code after some policy shipped, absent from its config.yaml, with why their schema default
+# is what that run did (a section covers the settings under it where a shipped config lacks the whole section).
+ADDED_LATER = {
+    "env.world.k_per_n": "k = k + k_per_n·n per world; 0 keeps k = 1000 (λk = 1), the sensing of every shipped run",
+    "env.world.belief_age": "0: the belief channels show the belief as it is, with no age",
+    "env.world.belief_age_channel": "false: five channels, no age channel",
+    "env.world.belief_seen": "false: the neighbours seen do not scale what is shown",
+    "env.extra_teams": "[]: every world has env.world.n_agents, the only rollout before",
+    "env.extra_teams.world_size": "null: a group's worlds draw env.world.world_size, as before the field",
+    "imitation": "teacher null: no warm start (the RL runs predate imitation)",
+    "imitation.lr_schedule": "constant: the only imitation rate before the field",
+    "init": "null: fresh weights, the only start before the field",
+}
+
+
+def _flat(node: Any, prefix: str = "") -> dict[str, Any]:
+    """{dotted key: value}, list items by index (`env.extra_teams.0.world_size`); empty ones are values."""
+    if isinstance(node, dict) and node:
+        items = node.items()
+    elif isinstance(node, list) and node:
+        items = enumerate(node)
+    else:
+        return {prefix[:-1]: node}
+    return {k: v for key, sub in items for k, v in _flat(sub, f"{prefix}{key}.").items()}
+
+
+def _composed(name: str) -> dict[str, Any]:
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose(config_name="train", overrides=[f"+experiment={name}"])
+    check_config(cfg)  # the recipe is a valid run for the current code (teacher arguments included)
+    return OmegaConf.to_container(cfg, resolve=True)
+
+
+def _kept(flat: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in flat.items() if k.split(".")[0] not in NOT_TRAINING}
+
+
+def test_every_experiment_reproduces_a_shipped_folder_and_every_folder_has_one():
+    shipped = sorted(str(p.parent.relative_to(REFERENCE)) for p in REFERENCE.rglob("model.zip"))
+    assert sorted(EXPERIMENTS.values()) == shipped
+    assert sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml")) == sorted(EXPERIMENTS)
+    readme = (REFERENCE / "README.md").read_text()
+    for name, folder in EXPERIMENTS.items():
+        text = (CONF_DIR / "experiment" / f"{name}.yaml").read_text()
+        assert text.startswith("# @package _global_\n"), name
+        assert text.splitlines()[1].startswith(f"# runs/reference/{folder}:"), name  # its comment names the folder
+        assert f"+experiment={name}" in readme, name
+
+
+@pytest.mark.parametrize("name", sorted(EXPERIMENTS))
+def test_experiment_composes_to_the_shipped_config(name):
+    composed = _kept(_flat(_composed(name)))
+    loaded = OmegaConf.load(REFERENCE / EXPERIMENTS[name] / "config.yaml")
+    recorded = _kept(_flat(OmegaConf.to_container(loaded)))
+    # A setting the shipped run records that the code no longer has: a rerun would drop it without a word.
+    gone = sorted(set(recorded) - set(composed))
+    assert not gone, f"recorded by runs/reference/{EXPERIMENTS[name]}, lacking from the recipe or the code: {gone}"
+    # What a rerun of the shipped run gets: its config.yaml with every setting it lacks at the schema default (as
+    # `resume=` reads it), so the recipe must leave each setting added since at its default.
+    shipped = _kept(_flat(OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(TrainConfig), loaded))))
+    assert set(composed) == set(shipped), sorted(set(composed) ^ set(shipped))
+    differ = {k: (composed[k], shipped[k]) for k in sorted(shipped)
+              if composed[k] != shipped[k] or type(composed[k]) is not type(shipped[k])}  # fmt: skip
+    assert not differ, f"composed != shipped, (composed, shipped): {differ}"
+    # Each default standing in for a missing setting is one stated to keep the old behaviour.
+    unstated = sorted(k for k in set(shipped) - set(recorded) if not _added_later(k, recorded))
+    assert not unstated, f"settings absent from the shipped config.yaml and not in ADDED_LATER: {unstated}"
+
+
+def _added_later(key: str, recorded: dict[str, Any]) -> bool:
+    """`key` (or the whole section holding it, where the shipped config lacks that section) is in ADDED_LATER."""
+    parts = [p for p in key.split(".") if not p.isdigit()]  # env.extra_teams.0.world_size -> env.extra_teams.world_size
+    if ".".join(parts) in ADDED_LATER:
+        return True
+    sections = (".".join(parts[:n]) for n in range(1, len(parts)))
+    return any(s in ADDED_LATER and not any(k.startswith(f"{s}.") or k == s for k in recorded) for s in sections)
+
+
+def test_the_command_line_composes_an_experiment():
+    """`python -m searchrl.train +experiment=clone_c --cfg job` prints the recipe without training."""
+    cmd = [sys.executable, "-m", "searchrl.train", "+experiment=clone_c", "--cfg", "job"]
+    out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    printed = yaml.safe_load(out.stdout)
+    assert printed == _composed("clone_c")
