@@ -15,7 +15,7 @@ declare -A CONTROLLERS=(
   [coverage]="controller=coverage"
   [random]="controller=random"
   [greedy]="controller=greedy"
-  [greedy_target]="controller=greedy controller.horizon=3 controller.w_p=0 controller.w_u=0 controller.w_t=1"
+  [greedy_target]="controller=greedy_target"  # recorded as greedy with horizon=3 w_p=0 w_u=0 w_t=1
 )
 for world in bayes paper k0.5n k2n; do
   for controller in surfing coverage random greedy greedy_target; do

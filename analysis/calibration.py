@@ -27,14 +27,18 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown, paper_table3, summarize
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load, world_config_of
 
 ROOT = Path.cwd()
-args = [a for a in sys.argv[1:] if not a.startswith("-")]  # a notebook kernel passes its own flags
-CAL = Path(args[0]) if args else ROOT / "runs" / "eval" / "calibration"
-OUT = Path(args[1]) if len(args) > 1 else ROOT / "analysis" / "out" / "calibration"
+parser = cli.parser("Which k: the heuristics on the full grid in four worlds", dirs=None)
+parser.add_argument("root", nargs="?", metavar="CAL_ROOT", help="default runs/eval/calibration")
+parser.add_argument("out_dir", nargs="?", metavar="OUT", help="default analysis/out/calibration (or --out)")
+args, _ = cli.parse(parser)  # a notebook kernel's own flags (-f <connection file>) are dropped
+CAL = Path(args.root) if args.root else ROOT / "runs" / "eval" / "calibration"
+OUT = Path(args.out_dir or args.out or ROOT / "analysis" / "out" / "calibration")
 folders = sorted(p for p in CAL.glob("*/*") if (p / "cells").is_dir())
 if not folders:
     sys.exit(f"error: no evaluation folders under {CAL}: run `bash analysis/calibrate.sh` first")

@@ -18,22 +18,20 @@
 # 4. communication helps most at large N (B − C grows with N).
 #
 # Writes `margins.csv` (tidy), `margins.md` (rows N, columns n) and `claims.md`. Run from the repository root:
-# `python analysis/claims.py`; inputs as in `table3.py` (`SEARCHRL_EVAL_DIRS`, `SEARCHRL_ANALYSIS_OUT`).
+# `python analysis/claims.py [EVAL_DIR ...] [--out DIR]`; inputs and output as in `table3.py` (else
+# `SEARCHRL_EVAL_DIRS`, `SEARCHRL_ANALYSIS_OUT`).
 
 # %%
-import os
 from pathlib import Path
 
 import pandas as pd
 
+from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown, paired_margins
 from searchrl.evaluate.results import load
 
 ROOT = Path.cwd()
-EVAL_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_EVAL_DIRS", "").split(",") if d] or sorted(
-    p for p in (ROOT / "runs" / "eval").glob("*") if (p / "cells").is_dir()
-)
-OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
+EVAL_DIRS, OUT = cli.eval_inputs("The paper's claims, checked on this reproduction", ROOT / "analysis" / "out")
 OUT.mkdir(parents=True, exist_ok=True)
 episodes = load(*EVAL_DIRS)
 policy_rows = episodes[episodes.controller.str.startswith("policy:")][["model", "controller"]].drop_duplicates()

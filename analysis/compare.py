@@ -7,31 +7,38 @@
 # %% [markdown]
 # # Two evaluations, cell by cell
 #
-# Compares the first evaluation directory of `SEARCHRL_EVAL_DIRS` with each of the others, on the maps both ran:
+# Compares the first evaluation directory with each of the others, on the maps both ran:
 # the paired difference in found fraction per cell with a 95 % bootstrap CI over maps, and its verdict (see
 # `paired_margins`). Each directory is labelled by its folder name, so two runs of the same controller (surfing
 # with other scales, a policy and its ablation) can be told apart.
 #
 # Writes `compare.csv` (tidy) and `compare.md` (verdict counts, then rows N, columns n per pair). Run from the
-# repository root, e.g. `SEARCHRL_EVAL_DIRS=runs/eval/surfing,runs/eval/surfing_multiscale
-# SEARCHRL_ANALYSIS_OUT=analysis/out/surfing_scales python analysis/compare.py`.
+# repository root, e.g.
+#
+#     python analysis/compare.py runs/eval/surfing runs/eval/surfing_multiscale --out analysis/out/surfing_scales
+#
+# `python analysis/compare.py EVAL_DIR EVAL_DIR [EVAL_DIR ...] [--out DIR]`: without folders as arguments, those of
+# `SEARCHRL_EVAL_DIRS` (comma-separated; what a notebook reads); output folder `--out`, else `SEARCHRL_ANALYSIS_OUT`,
+# else `analysis/out`.
 
 # %%
-import os
 from pathlib import Path
 
 import pandas as pd
 
+from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown, paired_margins
 from searchrl.evaluate.results import load
 
 ROOT = Path.cwd()
-EVAL_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_EVAL_DIRS", "").split(",") if d]
-if len(EVAL_DIRS) < 2:
-    raise SystemExit("SEARCHRL_EVAL_DIRS must name two or more evaluation directories; the first meets each other")
+EVAL_DIRS, OUT = cli.eval_inputs(
+    "Two or more evaluations, cell by cell: the first against each other one",
+    ROOT / "analysis" / "out",
+    default_dirs=list,
+    min_dirs=2,
+)  # no default
 if len({d.name for d in EVAL_DIRS}) < len(EVAL_DIRS):
-    raise SystemExit(f"SEARCHRL_EVAL_DIRS={[str(d) for d in EVAL_DIRS]}: folder names label sides; make them differ")
-OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
+    cli.stop(f"evaluation folders {[str(d) for d in EVAL_DIRS]}: their names label the sides; make them differ")
 OUT.mkdir(parents=True, exist_ok=True)
 episodes = pd.concat([load(d).assign(controller=d.name) for d in EVAL_DIRS], ignore_index=True)
 

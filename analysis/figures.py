@@ -9,11 +9,10 @@
 #
 # Fig. 7: found fraction against N at n = 160, one line per controller or policy (95 % bootstrap CI bands), the
 # paper's four DRL models dashed, each in the colour of our policy of the same model. Fig. 8: every world size, DRL
-# policies against information surfing and coverage. Run from the repository root: `python analysis/figures.py`;
-# inputs as in `table3.py`.
+# policies against information surfing and coverage. Run from the repository root:
+# `python analysis/figures.py [EVAL_DIR ...] [--out DIR]`; inputs and output as in `table3.py`.
 
 # %%
-import os
 from pathlib import Path
 
 import matplotlib
@@ -21,14 +20,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from searchrl.analysis import cli
 from searchrl.analysis.stats import paper_table3, summarize
 from searchrl.evaluate.results import load
 
 ROOT = Path.cwd()
-EVAL_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_EVAL_DIRS", "").split(",") if d] or sorted(
-    p for p in (ROOT / "runs" / "eval").glob("*") if (p / "cells").is_dir()
-)
-OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
+EVAL_DIRS, OUT = cli.eval_inputs("Fig. 7 and Fig. 8: found fraction against team size", ROOT / "analysis" / "out")
 OUT.mkdir(parents=True, exist_ok=True)
 summary = summarize(load(*EVAL_DIRS))
 paper = paper_table3(ROOT / "analysis" / "paper_table3.csv")

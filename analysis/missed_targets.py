@@ -8,14 +8,17 @@
 # # Which targets a controller misses, by distance to the world's edge
 #
 # Runs a controller given exactly as to `python -m searchrl.evaluate` (the same overrides, so the same maps, start
-# cells and seeds as that evaluation) on the cells named in `SEARCHRL_CELLS`, and counts the targets still unfound
-# when each episode ends by their distance to the nearest edge of the world (0: on the edge). Run from the
-# repository root, e.g.
+# cells and seeds as that evaluation) on the cells named by `--cells`, and counts the targets still unfound when
+# each episode ends by their distance to the nearest edge of the world (0: on the edge). Run from the repository
+# root:
 #
-# ```bash
-# SEARCHRL_CELLS=n40_N8,n80_N64 SEARCHRL_LABEL=greedy_target_c SEARCHRL_ANALYSIS_OUT=analysis/out/missed_targets \
-#     python analysis/missed_targets.py controller=greedy controller.w_t=1 ... +model=c grid.repeats=1
-# ```
+#     python analysis/missed_targets.py [--cells CELL,CELL,...] [--label LABEL] [--out DIR] [OVERRIDE ...]
+#
+# e.g. `python analysis/missed_targets.py --cells n40_N8,n80_N64 --label greedy_target_c controller=greedy_target
+# +model=c grid.repeats=1`. OVERRIDEs are Hydra overrides of `python -m searchrl.evaluate`. `--cells` defaults to
+# `SEARCHRL_CELLS`, then n40_N8,n80_N64,n160_N256; `--label` to `SEARCHRL_LABEL`, then the controller's folder name
+# (`runs/eval/<label>` of that evaluation); `--out` to `SEARCHRL_ANALYSIS_OUT`, then `analysis/out/missed_targets`
+# (what a notebook reads: the environment variables, and no overrides).
 #
 # Writes `<label>.csv` (one row per cell) into the output folder, then `missed_targets.md` from every CSV there.
 
@@ -27,7 +30,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from hydra import compose, initialize_config_dir
+from hydra.errors import HydraException
+from omegaconf.errors import OmegaConfBaseException
 
+from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.__main__ import make_controller_factory
@@ -35,21 +41,35 @@ from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
 
 ROOT = Path.cwd()
-CELLS = [c for c in os.environ.get("SEARCHRL_CELLS", "n40_N8,n80_N64,n160_N256").split(",") if c]
-LABEL = os.environ.get("SEARCHRL_LABEL", "")
-OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out" / "missed_targets"))
+parser = cli.parser("Which targets a controller misses, by distance to the world's edge", dirs=None)
+parser.add_argument("--cells", help="comma-separated cells of the grid, e.g. n40_N8,n80_N64 (default: "
+                    "$SEARCHRL_CELLS, then n40_N8,n80_N64,n160_N256)")  # fmt: skip
+parser.add_argument("--label", help="name of the rows and of <label>.csv (default: $SEARCHRL_LABEL, then the "
+                    "controller's folder name)")  # fmt: skip
+parser.usage = "missed_targets.py [-h] [--cells CELLS] [--label LABEL] [--out DIR] [OVERRIDE ...]"
+args, OVERRIDES = cli.parse(parser, rest=True)  # the rest: Hydra overrides of python -m searchrl.evaluate
+flags = [o for o in OVERRIDES if o.startswith("-")]
+if flags:
+    parser.error(f"unrecognized arguments: {' '.join(flags)}")
+CELLS = [c for c in (args.cells or os.environ.get("SEARCHRL_CELLS") or "n40_N8,n80_N64,n160_N256").split(",") if c]
+LABEL = args.label or os.environ.get("SEARCHRL_LABEL", "")
+OUT = cli.out_dir(args.out, ROOT / "analysis" / "out" / "missed_targets")
 BINS = ["on_edge", "1_in", "2_in", "3+_in"]  # distance to the nearest edge: 0, 1, 2, 3 or more cells
 
-with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-    cfg = compose("evaluate", overrides=sys.argv[1:])
-world, name, model, factory, needs_obs = make_controller_factory(cfg)
-LABEL = LABEL or name.replace(":", "_")
+try:
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose("evaluate", overrides=OVERRIDES)
+    world, name, model, factory, needs_obs = make_controller_factory(cfg)
+except (HydraException, OmegaConfBaseException, ValueError, FileNotFoundError) as err:  # ConfigError too
+    cli.stop(str(err).split("\nConfig search path")[0] or type(err).__name__)  # Hydra's lists a group's options
+# The evaluation's folder name: runs/eval/<controller=…> (greedy_target, though its rows say greedy) or policy_<run>
+LABEL = LABEL or (name if cfg.checkpoint is not None else cfg.controller.name).replace(":", "_")
 grid = table2_cells(list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
                     list(cfg.grid.max_agents))  # fmt: skip
 index = {cell.key: i for i, cell in enumerate(grid)}
 unknown = [c for c in CELLS if c not in index]
 if unknown:
-    raise SystemExit(f"SEARCHRL_CELLS has {unknown}: not cells of the grid; allowed: {', '.join(index)}")
+    cli.stop(f"--cells has {unknown}: not cells of the grid; allowed: {', '.join(index)}")
 
 # %% [markdown]
 # ## Count the missed targets of each cell

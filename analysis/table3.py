@@ -12,23 +12,22 @@
 # CIs and the paper's number for the same model where there is one) and `table3.md` (the paper's layout: rows N,
 # columns n). Run as a script from the repository root:
 #
-#     python analysis/table3.py
+#     python analysis/table3.py [EVAL_DIR ...] [--out DIR]
 #
-# Inputs and outputs are set by environment variables: `SEARCHRL_EVAL_DIRS` (comma-separated evaluation
-# directories, default every directory under `runs/eval/`), `SEARCHRL_ANALYSIS_OUT` (default `analysis/out`).
+# Evaluation folders as arguments, else `SEARCHRL_EVAL_DIRS` (comma-separated; what a notebook reads), else every
+# folder under `runs/eval/` with results; output folder `--out`, else `SEARCHRL_ANALYSIS_OUT`, else `analysis/out`.
 
 # %%
-import os
 from pathlib import Path
 
+from searchrl.analysis import cli
 from searchrl.analysis.stats import beside_paper, markdown, paper_table3, summarize, table3
 from searchrl.evaluate.results import load
 
 ROOT = Path.cwd()
-EVAL_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_EVAL_DIRS", "").split(",") if d] or sorted(
-    p for p in (ROOT / "runs" / "eval").glob("*") if (p / "cells").is_dir()
+EVAL_DIRS, OUT = cli.eval_inputs(
+    "Table 3: fraction of targets found per cell, beside the paper", ROOT / "analysis" / "out"
 )
-OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
 OUT.mkdir(parents=True, exist_ok=True)
 episodes = load(*EVAL_DIRS)
 print(f"{len(episodes)} episodes from {[d.name for d in EVAL_DIRS]}")

@@ -7,12 +7,15 @@
 # %% [markdown]
 # # Fig. 5 and Fig. 6: training curves of R, L, F, M̄ and the validation found fraction
 #
-# Reads `progress.csv` of training runs (`SEARCHRL_RUN_DIRS`, comma-separated; default every run under
-# `runs/train/`), smooths each team metric over a window of log rows, and writes `training_curves.png` and the
-# tidy `training_curves.csv`. Run from the repository root: `python analysis/training_curves.py`.
+# Reads `progress.csv` of training runs, smooths each team metric over a window of log rows, and writes
+# `training_curves.png` and the tidy `training_curves.csv`. Run from the repository root:
+#
+#     python analysis/training_curves.py [RUN_DIR ...] [--out DIR]
+#
+# Run folders as arguments, else `SEARCHRL_RUN_DIRS` (comma-separated; what a notebook reads), else every run under
+# `runs/train/`; output folder `--out`, else `SEARCHRL_ANALYSIS_OUT`, else `analysis/out`.
 
 # %%
-import os
 from pathlib import Path
 
 import matplotlib
@@ -20,13 +23,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown, training_curves
 
 ROOT = Path.cwd()
-RUN_DIRS = [Path(d) for d in os.environ.get("SEARCHRL_RUN_DIRS", "").split(",") if d] or sorted(
-    p.parent for p in (ROOT / "runs" / "train").glob("*/*/progress.csv")
-)
-OUT = Path(os.environ.get("SEARCHRL_ANALYSIS_OUT", ROOT / "analysis" / "out"))
+RUN_DIRS, OUT = cli.run_inputs("Fig. 5 and Fig. 6: training curves", ROOT / "analysis" / "out")
 OUT.mkdir(parents=True, exist_ok=True)
 curves = training_curves(RUN_DIRS)
 curves.to_csv(OUT / "training_curves.csv", index=False)

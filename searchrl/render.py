@@ -1,4 +1,6 @@
-"""`python -m searchrl.render [--controller surfing|coverage|random | --checkpoint model.zip] [--out episode.gif]`
+"""`python -m searchrl.render [--controller NAME | --checkpoint model.zip] [--out episode.gif]`
+
+NAME: a heuristic of searchrl/controllers/registry.py (surfing, greedy, greedy_target, coverage, random).
 
 Writes one episode as an animated GIF in the paper's colours (Fig. 1, Fig. 4): left, the true maps with all agents
 (purple), hidden (green) and found (brown) targets; right, one agent's belief, the agent ringed in black.
@@ -15,6 +17,7 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from searchrl.atomic import check_writable, write_atomic
+from searchrl.controllers.registry import HEURISTICS, make_controller
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.observe import observe
 from searchrl.world.render import world_frame
@@ -49,7 +52,7 @@ def frame(state: WorldState, agent: int, cell: int) -> np.ndarray:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m searchrl.render", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    p.add_argument("--controller", choices=["surfing", "greedy", "coverage", "random"],
+    p.add_argument("--controller", choices=list(HEURISTICS),
                    help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
     p.add_argument("--checkpoint", help="a trained model.zip (its run's world settings are used)")
     p.add_argument("--model", choices=sorted(MODELS), help="world settings for heuristics (default b)")
@@ -96,9 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.checkpoint:
             controller = PolicyController.load(args.checkpoint, config, seed=args.seed)
         else:
-            from searchrl.evaluate.__main__ import CONTROLLERS
-
-            controller = CONTROLLERS[args.controller or "surfing"](config)
+            controller = make_controller(args.controller or "surfing", config)
     except (ConfigError, FileNotFoundError, ValueError) as err:
         p.error(str(err))
     state = allocate(config, 1)

@@ -105,6 +105,73 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         assert "## 1. DRL beats information surfing" in (tmp_path / "claims.md").read_text()
 
 
+def _script(notebook: str, *args: str) -> subprocess.CompletedProcess:
+    """Run analysis/<notebook> with `args` and none of the SEARCHRL_* variables."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("SEARCHRL_")} | {"MPLBACKEND": "Agg"}
+    return subprocess.run([sys.executable, f"analysis/{notebook}", *args], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+
+
+def test_notebooks_take_folders_and_out_as_arguments(fixture_dirs, tmp_path):
+    """`python analysis/<script>.py [DIR ...] [--out DIR]`, and missed_targets' --cells/--label/--out before its
+    Hydra overrides; the environment variables are only the fallback (test_notebook_runs_on_the_fixture)."""
+    surfing, coverage = fixture_dirs / "eval" / "surfing", fixture_dirs / "eval" / "coverage"
+    out = _script("table3.py", str(surfing), str(coverage), "--out", str(tmp_path / "t3"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert set(pd.read_csv(tmp_path / "t3" / "table3.csv").controller) == {"surfing", "coverage"}
+    out = _script("compare.py", str(coverage), str(surfing), "--out", str(tmp_path / "cmp"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert set(pd.read_csv(tmp_path / "cmp" / "compare.csv").baseline) == {"surfing"}
+    out = _script("training_curves.py", str(fixture_dirs / "run"), "--out", str(tmp_path / "tc"))
+    assert out.returncode == 0 and (tmp_path / "tc" / "training_curves.png").exists(), out.stderr[-3000:]
+    out = _script("missed_targets.py", "--cells", "n20_N1", "--label", "tiny", "--out", str(tmp_path / "mt"),
+                  "controller=greedy_target", "grid.maps_per_cell=2", "grid.repeats=1")  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    rows = pd.read_csv(tmp_path / "mt" / "tiny.csv")
+    assert list(rows.cell) == ["n20_N1"] and list(rows.controller) == ["tiny"] and (rows.episodes == 2).all()
+
+
+def test_a_missing_or_empty_folder_is_named_in_one_line(tmp_path):
+    empty = tmp_path / "empty"
+    (empty / "cells").mkdir(parents=True)
+    for notebook, args, message in [
+        ("table3.py", [str(tmp_path / "nowhere")], f"evaluation folder '{tmp_path / 'nowhere'}' does not exist"),
+        ("figures.py", [str(empty)], f"evaluation folder '{empty}' holds no results"),
+        ("claims.py", [str(empty), "--out", str(tmp_path)], f"evaluation folder '{empty}' holds no results"),
+        ("compare.py", [str(empty)], "1 evaluation folders given, 2 or more needed"),
+        ("training_curves.py", [str(empty)], f"run folder '{empty}' has no progress.csv"),
+        ("table3.py", ["--outt=x"], "unrecognized arguments: --outt=x"),
+        ("missed_targets.py", ["controller=planner"], "Could not find 'controller/planner'"),
+        ("missed_targets.py", ["--cells", "n7_N1"], "--cells has ['n7_N1']: not cells of the grid"),
+    ]:
+        out = _script(notebook, *args)
+        assert out.returncode in (1, 2) and message in out.stderr, (notebook, out.stderr[-2000:])
+        assert "Traceback" not in out.stderr and len(out.stderr.strip().splitlines()) <= 15, out.stderr
+
+
+def test_a_jupyter_kernels_flags_are_not_taken_for_folders(tmp_path, monkeypatch):
+    """In a notebook argv holds the kernel's flags: they are dropped and the environment variables are read."""
+    from searchrl.analysis import cli
+
+    kernel = ["-f", "/run/user/kernel-1.json", "--HistoryManager.hist_file=:memory:"]
+    args, rest = cli.parse(cli.parser("x"), kernel)
+    assert args.dirs == [] and args.out is None and rest == []
+    monkeypatch.setenv("SEARCHRL_EVAL_DIRS", "a,b")
+    monkeypatch.setenv("SEARCHRL_ANALYSIS_OUT", str(tmp_path))
+    assert cli.folders(args.dirs, "SEARCHRL_EVAL_DIRS", list) == [Path("a"), Path("b")]
+    assert cli.out_dir(args.out, Path("default")) == tmp_path
+    args, _ = cli.parse(cli.parser("x"), ["c", "d", "--out", "o", *kernel])
+    assert cli.folders(args.dirs, "SEARCHRL_EVAL_DIRS", list) == [Path("c"), Path("d")]
+    assert cli.out_dir(args.out, Path("default")) == Path("o")
+    monkeypatch.delenv("SEARCHRL_EVAL_DIRS")
+    monkeypatch.delenv("SEARCHRL_ANALYSIS_OUT")
+    assert cli.folders([], "SEARCHRL_EVAL_DIRS", lambda: [Path("default")]) == [Path("default")]
+    assert cli.out_dir(None, Path("default")) == Path("default")
+    parser = cli.parser("x", dirs=None)
+    _, overrides = cli.parse(parser, ["controller=greedy", "+model=c", *kernel], rest=True)
+    assert overrides == ["controller=greedy", "+model=c"]
+
+
 def test_claims_compares_the_models_with_each_other(fixture_dirs, tmp_path):
     """The fixture policy relabelled as models b, c and diagonal: claims 2-4 run, and identical policies differ by
     exactly 0 on every cell."""

@@ -75,3 +75,36 @@ def test_derived_sizes() -> None:
     assert WorldConfig(fov=11, explicit_area=5, comm_range=5).halo == 5
     assert WorldConfig(fov=7, explicit_area=3, comm_range=3).halo == 3
     assert WorldConfig(fov=3, explicit_area=3, comm_range=3).halo == 2  # Γ's 5×5 still needs two cells
+
+
+def test_an_integer_world_size_is_an_n_by_n_world_everywhere() -> None:
+    """world_size=20 means every world is 20×20: WorldConfig, searchrl.parallel_env, SearchEnv, Hydra's
+    env.world.world_size and env.extra_teams' world_size."""
+    import numpy as np
+    from hydra import compose, initialize_config_dir
+
+    import searchrl
+    from searchrl.envs.single_env import SearchEnv
+    from searchrl.train.__main__ import CONF_DIR
+    from searchrl.train.build import team_groups
+
+    assert WorldConfig(world_size=20).world_size == (20, 20) == WorldConfig(world_size=np.int64(20)).world_size
+    assert WorldConfig(world_size=20) == WorldConfig(world_size=(20, 20))
+    assert WorldConfig.from_dict({"world_size": 20}).world_size == (20, 20)
+    for bad in (True, 20.0, "20", (20,), 4):
+        with pytest.raises(ConfigError, match=r"^world_size="):
+            WorldConfig(world_size=bad)
+    env = searchrl.parallel_env(world_size=20, n_agents=2)
+    env.reset(seed=0)
+    assert env.config.world_size == (20, 20) and int(env.world_state.size[0]) == 20
+    single = SearchEnv(WorldConfig(world_size=20))
+    single.reset(seed=0)
+    assert int(single._env.world_state.size[0]) == 20
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        teams = "env.extra_teams=[{n_agents:4,n_worlds:1,world_size:40},{n_agents:2,n_worlds:1,world_size:[30,50]}]"
+        cfg = compose(config_name="train", overrides=["+model=b", "env.world.world_size=20", teams])
+        with pytest.raises(ConfigError, match=r"env.extra_teams\[0\]: world_size='big'"):
+            team_groups(
+                compose(config_name="train", overrides=["env.extra_teams=[{n_agents:4,n_worlds:1,world_size:big}]"])
+            )
+    assert [(w.world_size, k) for w, k in team_groups(cfg)] == [((20, 20), 16), ((40, 40), 1), ((30, 50), 1)]

@@ -182,3 +182,31 @@ def test_run_cell_shows_each_episode_end_once():
                      needs_observation=False, on_done=on_done)  # fmt: skip
     assert sorted(seen) == list(range(6))
     assert np.allclose([found[w] for w in range(6)], frame.found_fraction)
+
+
+def test_greedy_target_is_greedy_with_its_settings_recorded_so(tmp_path, monkeypatch, capsys):
+    """controller=greedy_target writes runs/eval/greedy_target by default, records `greedy` with horizon 3,
+    w_p = w_u = 0, w_t = 1, and plays the episodes those settings spelled out play: either resumes the other's
+    folder, and other settings are refused there."""
+    from omegaconf import OmegaConf
+
+    spelled = ["controller=greedy", "controller.horizon=3", "controller.w_p=0", "controller.w_u=0", "controller.w_t=1"]
+    monkeypatch.chdir(tmp_path)  # the default out_dir is relative to the working directory
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose(config_name="evaluate", overrides=[*SLICE, "controller=greedy_target", "shard=0", "num_shards=2"])
+    out = evaluate(cfg, ["controller=greedy_target"])
+    assert out == Path("runs/eval/greedy_target")
+    record = OmegaConf.load(out / "evaluation.yaml")
+    assert record.controller == "greedy" and record.controller_args.name == "greedy"
+    assert (record.controller_args.horizon, record.controller_args.w_p, record.controller_args.w_t) == (3, 0.0, 1.0)
+    resumed = _evaluate(tmp_path / out, *spelled, "shard=1", "num_shards=2")  # the settings spelled out resume it
+    assert len(resumed) == 18 and (resumed.controller == "greedy").all()
+    assert len(_evaluate(tmp_path / out, "controller=greedy_target")) == 18  # and the name resumes that
+    fresh = _evaluate(tmp_path / "spelled", *spelled)
+    key = ["n", "N", "map_seed", "repeat"]
+    pd.testing.assert_frame_equal(resumed.sort_values(key).reset_index(drop=True),
+                                  fresh.sort_values(key).reset_index(drop=True))  # fmt: skip
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
+        _evaluate(tmp_path / out, "controller=greedy")  # footprint-greedy's defaults are other settings
+    assert "controller_args.horizon: 3 there, 2 here" in capsys.readouterr().err

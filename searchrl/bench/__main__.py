@@ -17,6 +17,8 @@ import json
 import math
 import sys
 
+from searchrl.controllers.registry import HEURISTICS
+
 SUITES = {
     "world": "engine throughput, batched against the oracle (--seconds)",
     "memory": "bytes of world state per configuration",
@@ -38,7 +40,7 @@ def _parser() -> argparse.ArgumentParser:
             p.add_argument("--threads", type=int, default=2, help="torch threads (1 to 256)")
     sub["train"].add_argument("--updates", type=int, default=4, help="timed rollouts + updates (1 to 1000)")
     sub["train"].add_argument("--network", choices=["paper", "small"], default="paper", help="network config")
-    sub["eval"].add_argument("--controller", choices=["surfing", "greedy", "coverage", "random"],
+    sub["eval"].add_argument("--controller", choices=list(HEURISTICS),
                              help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
     sub["eval"].add_argument("--maps", type=int, default=10, help="maps per cell (1 to 1000)")
     sub["eval"].add_argument("--checkpoint", help="a policy model.zip instead of --controller")

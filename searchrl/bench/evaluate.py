@@ -10,7 +10,7 @@ from typing import TextIO
 import torch
 
 from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
-from searchrl.evaluate.__main__ import CONTROLLERS
+from searchrl.controllers.registry import make_controller
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
 from searchrl.world.config import WorldConfig
@@ -28,7 +28,8 @@ def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = No
         factory = lambda config: PolicyController(actor, config, seed=0)  # noqa: E731
         controller = f"policy:{checkpoint_label(checkpoint)}"
     else:
-        factory, world = CONTROLLERS[controller], WorldConfig()
+        name, world = controller, WorldConfig()
+        factory = lambda config: make_controller(name, config)  # noqa: E731
     observed = checkpoint is not None
     run_cell(factory, world, cells[0], 0, 1, 1, 0, needs_observation=observed)  # warm-up: numba cache
     steps = [0]

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from omegaconf import MISSING
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.state import WorldState
@@ -15,7 +17,8 @@ class Controller(Protocol):
 
     `reset(state, mask)` is called after the worlds in `mask` (K,) were reset (all of them at the start), so
     per-world memory (an LSTM state, a sweep plan) starts afresh there. `act` returns (K, N) int64 actions in
-    [0, config.n_actions) from the state and the agents' observations maps (K, N, 5, F, F), vector (K, N, 3).
+    [0, config.n_actions) from the state and the agents' observations maps (K, N, C, F, F), C = 5, or 6 with
+    `belief_age_channel`, and vector (K, N, 3).
     `active` (K,) bool, when given, marks the worlds whose actions count; a controller may skip the others
     (an expensive policy does; the heuristics act everywhere so their random draws do not depend on it).
     Decentralised controllers read only what an agent may know: its observation, its own belief and position.
@@ -28,6 +31,20 @@ class Controller(Protocol):
     def act(
         self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
     ) -> np.ndarray: ...
+
+
+@dataclass
+class ControllerConfig:
+    """Settings of a heuristic controller (`controller=<name>`, `imitation.teacher=<name>`): one dataclass beside each
+    controller's class, its fields the class's keyword arguments; `name` is its key in
+    `searchrl.controllers.registry.HEURISTICS`."""
+
+    name: str = MISSING
+
+
+@dataclass
+class RandomConfig(ControllerConfig):
+    name: str = "random"
 
 
 class RandomWalk:

@@ -12,10 +12,12 @@ two agents meeting head-on pass each other instead of waiting forever.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
+from searchrl.controllers.base import ControllerConfig
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES
 from searchrl.world.state import WorldState
@@ -108,6 +110,14 @@ def _action_of(dr, dc):
     if dr == -1 and dc == -1:
         return 8
     return 0
+
+
+@dataclass
+class CoverageConfig(ControllerConfig):
+    """Settings of `controller=coverage` (GeometricCoverage's keyword arguments)."""
+
+    name: str = "coverage"
+    radius: int = 1  # lanes 2·radius + 1 rows apart
 
 
 class GeometricCoverage:

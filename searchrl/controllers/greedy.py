@@ -50,11 +50,12 @@ It is not one of the paper's baselines.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
-from searchrl.controllers.base import FallbackHeuristic
+from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import GAMMA, MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G, team_sensing_rate
 from searchrl.world.state import WorldState
@@ -160,6 +161,47 @@ def reach_weights(blocked: np.ndarray, exponent: float) -> np.ndarray:
     weights = np.zeros(blocked.shape, np.float64)
     np.divide(GAMMA.sum(), mass, out=weights, where=free & (mass > 0))
     return np.power(weights, exponent, out=weights, where=free)
+
+
+@dataclass
+class GreedyConfig(ControllerConfig):
+    """Settings of `controller=greedy` (FootprintGreedy's keyword arguments)."""
+
+    name: str = "greedy"
+    # Not one of the paper's baselines: a move is scored by the information its footprint would sense over the
+    # next `horizon` steps in that direction (inside the field of view), later steps weighted by `discount`.
+    horizon: int = 2
+    discount: float = 0.7
+    w_p: float = 0.6  # the same weights as surfing's, so the two differ only in how they read the belief
+    w_u: float = 0.4
+    # Weight of p̂·(1 − û), the chance a target sits in the cell (§4.1.4 keeps a draw from p with probability
+    # 1 − u/max u); w_p=0 w_u=0 w_t=1 scores a move by the targets its footprint expects to detect.
+    w_t: float = 0.0
+    # Weight of cells another agent in view reaches in fewer moves (1: no difference; < 1 splits the view).
+    contested: float = 1.0
+    # Cells that fewer footprint positions can sense (edges, corners, beside obstacles) count
+    # (Γ_total / Γ_reach)^reach times; 0 counts every cell the same.
+    reach: float = 0.0
+    # Lower what an agent believes under the footprints of the neighbours it sees, as their sensing would (for
+    # worlds without merging, model C).
+    seen: bool = False
+    # Count what an agent believes of a cell exp(−age · ρ · steps since it last saw the cell's truth) times, ρ the
+    # rate at which a team spread evenly senses a cell (for worlds without merging).
+    age: float = 0.0
+
+
+@dataclass
+class GreedyTargetConfig(GreedyConfig):
+    """Settings of `controller=greedy_target`: target-greedy, footprint-greedy scoring a move by the targets its
+    footprint expects to detect over 3 steps (w_p = w_u = 0, w_t = 1), the shipped policies' teacher. The same
+    controller as `controller=greedy controller.horizon=3 controller.w_p=0 controller.w_u=0 controller.w_t=1`, and
+    recorded as `greedy` with those settings (searchrl/controllers/registry.py)."""
+
+    name: str = "greedy_target"
+    horizon: int = 3
+    w_p: float = 0.0
+    w_u: float = 0.0
+    w_t: float = 1.0
 
 
 class FootprintGreedy(FallbackHeuristic):

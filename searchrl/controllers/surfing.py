@@ -16,11 +16,12 @@ away; on the paper's grid that leaves more behind (see the README).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
 
-from searchrl.controllers.base import FallbackHeuristic
+from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES
 from searchrl.world.state import WorldState
@@ -90,6 +91,20 @@ def surfing_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actio
                 if score > best_score:
                     best, best_score = a, score
             out[k, i] = best
+
+
+@dataclass
+class SurfingConfig(ControllerConfig):
+    """Settings of `controller=surfing` (InformationSurfing's keyword arguments)."""
+
+    name: str = "surfing"
+    # Block sides of the pooled gradients. [1, 3] stays inside the 11×11 field of view (the policy's window) and is
+    # the paper's greedy local surfing; [1, 3, 9, 27] also follows the information up to 40 cells away and finds
+    # less on most cells of the grid (README, "Results: baselines").
+    scales: list[int] = field(default_factory=lambda: [1, 3])
+    w_p: float = 0.6  # weight of probability in the information surfed
+    w_u: float = 0.4  # weight of uncertainty
+    repulsion: float = 0.4  # weight of the unit Coulomb push away from visible agents
 
 
 class InformationSurfing(FallbackHeuristic):

@@ -1,4 +1,6 @@
-"""`python -m searchrl.evaluate controller=<surfing|greedy|coverage|random> [+model=...]` or `checkpoint=<model.zip>`
+"""`python -m searchrl.evaluate controller=<name> [+model=...]` or `checkpoint=<model.zip>`
+
+`<name>` is one of searchrl/controllers/registry.py (surfing, greedy, greedy_target, coverage, random).
 
 Runs the controller on the Table 2/3 grid and writes one parquet file per cell, `<out_dir>/cells/<cell>.parquet`
 (one row per episode), atomically; cells already written are skipped, so a rerun resumes and `shard=` /
@@ -28,11 +30,8 @@ from omegaconf.errors import OmegaConfBaseException
 from tqdm import tqdm
 
 from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, write_atomic
-from searchrl.controllers.base import RandomWalk
-from searchrl.controllers.coverage import GeometricCoverage
-from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
-from searchrl.controllers.surfing import InformationSurfing
+from searchrl.controllers.registry import heuristic, make_controller
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.runner import cell_config, run_cell
@@ -45,12 +44,6 @@ CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 SET_BY_GRID = ("env.n_worlds", "env.world.n_agents", "env.world.world_size", "env.world.n_targets",
                "env.world.n_distributions", "deterministic")  # fmt: skip
 LOCKS = ".locks"  # <out_dir>/.locks/: the folder's record lock and one lock per cell being run
-CONTROLLERS = {
-    "surfing": InformationSurfing,
-    "greedy": FootprintGreedy,
-    "coverage": GeometricCoverage,
-    "random": RandomWalk,
-}
 register_configs()
 
 
@@ -60,7 +53,9 @@ def fail(message: str) -> None:
 
 
 def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, object, bool]:
-    """(world settings, controller name, model name, factory(config) -> controller, needs observations)."""
+    """(world settings, controller label, model name, factory(config) -> controller, needs observations). The label
+    is what results are recorded under: `policy:<run>`, or the registry's label of `controller=<name>` (greedy for
+    greedy_target)."""
     if cfg.checkpoint is not None:
         world_dict, _, model_name = checkpoint_config(cfg.checkpoint)
         world = WorldConfig.from_dict(world_dict)
@@ -73,25 +68,18 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         return world, f"policy:{run_name}", model_name, policy_factory, True
     world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
     model_name = cfg.model.name if cfg.model is not None else "b"
-    c = cfg.controller
-    if c.name == "surfing":
-        factory = lambda config: InformationSurfing(  # noqa: E731
-            config, tuple(c.scales), c.w_p, c.w_u, c.repulsion, seed=int(cfg.seed)
-        )
-    elif c.name == "greedy":
-        factory = lambda config: FootprintGreedy(  # noqa: E731
-            config, horizon=int(c.horizon), discount=float(c.discount), w_p=float(c.w_p), w_u=float(c.w_u),
-            w_t=float(c.w_t), contested=float(c.contested), reach=float(c.reach),
-            seen=bool(c.seen), age=float(c.age), seed=int(cfg.seed),
-        )  # fmt: skip
-    elif c.name == "coverage":
-        factory = lambda config: GeometricCoverage(config, radius=int(c.radius))  # noqa: E731
-    elif c.name == "random":
-        factory = lambda config: RandomWalk(config, seed=int(cfg.seed))  # noqa: E731
-    else:
-        fail(f"controller={c.name!r} is not allowed: surfing, greedy, coverage, random, or checkpoint=<model.zip>")
+    settings = OmegaConf.to_container(cfg.controller, resolve=True)
+    name = settings.pop("name")
+    try:
+        entry = heuristic(name)
+    except ConfigError as err:
+        raise ConfigError(f"{err}, or checkpoint=<model.zip>") from None
+
+    def factory(config: WorldConfig) -> object:
+        return make_controller(name, config, seed=int(cfg.seed), settings=settings)
+
     factory(world)  # validates the controller's parameters before any work
-    return world, c.name, model_name, factory, False
+    return world, entry.label, model_name, factory, False
 
 
 # With checkpoint=, the world, model and controller come from the checkpoint's run: these overrides cannot apply.
@@ -165,7 +153,9 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
                 factory(cell_config(world, cell))
             except ConfigError as err:
                 raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
-        out_dir = out_dir or Path(f"runs/eval/{controller_name.replace(':', '_')}")
+        # Default runs/eval/<controller=…> (greedy_target's folder though its rows say greedy) or runs/eval/policy_<run>
+        default = controller_name if cfg.checkpoint is not None else cfg.controller.name
+        out_dir = out_dir or Path(f"runs/eval/{default.replace(':', '_')}")
         check_out_dir(out_dir)
         with hold(out_dir / LOCKS / "evaluation.lock", f"out_dir={str(out_dir)!r}", wait_s=60):
             claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name), option_defaults(cfg))

@@ -46,7 +46,9 @@ def evaluation_settings(cfg: DictConfig, label: str, model_name: str) -> dict[st
         settings["checkpoint_sha256"] = file_sha256(cfg.checkpoint)
         settings["deterministic"] = bool(cfg.deterministic)
     else:
-        settings["controller_args"] = OmegaConf.to_container(cfg.controller, resolve=True)
+        # Named by the label: a preset (controller=greedy_target) records the controller it sets (greedy) and every
+        # setting, as the same settings spelled out do, so either may resume the other's folder.
+        settings["controller_args"] = {**OmegaConf.to_container(cfg.controller, resolve=True), "name": label}
         settings["world"] = OmegaConf.to_container(cfg.env.world, resolve=True)
     return settings
 

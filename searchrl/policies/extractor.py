@@ -1,8 +1,10 @@
 """The paper's network (§4.2, after PRIMAL) as an SB3 features extractor.
 
-map (5, F, F) -> [conv3x3, conv3x3, maxpool] -> [conv3x3, conv3x3, maxpool] -> [conv3x3, conv3x3] -> flatten
+map (C, F, F) -> [conv3x3, conv3x3, maxpool] -> [conv3x3, conv3x3, maxpool] -> [conv3x3, conv3x3] -> flatten
 vector (3,)   -> FC
 concat        -> FC -> FC  = features (the LSTM of RecurrentPPO and the policy/value heads follow in SB3)
+
+C = 5 channels, or 6 with belief_age_channel (searchrl/world/observe.py); F = fov, 11 by default.
 """
 
 from __future__ import annotations

@@ -39,7 +39,8 @@ def team_groups(cfg: DictConfig) -> list[tuple[WorldConfig, int]]:
         if int(team.n_worlds) < 1:
             raise ConfigError(f"env.extra_teams[{j}].n_worlds={team.n_worlds!r} is not allowed: must be >= 1")
         try:
-            sizes = world.world_size if team.world_size is None else tuple(int(n) for n in team.world_size)
+            sizes = OmegaConf.to_container(team, resolve=True)["world_size"]  # n, [low, high] or null (the world's)
+            sizes = world.world_size if sizes is None else tuple(sizes) if isinstance(sizes, list) else sizes
             groups.append((replace(world, n_agents=int(team.n_agents), world_size=sizes), int(team.n_worlds)))
         except ConfigError as err:
             raise ConfigError(f"env.extra_teams[{j}]: {err}") from None

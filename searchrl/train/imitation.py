@@ -3,7 +3,8 @@
 Not in the paper, which trains from scratch. From scratch, PPO with the paper's rewards plateaus below greedy
 local surfing on this grid (README, claim 1); cloning surfing first starts RL from a policy that already climbs
 the information, and RL then only has to improve on it. `imitation.teacher=surfing` turns it on;
-`imitation.teacher=greedy` clones footprint-greedy, which finds more than surfing on the grid, and with
+`imitation.teacher=greedy` clones footprint-greedy, which finds more than surfing on the grid
+(`imitation.teacher=greedy_target` its target-greedy settings, any registered heuristic but random), and with
 `total_timesteps=0` the run stops after the clone (model.zip is the clone).
 
 Two steps, both before `model.learn`:
@@ -34,30 +35,25 @@ from sb3_contrib.common.recurrent.policies import RecurrentActorCriticPolicy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 from searchrl.controllers.base import Controller
-from searchrl.controllers.coverage import GeometricCoverage
-from searchrl.controllers.greedy import FootprintGreedy
-from searchrl.controllers.surfing import InformationSurfing
+from searchrl.controllers.registry import HEURISTICS, make_controller
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
-# Each takes (world config, seed, **teacher_args); without arguments a teacher has the defaults of its controller=…
-TEACHERS: dict[str, Callable[..., Controller]] = {
-    "surfing": lambda config, seed, **args: InformationSurfing(config, seed=seed, **args),
-    "greedy": lambda config, seed, **args: FootprintGreedy(config, seed=seed, **args),
-    "coverage": lambda config, seed, **args: GeometricCoverage(config, **args),
-}
+# The registry's controllers but the random walk (nothing to clone); without teacher_args a teacher has the settings
+# of controller=<name>.
+TEACHERS: tuple[str, ...] = tuple(name for name in HEURISTICS if name != "random")
 
 
 def make_teacher(teacher: str, config: WorldConfig, seed: int, args: dict | None = None) -> Controller:
     """The teacher's controller; ConfigError naming `imitation.teacher` or `imitation.teacher_args` if either is
     not allowed (an unknown teacher, an argument its controller does not take, or a value it refuses)."""
     if teacher not in TEACHERS:
-        raise ConfigError(f"imitation.teacher={teacher!r} is not allowed: one of {sorted(TEACHERS)} or null")
+        raise ConfigError(f"imitation.teacher={teacher!r} is not allowed: one of {', '.join(TEACHERS)}, or null")
     args = dict(args or {})
     if "seed" in args:
         raise ConfigError("imitation.teacher_args.seed is not allowed: the teacher is seeded from the run's seed")
     try:
-        return TEACHERS[teacher](config, seed, **args)
+        return make_controller(teacher, config, seed=seed, settings=args, key="imitation.teacher")
     except (TypeError, ValueError) as err:
         raise ConfigError(f"imitation.teacher_args={args} is not allowed for teacher {teacher!r}: {err}") from err
 
@@ -66,7 +62,7 @@ def make_teacher(teacher: str, config: WorldConfig, seed: int, args: dict | None
 class Demonstrations:
     """S sequences of T steps, one per slot and teacher episode."""
 
-    maps: np.ndarray  # (S, T, 5, fov, fov) float16 (observations lie in [0, 1])
+    maps: np.ndarray  # (S, T, C, fov, fov) float16, C = 5, or 6 with belief_age_channel (observations lie in [0, 1])
     vector: np.ndarray  # (S, T, 3) float32
     actions: np.ndarray  # (S, T) int64, the teacher's
     starts: np.ndarray  # (S, T) float32, 1 where an episode starts inside the sequence (not at t = 0)

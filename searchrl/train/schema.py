@@ -10,31 +10,38 @@ conf/train.yaml-> TrainConfig
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass, field, fields, make_dataclass
+from typing import Any, get_type_hints
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from searchrl.world.config import WorldConfig
 
+# WorldConfig's fields as a Hydra schema: the same names, types and defaults (types and unknown keys are checked at
+# composition), but `world_size` untyped so that an integer (`env.world.world_size=20`, every world 20×20) composes
+# as well as a range `[20, 128]`. WorldConfig itself checks every value again when the run builds it.
+WorldSchema = make_dataclass(
+    "WorldSchema",
+    [(f.name, Any if f.name == "world_size" else get_type_hints(WorldConfig)[f.name], field(default=f.default))
+     for f in fields(WorldConfig)],
+)  # fmt: skip
+WorldSchema.__module__ = __name__  # pickled by reference (submitit unpickles configs)
+
 
 def _world_node() -> DictConfig:
-    """WorldConfig as a typed node (types and unknown keys are checked at composition). The dataclass is
-    frozen, which OmegaConf would turn into a read-only node, so the flag is lifted; values are validated
-    again by WorldConfig itself when the run builds it."""
-    node = OmegaConf.structured(WorldConfig)
-    OmegaConf.set_readonly(node, False)
-    return node
+    """WorldSchema as a typed node."""
+    return OmegaConf.structured(WorldSchema)
 
 
 @dataclass
 class TeamConfig:
     n_agents: int = MISSING  # N of this group's worlds
     n_worlds: int = MISSING  # K of this group
-    # [n_min, n_max] of this group's worlds; null keeps env.world.world_size. Lets a clone see the crowded
-    # large worlds of the evaluation grid (n = 160, N = 256) that the training range [20, 128] never holds.
-    world_size: list[int] | None = None
+    # [n_min, n_max] of this group's worlds, or n (every world n×n); null keeps env.world.world_size. Lets a clone
+    # see the crowded large worlds of the evaluation grid (n = 160, N = 256) that the training range [20, 128] never
+    # holds. Untyped so that both forms compose; WorldConfig checks it.
+    world_size: Any = None
 
 
 @dataclass
@@ -105,7 +112,9 @@ class ValidationConfig:
 class ImitationConfig:
     """Warm start by cloning a heuristic before RL (`searchrl/train/imitation.py`); not in the paper."""
 
-    teacher: str | None = None  # surfing, greedy or coverage; null trains from scratch as the paper does
+    # A heuristic of searchrl/controllers/registry.py but random (surfing, greedy, greedy_target, coverage); null
+    # trains from scratch as the paper does
+    teacher: str | None = None
     # Keyword arguments of the teacher's controller (those of controller=<teacher>), e.g. {horizon: 1} for greedy;
     # empty: that controller's defaults.
     teacher_args: dict[str, Any] = field(default_factory=dict)

@@ -68,7 +68,7 @@ class WorldConfig:
     """All constants of one search world. Ranges are inclusive (low, high) pairs drawn per world at reset."""
 
     # --- scenario (§4.1): a world draws its side, Gaussian count and target count from these ranges
-    world_size: tuple[int, int] = (20, 128)  # n, §4.1.2
+    world_size: tuple[int, int] = (20, 128)  # n, §4.1.2; an integer n is the range (n, n)
     n_distributions: tuple[int, int] = (16, 32)  # m, §4.1.3
     n_targets: tuple[int, int] = (8, 16)  # j, §4.1.4
     n_agents: int = 8  # N, fixed during training (§4.1.2)
@@ -117,6 +117,8 @@ class WorldConfig:
     max_steps: int = 256  # episode length (§4.1.1)
 
     def __post_init__(self) -> None:
+        if is_int(self.world_size):  # world_size=20: every world is 20×20, the range (20, 20)
+            object.__setattr__(self, "world_size", (int(self.world_size), int(self.world_size)))
         self.validate()
 
     @property
@@ -150,6 +152,8 @@ class WorldConfig:
     def validate(self) -> None:
         for f in fields(self):  # types first: a string, NaN or fractional count never reaches a comparison
             is_kind, kind = _KINDS[f.type]
+            if f.name == "world_size":
+                kind = f"{kind}, or an integer n (every world n×n)"
             need(is_kind(getattr(self, f.name)), f.name, getattr(self, f.name), kind)
         _check_range("world_size", self.world_size, 5, 2048)
         _check_range("n_distributions", self.n_distributions, 1)

@@ -19,10 +19,10 @@ class Transition:
     """What `SearchWorld.step` returns. Observations are those after auto-reset for finished worlds;
     `final_maps`/`final_vector` hold the last observation of the worlds that finished (others are stale)."""
 
-    maps: np.ndarray  # (K, N, 5, fov, fov) float32
+    maps: np.ndarray  # (K, N, C, fov, fov) float32, C = 5, or 6 with belief_age_channel
     vector: np.ndarray  # (K, N, 3) float32
     result: StepResult
-    final_maps: np.ndarray  # (K, N, 5, fov, fov) float32, valid where result.done
+    final_maps: np.ndarray  # (K, N, C, fov, fov) float32, valid where result.done
     final_vector: np.ndarray  # (K, N, 3) float32, valid where result.done
     metrics: dict[str, np.ndarray]  # (K,) each, episode metrics, valid where result.done
 

@@ -1,0 +1,78 @@
+"""The one registry of heuristic controllers: a name -> its class and its settings dataclass (the schema).
+
+Every entry point reads it: evaluation (`controller=<name>`, conf/controller/<name>.yaml), imitation
+(`imitation.teacher=<name>`), `python -m searchrl.render --controller <name>` and
+`python -m searchrl.bench eval --controller <name>`; their error messages list its names. Each schema lives beside
+its class (searchrl/controllers/*.py); the Hydra layer registers it as `<name>_schema`
+(searchrl/evaluate/schema.py). Trained policies are not here: they come from a checkpoint (policy.py).
+
+A name may be a preset of another controller's settings: `greedy_target` is footprint-greedy with horizon 3 and
+w_p = w_u = 0, w_t = 1. Its results are recorded under the controller's `label` ("greedy", with those settings),
+so an evaluation folder made with the settings spelled out (`controller=greedy controller.horizon=3 ...`) and one
+made with `controller=greedy_target` hold the same record and take each other's reruns.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from searchrl.controllers.base import Controller, ControllerConfig, RandomConfig, RandomWalk
+from searchrl.controllers.coverage import CoverageConfig, GeometricCoverage
+from searchrl.controllers.greedy import FootprintGreedy, GreedyConfig, GreedyTargetConfig
+from searchrl.controllers.surfing import InformationSurfing, SurfingConfig
+from searchrl.world.config import ConfigError, WorldConfig
+
+
+@dataclass(frozen=True)
+class Heuristic:
+    """A registered controller: `cls(config, **settings[, seed=])`, its settings' dataclass, and the name its
+    results are recorded under (evaluation.yaml's and every result row's `controller`)."""
+
+    cls: type
+    schema: type[ControllerConfig]
+    label: str
+
+    def settings(self) -> dict[str, Any]:
+        """The schema's defaults without `name`: the keyword arguments of `cls` besides the world and the seed."""
+        values = asdict(self.schema())
+        values.pop("name")
+        return values
+
+
+HEURISTICS: dict[str, Heuristic] = {
+    "surfing": Heuristic(InformationSurfing, SurfingConfig, "surfing"),
+    "greedy": Heuristic(FootprintGreedy, GreedyConfig, "greedy"),
+    "greedy_target": Heuristic(FootprintGreedy, GreedyTargetConfig, "greedy"),
+    "coverage": Heuristic(GeometricCoverage, CoverageConfig, "coverage"),
+    "random": Heuristic(RandomWalk, RandomConfig, "random"),
+}
+
+
+def allowed() -> str:
+    """The registered names, comma-separated, for error messages."""
+    return ", ".join(HEURISTICS)
+
+
+def heuristic(name: object, key: str = "controller") -> Heuristic:
+    """The entry of `name`; ConfigError "`key`=name is not allowed: one of …" listing the registered names."""
+    if not isinstance(name, str) or name not in HEURISTICS:
+        raise ConfigError(f"{key}={name!r} is not allowed: one of {allowed()}")
+    return HEURISTICS[name]
+
+
+def make_controller(name: str, config: WorldConfig, seed: int = 0, settings: dict[str, Any] | None = None,
+                    key: str = "controller") -> Controller:  # fmt: skip
+    """The controller `name` in the world `config`: its schema's defaults, overridden by `settings` (plain values
+    without `name`), seeded with `seed` where it draws random moves. ConfigError for an unknown name (naming `key`)
+    or setting; the class's own ValueError for a value it refuses."""
+    entry = heuristic(name, key)
+    values = entry.settings()
+    unknown = sorted(set(settings or {}) - set(values))
+    if unknown:
+        raise ConfigError(f"{name} takes no setting {unknown[0]!r}; its settings are {sorted(values)}")
+    values.update(settings or {})
+    if "seed" in inspect.signature(entry.cls).parameters:
+        values["seed"] = seed
+    return entry.cls(config, **values)

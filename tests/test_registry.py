@@ -1,0 +1,91 @@
+"""One registry of heuristic controllers (searchrl/controllers/registry.py): every entry point reads it, its names are
+the ones error messages list, and `greedy_target` is footprint-greedy with the target-greedy settings spelled out."""
+
+from __future__ import annotations
+
+import ast
+from dataclasses import asdict, fields
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from searchrl.controllers.greedy import FootprintGreedy
+from searchrl.controllers.registry import HEURISTICS, allowed, heuristic, make_controller
+from searchrl.evaluate.__main__ import CONF_DIR, make_controller_factory
+from searchrl.train.imitation import TEACHERS, make_teacher
+from searchrl.world.config import ConfigError, WorldConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+TARGET_GREEDY = ["controller=greedy", "controller.horizon=3", "controller.w_p=0", "controller.w_u=0",
+                 "controller.w_t=1"]  # fmt: skip
+
+
+def _compose(*overrides: str):
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        return compose(config_name="evaluate", overrides=list(overrides))
+
+
+def test_every_name_has_a_config_file_a_schema_of_its_name_and_a_class_taking_its_settings():
+    assert set(HEURISTICS) == {p.stem for p in (ROOT / "conf" / "controller").glob("*.yaml")}
+    for name, entry in HEURISTICS.items():
+        assert entry.schema.name == name and entry.schema.__module__ == entry.cls.__module__  # beside its class
+        assert _compose(f"controller={name}").controller.name == name
+        controller = make_controller(name, WorldConfig(), seed=1)
+        assert isinstance(controller, entry.cls)
+
+
+def test_controllers_import_no_hydra_and_no_app_layer():
+    """Layering: world <- envs <- controllers <- train/evaluate; Hydra stays in the app layer."""
+    for path in (ROOT / "searchrl" / "controllers").glob("*.py"):
+        imported = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                imported |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                imported.add(node.module or "")
+        app = [
+            m for m in imported if m.split(".")[0] == "hydra" or m.startswith(("searchrl.train", "searchrl.evaluate"))
+        ]
+        assert not app, (path, app)
+
+
+def test_unknown_names_are_refused_listing_the_registry():
+    names = allowed()
+    assert names == ", ".join(HEURISTICS) and "greedy_target" in names
+    with pytest.raises(ConfigError, match=rf"controller='planner' is not allowed: one of {names}"):
+        heuristic("planner")
+    with pytest.raises(ConfigError, match=rf"one of {names}, or checkpoint=<model.zip>"):
+        make_controller_factory(_compose("controller=greedy", "controller.name=planner"))
+    with pytest.raises(ConfigError, match=rf"imitation.teacher='random' is not allowed: one of {', '.join(TEACHERS)}"):
+        make_teacher("random", WorldConfig(), 0)
+    assert TEACHERS == tuple(n for n in HEURISTICS if n != "random")
+    with pytest.raises(ConfigError, match=r"greedy takes no setting 'sweep'"):
+        make_controller("greedy", WorldConfig(), settings={"sweep": 1})
+
+
+def test_greedy_target_composes_to_the_spelled_out_greedy_settings():
+    named, spelled = _compose("controller=greedy_target"), _compose(*TARGET_GREEDY)
+    as_dict = {k: v for k, v in OmegaConf.to_container(named.controller).items() if k != "name"}
+    assert as_dict == {k: v for k, v in OmegaConf.to_container(spelled.controller).items() if k != "name"}
+    assert (named.controller.name, spelled.controller.name) == ("greedy_target", "greedy")
+    # Its own settings still apply on top, and the schema checks them
+    assert _compose("controller=greedy_target", "controller.reach=2").controller.reach == 2.0
+    # The same controller: class, label, every setting
+    world, label, _, factory, _ = make_controller_factory(named)
+    _, spelled_label, _, spelled_factory, _ = make_controller_factory(spelled)
+    a, b = factory(world), spelled_factory(world)
+    assert type(a) is type(b) is FootprintGreedy and label == spelled_label == "greedy"
+    assert {f.name: getattr(a, f.name) for f in fields(HEURISTICS["greedy"].schema) if f.name != "name"} == {
+        f.name: getattr(b, f.name) for f in fields(HEURISTICS["greedy"].schema) if f.name != "name"}  # fmt: skip
+    assert (a.horizon, a.w_p, a.w_u, a.w_t) == (3, 0.0, 0.0, 1.0)
+
+
+def test_imitation_takes_greedy_target_and_greedy_with_teacher_args_alike():
+    world = WorldConfig(world_size=20, n_agents=2)
+    named = make_teacher("greedy_target", world, 0)
+    spelled = make_teacher("greedy", world, 0, {"horizon": 3, "w_p": 0, "w_u": 0, "w_t": 1})
+    keys = [k for k in asdict(HEURISTICS["greedy"].schema()) if k != "name"]
+    assert {k: getattr(named, k) for k in keys} == {k: getattr(spelled, k) for k in keys}
+    assert make_teacher("greedy_target", world, 0, {"reach": 2}).reach == 2.0
