@@ -44,11 +44,11 @@ def test_readme_is_a_short_guide():
     assert len(lines) <= 250, f"README.md has {len(lines)} lines; results and history belong in docs/"
 
 
-def test_readme_test_command_is_what_ci_runs():
-    ci = (ROOT / ".ci" / "run").read_text()
-    command = "pip install torch==2.13.0 && pip install -e '.[dev]' && python -m pytest"
-    assert command in README.read_text()
-    assert "pip install torch==2.13.0" in ci and "'.[dev]'" in ci and "pytest" in ci
+def test_ci_runs_the_readme_test_command():
+    """The install section's second command (the one that ends in pytest) is a line of `.ci/run`."""
+    commands = re.findall(r"```bash\n(.*?)\n```", README.read_text().split("## Install")[1], flags=re.S)
+    test_command = next(c for c in commands if c.endswith("python -m pytest"))
+    assert test_command in (ROOT / ".ci" / "run").read_text().splitlines()
 
 
 def _compose(app: str, overrides: list[str]) -> None:
@@ -102,9 +102,11 @@ def test_readme_command_parses(command, capsys):
         assert (ROOT / words[1]).is_file(), f"{command!r}: no script {words[1]}"
 
 
-def test_readme_python_example_runs():
-    block = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)[0]
-    exec(compile(block, "README.md", "exec"), {})
+def test_readme_python_examples_run():
+    blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
+    assert blocks, "README has no python example"
+    for block in blocks:
+        exec(compile(block, "README.md", "exec"), {})
 
 
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: p.name)
