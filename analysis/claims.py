@@ -138,7 +138,7 @@ if margins is not None and teacher_world:
     lines.append("\n## Policies against footprint-greedy in their own world (all cells)\n")
     lines.append("How close a policy comes to footprint-greedy in its own world (`controller=greedy +model=<m>`, with "
                  "the settings of the evaluated greedy runs; pass the teacher's to compare a clone with its "
-                 "teacher, `runs/reference/README.md`).\n")  # fmt: skip
+                 "teacher, `conf/experiment/clone_<m>.yaml`).\n")  # fmt: skip
     lines += [f"- {m} − {label}: " + verdicts(policies[m], label) for m, label in sorted(teacher_world.items())]
 if margins is not None and "coverage" in baselines:
     lines.append("\n## Against geometric coverage (all cells)\n")

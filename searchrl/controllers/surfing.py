@@ -10,7 +10,7 @@ free cells it can see; with no gradient and no neighbour it moves at random.
 
 The default scales (1, 3) keep every sample inside the agent's 11×11 field of view: a greedy local climb, as the
 paper describes surfing (§6.1.3, §6.3), and what a policy sees. Wider scales also pull agents toward information far
-away; on the paper's grid that leaves more behind (see the README).
+away; on the paper's grid that leaves more behind (docs/results.md, "The baselines").
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ class SurfingConfig(ControllerConfig):
     name: str = "surfing"
     # Block sides of the pooled gradients. [1, 3] stays inside the 11×11 field of view (the policy's window) and is
     # the paper's greedy local surfing; [1, 3, 9, 27] also follows the information up to 40 cells away and finds
-    # less on most cells of the grid (README, "Results: baselines").
+    # less on most cells of the grid (docs/results.md, "The baselines").
     scales: list[int] = field(default_factory=lambda: [1, 3])
     w_p: float = 0.6  # weight of probability in the information surfed
     w_u: float = 0.4  # weight of uncertainty

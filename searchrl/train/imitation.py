@@ -1,7 +1,7 @@
 """Warm start by imitation: clone a heuristic teacher (surfing, footprint-greedy, coverage) into the policy before RL.
 
 Not in the paper, which trains from scratch. From scratch, PPO with the paper's rewards plateaus below greedy
-local surfing on this grid (README, claim 1); cloning surfing first starts RL from a policy that already climbs
+local surfing on this grid (docs/results.md); cloning surfing first starts RL from a policy that already climbs
 the information, and RL then only has to improve on it. `imitation.teacher=surfing` turns it on;
 `imitation.teacher=greedy` clones footprint-greedy, which finds more than surfing on the grid
 (`imitation.teacher=greedy_target` its target-greedy settings, any registered heuristic but random), and with
@@ -188,7 +188,7 @@ def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_e
     loss, value loss, accuracy = argmax action is the teacher's, averaged over the epoch's minibatches; learning
     rate of the epoch's last step). `lr_schedule` "linear" takes each phase's rate from `learning_rate` down to 0
     over its minibatches ("constant" keeps it); the shipped C is fitted so, and its small late steps leave fewer
-    slips than a constant rate (runs/reference/README.md).
+    slips than a constant rate (docs/log.md).
 
     Why two phases: the returns' squared error is ~20× the imitation loss at the start, and through the shared
     extractor it drowned the imitation gradient (accuracy stayed at the majority action). Why a unit-gain action

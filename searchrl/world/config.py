@@ -2,7 +2,7 @@
 
 Values the paper fixes (λ, Γ, Table 1 rewards, 256 steps, the training ranges of §4.1) are defaults here;
 values it leaves open (k, ξ, τ, η, ρ bound, variance floor, obstacle density, observation scaling) are fields
-with a default and a reason in the README's "Deviations and choices".
+with a default and a reason in docs/world.md, "Deviations and choices".
 """
 
 from __future__ import annotations
@@ -95,7 +95,7 @@ class WorldConfig:
     # Observation only (not in the paper; 0 = off): the belief channels show an agent's belief of a cell
     # exp(−belief_age·ρ·(t − t₀)) times, t₀ the last step it saw the cell's truth in Φ and ρ = N·ΣΓ / free cells
     # the rate at which an evenly spread team senses a cell. Without merging (model C) a belief off the agent's
-    # own path stays the prior; this shows how stale it is (README, "Deviations and choices").
+    # own path stays the prior; this shows how stale it is (docs/world.md, "Deviations and choices").
     belief_age: float = 0.0
     # With belief_age > 0: show that factor as a sixth channel (the belief channels keep their scale) instead of
     # multiplying the belief channels by it. Scaled views fade to nearly nothing in crowded worlds, where the
