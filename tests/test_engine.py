@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import copy
 import json
+import pickle
 
 import numpy as np
 import pytest
@@ -10,6 +12,9 @@ import pytest
 from searchrl.bench.__main__ import main as bench_main
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
+from searchrl.world.observe import observe
+from searchrl.world.reset import reset_worlds
+from searchrl.world.state import allocate
 from searchrl.world.step import check_actions
 
 
@@ -183,3 +188,21 @@ def test_k_per_n_senses_each_world_with_its_own_side(n):
     factor = 1 - config.lam * n * float(GAMMA[2, 2])
     assert world.state.p[0, r, c] == pytest.approx(before * factor, rel=1e-6)
     np.testing.assert_allclose(config.sensing_rate(np.array([20, 40])), [0.02, 0.04])
+
+
+def test_the_kernels_view_of_the_state_follows_a_rebound_field():
+    """`WorldState.arrays()` is built once and kept while the fields stay the same arrays (in-place updates such as
+    `state.t += 1` keep it); rebinding a field builds a new one, so no kernel reads a stale array."""
+    config = WorldConfig(world_size=(10, 10), n_targets=(1, 1), n_agents=2)
+    state = allocate(config, 1)
+    reset_worlds(config, state, np.ones(1, bool), np.random.default_rng(0))
+    view = state.arrays()
+    state.t += 1
+    assert state.arrays() is view
+    state.pos = state.pos[:, ::-1].copy()  # a new array: each agent's (col, row)
+    assert state.arrays() is not view
+    _, vector = observe(config, state)
+    np.testing.assert_array_equal(vector[0, :, :2], (state.pos[0, :, ::-1] / 10).astype(np.float32))
+    assert state.copy().arrays() is not state.arrays()
+    twin = pickle.loads(pickle.dumps(copy.deepcopy(state)))  # the view is left behind and rebuilt
+    np.testing.assert_array_equal(observe(config, twin)[1], vector)

@@ -205,3 +205,48 @@ BAD = [({"horizon": 0}, "horizon"), ({"horizon": 6}, "horizon"), ({"discount": 0
 def test_bad_parameters_are_named(kwargs, name):
     with pytest.raises(ValueError, match=name):
         FootprintGreedy(WorldConfig(), **kwargs)
+
+
+def _seen_without_age(state, seen: np.ndarray, view: int) -> None:
+    """Greedy's `seen` without `age`, as a plain loop (the reference for the one difference from the world's):
+    (1 − Γ) under every neighbour in view, scanned row by row, and never reset on Φ until the world is."""
+    h, g = state.halo, GAMMA.shape[0] // 2
+    for k in range(state.n_worlds):
+        for i in range(state.n_agents):
+            r, c = state.pos[k, i] + h
+            for rr in range(r - view, r + view + 1):
+                for cc in range(c - view, c + view + 1):
+                    if state.occupant[k, rr, cc] not in (-1, i):
+                        for dr in range(-g, g + 1):
+                            for dc in range(-g, g + 1):
+                                cell = seen[k, i, rr + dr, cc + dc]
+                                seen[k, i, rr + dr, cc + dc] = np.float32(cell * (1.0 - GAMMA[dr + g, dc + g]))
+
+
+@pytest.mark.parametrize("age", [0.0, 0.5])
+def test_greedy_keeps_the_worlds_freshness_bit_for_bit(age):
+    """One implementation (searchrl/world/seen.py) keeps both: with `age` greedy's seen and known equal the world's
+    belief_seen and belief_time exactly, step by step and across resets; without it seen is never reset on Φ."""
+    config = WorldConfig(world_size=(12, 20), n_agents=12, n_targets=(2, 4), communication=False, belief_age=0.5,
+                         belief_seen=True, max_steps=25)  # fmt: skip
+    state = allocate(config, 3)
+    reset_worlds(config, state, np.ones(3, bool), np.random.default_rng(0))
+    greedy = FootprintGreedy(config, age=age, seen=True, contested=0.5, seed=1)
+    greedy.reset(state, np.ones(3, bool))
+    reference, rng, resets = np.ones_like(state.belief_seen), np.random.default_rng(2), 0
+    for _ in range(60):
+        actions = greedy.act(state, *observe(config, state))
+        _seen_without_age(state, reference, config.fov // 2)
+        if age > 0:
+            np.testing.assert_array_equal(greedy._seen, state.belief_seen)
+            np.testing.assert_array_equal(greedy._known, state.belief_time)
+        else:
+            np.testing.assert_array_equal(greedy._seen, reference)
+            assert greedy._known.size == 0
+        done = step(config, state, actions, rng).done
+        if done.any():
+            resets += 1
+            reset_worlds(config, state, done, rng)
+            greedy.reset(state, done)
+            reference[done] = 1.0
+    assert resets > 0 and (reference < 1).any()

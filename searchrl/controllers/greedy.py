@@ -33,7 +33,8 @@ cell's truth (inside its explicit area Φ, where the world refreshes its belief;
 merging (model C) an agent's belief outside its own path stays the prior, so in a crowded world it chases peaks
 that others cleared long ago and leaves the cells it saw partly sensed; ageing the belief makes those known
 remainders worth a detour. Inside Φ the neighbours' footprints inferred by `seen` are forgotten, since the
-truth there already holds them. With few agents ρ is small and nothing changes.
+truth there already holds them. With few agents ρ is small and nothing changes. Both maps are kept by
+searchrl/world/seen.py, which also keeps the world's `belief_age` and `belief_seen`: with `age` the two are equal.
 
 Cells that fewer footprint positions can sense count more with `reach` > 0: (Γ_total / Γ_reach)^reach, where
 Γ_reach is the footprint mass an agent can put on the cell from the cells it may stand on (1.37 on an edge, 1.91
@@ -51,14 +52,40 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
 from searchrl.world.config import WorldConfig
-from searchrl.world.footprint import GAMMA, MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G, team_sensing_rate
+from searchrl.world.footprint import GAMMA, MOVES, SUPPORT, SUPPORT_DC, SUPPORT_DR, SUPPORT_G, team_sensing_rate
+from searchrl.world.seen import freshness, remember_sightings
 from searchrl.world.state import WorldState
+
+
+class GreedyParams(NamedTuple):
+    """FootprintGreedy's settings as `greedy_actions` takes them."""
+
+    moves: np.ndarray  # (A, 2) int64, MOVES
+    n_actions: int  # A: 5, or 9 with diagonal moves
+    gamma: np.ndarray  # (5, 5) float64, Γ
+    horizon: int
+    discount: float
+    w_p: float
+    w_u: float
+    w_t: float
+    fov_half: int  # half the field of view: what an agent sees lies within that many cells
+    contested: float
+
+
+class GreedyMemory(NamedTuple):
+    """What greedy keeps per world and agent between steps (searchrl/world/seen.py for seen and known)."""
+
+    reach: np.ndarray  # (K, S, S) float64, `reach_weights`
+    seen: np.ndarray  # (K, N, S, S) float32, Π (1 − Γ) of the neighbours' footprints seen; (K, N, 0, 0) without `seen`
+    known: np.ndarray  # (K, N, S, S) int32, step each agent last saw a cell's truth; (K, N, 0, 0) without `age`
+    rates: np.ndarray  # (K,) float64, age · N · ΣΓ / free cells: how fast an evenly spread team senses a cell
 
 
 @njit(cache=True)
@@ -67,11 +94,15 @@ def _moves_apart(dr, dc, diagonal):
     return max(abs(dr), abs(dc)) if diagonal else abs(dr) + abs(dc)
 
 
-@njit(cache=True)
-def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, wu, wt, others, n_others,
-                           contested, diagonal, reach, seen, use_seen, known, now, rate, use_age):  # fmt: skip
-    """Σ Γ(d)·w·reach·I(r + d, c + d) of agent i's belief over the cells within `view` of its position (r0, c0);
-    w = contested where one of the agents at others[:n_others] (rows, cols) is fewer moves away than (r0, c0)."""
+@njit(cache=True, inline="always")  # inlined: called per move and step ahead, so its arguments are not copied
+def _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_others):
+    """Σ Γ(d)·x·reach·I(r + d, c + d) of agent i's belief in world k of w (`WorldState.arrays()`) over the cells
+    within `view` of its padded position (r0, c0); x = contested where one of the agents at others[:n_others]
+    (rows, cols) is fewer moves away than (r0, c0), else 1."""
+    belief, gamma, view, contested = w.belief, params.gamma, params.fov_half, params.contested
+    sp, su, wp, wu, wt = w.obs_scale[k, 0], w.obs_scale[k, 1], params.w_p, params.w_u, params.w_t
+    diagonal, reach, seen, known = params.n_actions > 5, memory.reach, memory.seen, memory.known
+    use_seen, use_age = seen.shape[2] > 0, known.shape[2] > 0
     g = gamma.shape[0] // 2
     side = belief.shape[3]
     total = 0.0
@@ -91,56 +122,42 @@ def _footprint_information(belief, k, i, r, c, r0, c0, view, gamma, sp, su, wp, 
                 if use_seen:  # what the neighbours it saw there have sensed, as that sensing scales p and u
                     p_hat, u_hat = p_hat * seen[k, i, rr, cc], u_hat * seen[k, i, rr, cc]
                 if use_age:  # what unseen agents have likely sensed since it last saw the cell's truth
-                    fresh = np.exp(-rate * (now - known[k, i, rr, cc]))
+                    fresh = freshness(memory.rates[k], w.t[k], known[k, i, rr, cc])
                     p_hat, u_hat = p_hat * fresh, u_hat * fresh
                 total += weight * reach[k, rr, cc] * (wp * p_hat + wu * u_hat + wt * p_hat * max(0.0, 1.0 - u_hat))
     return total
 
 
 @njit(cache=True)
-def greedy_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actions, gamma, horizon, discount, wp, wu,
-                   wt, view, contested, reach, seen, use_seen, known, steps, rates, use_age, phi, fallback,
-                   out):  # fmt: skip
-    """out (K,N) int64 <- footprint-greedy actions. fallback (K,N): random moves used where nothing is sensed."""
+def greedy_actions(w, params, memory, fallback, out):
+    """out (K,N) int64 <- footprint-greedy actions of the agents of w (`WorldState.arrays()`) with settings `params`
+    (GreedyParams) and `memory` (GreedyMemory, seen and known already brought to this step). fallback (K,N) int64:
+    random moves used where nothing is sensed."""
+    pos, occupant, blocked, h, moves, view = w.pos, w.occupant, w.blocked, w.halo, params.moves, params.fov_half
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
-    diagonal = n_actions > 5
     others = np.empty(((2 * view + 1) ** 2, 2), np.int64)
-    g = gamma.shape[0] // 2
     for k in range(n_worlds):
-        sp, su = obs_scale[k, 0], obs_scale[k, 1]
         for i in range(n_agents):
             r, c = pos[k, i, 0] + h, pos[k, i, 1] + h
             n_others = 0
-            if contested != 1.0 or use_seen:  # the other agents in view, as channel 0 of the observation shows them
+            if params.contested != 1.0:  # the other agents in view, as channel 0 of the observation shows them
                 for dr in range(-view, view + 1):
                     for dc in range(-view, view + 1):
                         j = occupant[k, r + dr, c + dc]
                         if j >= 0 and j != i:
                             others[n_others, 0], others[n_others, 1] = r + dr, c + dc
                             n_others += 1
-            if use_seen:  # each neighbour in view sensed its footprint at the end of the last step
-                for j in range(n_others):
-                    for dr in range(-g, g + 1):
-                        for dc in range(-g, g + 1):
-                            seen[k, i, others[j, 0] + dr, others[j, 1] + dc] *= 1.0 - gamma[dr + g, dc + g]
-            if use_age:  # its belief inside Φ is the world's truth now, with every agent's sensing in it
-                for dr in range(-phi, phi + 1):
-                    for dc in range(-phi, phi + 1):
-                        known[k, i, r + dr, c + dc] = steps[k]
-                        if use_seen:
-                            seen[k, i, r + dr, c + dc] = 1.0
             best, best_score = -1, 0.0
-            for a in range(1, n_actions):
+            for a in range(1, params.n_actions):
                 mr, mc = moves[a, 0], moves[a, 1]
                 if blocked[k, r + mr, c + mc] or occupant[k, r + mr, c + mc] >= 0:
                     continue
                 score, weight = 0.0, 1.0
-                for t in range(1, horizon + 1):
+                for t in range(1, params.horizon + 1):
                     score += weight * _footprint_information(
-                        belief, k, i, r + t * mr, c + t * mc, r, c, view, gamma, sp, su, wp, wu, wt, others,
-                        n_others, contested, diagonal, reach, seen, use_seen, known, steps[k], rates[k], use_age,
-                    )  # fmt: skip
-                    weight *= discount
+                        w, params, memory, k, i, r + t * mr, c + t * mc, r, c, others, n_others
+                    )
+                    weight *= params.discount
                 if score > best_score:
                     best, best_score = a, score
             out[k, i] = best if best >= 1 else fallback[k, i]
@@ -235,33 +252,31 @@ class FootprintGreedy(FallbackHeuristic):
         self.reach = float(reach)
         self.seen = bool(seen)
         self.age = float(age)
-        self._known = np.zeros((1, 1, 1, 1), np.int32)  # (K, N, S, S) step at which each agent last saw the truth
-        self._rates = np.zeros(1)  # (K,) age · N · ΣΓ / free cells: how fast an evenly spread team senses a cell
-        self._weights = np.ones((0, 0, 0))  # (K, S, S) reach weights of the worlds, refreshed on reset
-        self._seen = np.ones((1, 1, 1, 1), np.float32)  # (K, N, S, S) Π (1 − Γ) of neighbours' footprints seen
+        self._params = GreedyParams(MOVES, config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u,
+                                    self.w_t, config.fov // 2, self.contested)  # fmt: skip
+        # GreedyMemory's arrays, sized on the first reset
+        self._weights, self._seen = np.ones((0, 0, 0)), np.ones((0, 0, 0, 0), np.float32)
+        self._known, self._rates = np.zeros((0, 0, 0, 0), np.int32), np.zeros(0)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         if self._weights.shape != state.blocked.shape:
             self._weights, mask = np.ones(state.blocked.shape), np.ones(state.n_worlds, bool)
         if self.reach > 0 and mask.any():  # obstacles and the world's side change only on reset
             self._weights[mask] = reach_weights(state.blocked[mask], self.reach)
-        if self.seen:
-            if self._seen.shape != state.belief[:, :, 0].shape:
-                self._seen = np.ones(state.belief[:, :, 0].shape, np.float32)
-            self._seen[mask] = 1.0
-        if self.age > 0:
-            if self._known.shape != state.belief[:, :, 0].shape:
-                self._known = np.zeros(state.belief[:, :, 0].shape, np.int32)
-            self._known[mask] = 0
-            self._rates = self.age * team_sensing_rate(state.blocked, state.n_agents)
+        maps, off = state.belief[:, :, 0].shape, (state.n_worlds, state.n_agents, 0, 0)  # kept or not
+        if self._seen.shape != (maps if self.seen else off):
+            self._seen = np.ones(maps if self.seen else off, np.float32)
+        if self._known.shape != (maps if self.age > 0 else off):
+            self._known = np.zeros(maps if self.age > 0 else off, np.int32)
+        self._seen[mask], self._known[mask] = 1.0, 0
+        self._rates = self.age * team_sensing_rate(state.blocked, state.n_agents) if self.age > 0 else np.zeros(0)
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
-        if self._weights.shape != state.blocked.shape:
+        if self._weights.shape != state.blocked.shape or self._seen.shape[:2] != (state.n_worlds, state.n_agents):
             self.reset(state, np.ones(state.n_worlds, bool))
-        greedy_actions(
-            state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
-            self.config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u, self.w_t,
-            self.config.fov // 2,
-            self.contested, self._weights, self._seen, self.seen, self._known, state.t, self._rates, self.age > 0,
-            self.config.explicit_area // 2, fallback, out,
-        )  # fmt: skip
+        w = state.arrays()
+        if self.seen or self.age > 0:  # what each agent saw this step (forgotten on Φ only with age, as always)
+            remember_sightings(w, SUPPORT, self._seen, self._known, self.config.fov // 2,
+                               self.config.explicit_area // 2, self.age > 0, 0, state.n_worlds)  # fmt: skip
+        memory = GreedyMemory(self._weights, self._seen, self._known, self._rates)
+        greedy_actions(w, self._params, memory, fallback, out)

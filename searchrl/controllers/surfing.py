@@ -47,9 +47,11 @@ def _block_mean(belief, k, i, r, c, s, sp, su, wp, wu):
 
 
 @njit(cache=True)
-def surfing_actions(belief, obs_scale, occupant, blocked, pos, h, moves, n_actions, scales, wp, wu, repulsion,
-                    view, fallback, out):  # fmt: skip
-    """out (K,N) int64 <- surfing actions. fallback (K,N): random moves used where there is nothing to follow."""
+def surfing_actions(w, moves, n_actions, scales, wp, wu, repulsion, view, fallback, out):
+    """out (K,N) int64 <- surfing actions of the agents of w (`WorldState.arrays()`); moves (A,2) int64, scales (L,)
+    int64 block sides, `view` half the field of view. fallback (K,N) int64: random moves used where there is
+    nothing to follow."""
+    belief, obs_scale, occupant, blocked, pos, h = w.belief, w.obs_scale, w.occupant, w.blocked, w.pos, w.halo
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     for k in range(n_worlds):
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
@@ -124,7 +126,6 @@ class InformationSurfing(FallbackHeuristic):
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
         surfing_actions(
-            state.belief, state.obs_scale, state.occupant, state.blocked, state.pos, state.halo, MOVES,
-            self.config.n_actions, self.scales, self.w_p, self.w_u, self.repulsion, self.config.fov // 2,
-            fallback, out,
+            state.arrays(), MOVES, self.config.n_actions, self.scales, self.w_p, self.w_u, self.repulsion,
+            self.config.fov // 2, fallback, out,
         )  # fmt: skip

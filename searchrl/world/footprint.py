@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 
@@ -19,6 +21,18 @@ _SUPPORT = np.argwhere(GAMMA > 0)
 SUPPORT_DR: np.ndarray = (_SUPPORT[:, 0] - 2).astype(np.int64)  # (13,)
 SUPPORT_DC: np.ndarray = (_SUPPORT[:, 1] - 2).astype(np.int64)  # (13,)
 SUPPORT_G: np.ndarray = GAMMA[GAMMA > 0].astype(np.float64)  # (13,)
+
+
+class Footprint(NamedTuple):
+    """Γ's support as the compiled kernels take it: cell s of the footprint is offset (dr[s], dc[s]) from the agent
+    and weighs g[s]."""
+
+    dr: np.ndarray  # (13,) int64
+    dc: np.ndarray  # (13,) int64
+    g: np.ndarray  # (13,) float64
+
+
+SUPPORT = Footprint(SUPPORT_DR, SUPPORT_DC, SUPPORT_G)
 
 
 def team_sensing_rate(blocked: np.ndarray, n_agents: int) -> np.ndarray:

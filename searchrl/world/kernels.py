@@ -1,11 +1,15 @@
 """Compiled phases of one step (see SPEC.md). Each function loops over worlds, agents and cells inside numba,
 so the Python side makes one call per phase per batch, never one per agent or cell.
 
-Conventions: arrays are the WorldState fields (padded maps, unpadded positions); `h` is the halo.
-Footprint support is passed as parallel arrays (dr, dc, g) of the 13 non-zero cells of Γ, in row-major order.
+Conventions: the state comes as one `w` (`WorldState.arrays()`: the WorldState fields, padded maps, unpadded
+positions, `w.halo` the halo h); Γ's support as one `support` (`footprint.SUPPORT`: parallel arrays dr, dc, g of
+the 13 non-zero cells of Γ, in row-major order); scratch grids as one `scratch` (`scratch_grids`).
 """
 
 from __future__ import annotations
+
+from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -13,13 +17,37 @@ from numba import njit
 _CACHE = True  # compiled code is cached next to the source, so later starts skip the ~5 s compile
 
 
-@njit(cache=_CACHE)
-def move_agents(pos, occupant, blocked, actions, priority, moves, h, claim, collided):
-    """Phase 1. Updates pos (K,N,2) and occupant (K,S,S) in place; writes collided (K,N) bool.
+class Scratch(NamedTuple):
+    """Per-side (S, S) scratch grids; every kernel leaves them as it found them."""
 
-    claim: (S,S) int32 scratch filled with -1 (left as found). A move is blocked by a blocked cell, by a cell
+    claim: np.ndarray  # (S, S) int32, -1
+    surv: np.ndarray  # (S, S) float64
+    fsum: np.ndarray  # (S, S) float64
+    removed: np.ndarray  # (2, S, S) float64
+    done: np.ndarray  # (S, S) bool, False
+
+
+@lru_cache(maxsize=8)
+def scratch_grids(side: int) -> Scratch:
+    """The scratch grids for maps of side S = `side`, shared by every step of that side."""
+    return Scratch(
+        claim=np.full((side, side), -1, np.int32),
+        surv=np.empty((side, side), np.float64),
+        fsum=np.empty((side, side), np.float64),
+        removed=np.empty((2, side, side), np.float64),
+        done=np.zeros((side, side), np.bool_),
+    )
+
+
+@njit(cache=_CACHE)
+def move_agents(w, actions, priority, moves, scratch, collided):
+    """Phase 1. actions (K,N) int64 index moves (A,2) int64; priority (K,N) float64 breaks ties. Updates w.pos
+    (K,N,2) and w.occupant (K,S,S) in place; writes collided (K,N) bool.
+
+    scratch.claim: (S,S) int32 filled with -1 (left as found). A move is blocked by a blocked cell, by a cell
     occupied at the start of the step, or by a higher-priority mover aiming at the same cell.
     """
+    pos, occupant, blocked, h, claim = w.pos, w.occupant, w.blocked, w.halo, scratch.claim
     n_worlds, n_agents = actions.shape
     target = np.empty((n_agents, 2), np.int64)
     candidate = np.empty(n_agents, np.bool_)
@@ -61,12 +89,14 @@ def move_agents(pos, occupant, blocked, actions, priority, moves, h, claim, coll
 
 
 @njit(cache=_CACHE)
-def detect_targets(
-    target_pos, target_valid, target_found, found_grid, n_found, occupant, detect, dr, dc, g, h, found_by
-):
-    """Phase 2. Each unfound target is found with probability 1 - Π(1 - Γ_i) from one uniform draw, credited
-    to the first agent (by index) whose cumulative threshold passes the draw. found_by (K,N) int64 is written.
+def detect_targets(w, detect, support, found_by):
+    """Phase 2. Each unfound target is found with probability 1 - Π(1 - Γ_i) from one uniform draw (detect (K,T)
+    float64), credited to the first agent (by index) whose cumulative threshold passes the draw. Updates
+    w.target_found, w.found_grid and w.n_found; found_by (K,N) int64 is written.
     """
+    target_pos, target_valid, target_found = w.target_pos, w.target_valid, w.target_found
+    found_grid, n_found, occupant, h = w.found_grid, w.n_found, w.occupant, w.halo
+    dr, dc, g = support.dr, support.dc, support.g
     n_worlds, n_targets = target_valid.shape
     n_support = dr.shape[0]
     cover_agent = np.empty(n_support, np.int64)
@@ -103,13 +133,16 @@ def detect_targets(
 
 
 @njit(cache=_CACHE)
-def sense(p, u, pos, dr, dc, g, c_coef, h, surv, fsum, removed, done, collected):
-    """Phase 3 (eq. 1-4). True maps decay by Π_i (1 - λkΓ_i) under overlapping footprints, c_coef (K,) float64
-    the λk of each world; each agent is credited the Γ-weighted share of what its cells lost. collected (K,N)
-    float64 = M_p + M_u.
+def sense(w, support, c_coef, scratch, collected):
+    """Phase 3 (eq. 1-4). True maps w.p, w.u (K,S,S) decay by Π_i (1 - λkΓ_i) under overlapping footprints, c_coef
+    (K,) float64 the λk of each world; each agent is credited the Γ-weighted share of what its cells lost.
+    collected (K,N) float64 = M_p + M_u.
 
     Scratch (S,S): surv, fsum float64; removed (2,S,S) float64; done bool (all False on entry and exit).
     """
+    p, u, pos, h = w.p, w.u, w.pos, w.halo
+    dr, dc, g = support.dr, support.dc, support.g
+    surv, fsum, removed, done = scratch.surv, scratch.fsum, scratch.removed, scratch.done
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     n_support = dr.shape[0]
     for k in range(n_worlds):
@@ -145,13 +178,13 @@ def sense(p, u, pos, dr, dc, g, c_coef, h, surv, fsum, removed, done, collected)
 
 
 @njit(cache=_CACHE)
-def refresh_beliefs(belief, belief_box, belief_time, p, u, pos, t, radius, h):
-    """Phase 4. Copy the true maps into each agent's belief on its (2·radius+1)² explicit area Φ and grow the
-    agent's belief box to cover it. With `belief_time` allocated (not (K, N, 0, 0)) mark Φ as seen at step t + 1,
-    the count this step ends with."""
+def refresh_beliefs(w, radius):
+    """Phase 4. Copy the true maps w.p, w.u into each agent's belief w.belief (K,N,2,S,S) on its (2·radius+1)²
+    explicit area Φ and grow the agent's belief box w.belief_box (K,N,4) to cover it. (When it was last seen is
+    kept by searchrl/world/seen.py.)"""
+    belief, belief_box, p, u, pos, h = w.belief, w.belief_box, w.p, w.u, w.pos, w.halo
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     width = 2 * radius + 1
-    timed = belief_time.shape[2] > 0
     for k in range(n_worlds):
         for i in range(n_agents):
             r0 = pos[k, i, 0] + h - radius
@@ -161,10 +194,6 @@ def refresh_beliefs(belief, belief_box, belief_time, p, u, pos, t, radius, h):
                 for r in range(r0, r0 + width):
                     for c in range(c0, c0 + width):
                         belief[k, i, ch, r, c] = src[k, r, c]
-            if timed:
-                for r in range(r0, r0 + width):
-                    for c in range(c0, c0 + width):
-                        belief_time[k, i, r, c] = t[k] + 1
             box = belief_box[k, i]
             box[0] = min(box[0], r0)
             box[1] = max(box[1], r0 + width - 1)
@@ -193,15 +222,16 @@ def _find_neighbours(occupant, pos, k, radius, h, nbrs, n_nbrs):
 
 
 @njit(cache=_CACHE)
-def communicate(belief, belief_box, occupant, pos, radius, h, merge, comm_pairs, comm_gain):
+def communicate(w, radius, merge, comm_pairs, comm_gain):
     """Phase 5 (eq. 13-16). Counts unordered neighbour pairs (Chebyshev distance <= radius) into comm_pairs (K,)
-    and, when `merge`, replaces each agent's belief by the elementwise min over itself and its direct
-    neighbours, all read from the pre-merge beliefs. comm_gain (K,N) float64 receives ΔM_p + ΔM_u.
+    int64 and, when `merge`, replaces each agent's belief w.belief by the elementwise min over itself and its
+    direct neighbours, all read from the pre-merge beliefs. comm_gain (K,N) float64 receives ΔM_p + ΔM_u.
 
     Outside the union of its neighbours' belief boxes an agent's value is already the min (neighbours hold the
     prior there, which bounds every belief from above), so only that union is scanned. New values go to a
     buffer first and are written back afterwards: the update is simultaneous.
     """
+    belief, belief_box, occupant, pos, h = w.belief, w.belief_box, w.occupant, w.pos, w.halo
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     nbrs = np.empty((n_agents, (2 * radius + 1) ** 2 - 1), np.int64)
     n_nbrs = np.empty(n_agents, np.int64)
@@ -258,57 +288,3 @@ def communicate(belief, belief_box, occupant, pos, radius, h, merge, comm_pairs,
             box = belief_box[k, i]
             box[0], box[1] = min(box[0], r0), max(box[1], r1)
             box[2], box[3] = min(box[2], c0), max(box[3], c1)
-
-
-@njit(cache=_CACHE)
-def observe_into(occupant, blocked, found_grid, belief, obs_scale, belief_time, belief_seen, age_rate, t, pos,
-                 size, n_targets, n_found, h, maps, vec):  # fmt: skip
-    """Observation of §3.2.1 into maps (K,N,C,F,F) float32 and vec (K,N,3) float32 (see SPEC.md). Where
-    age_rate[k] > 0 the freshness exp(−age_rate·(t − belief_time)), times belief_seen where that is allocated (not
-    (K, N, 0, 0)), scales the belief channels (C = 5) or fills channel 5 (C = 6).
-
-    Written channel by channel so every inner loop runs over contiguous memory. (A numba `prange` over agents
-    was 15x slower on the 2-core machine: thread wake-ups cost more than the work.)
-    """
-    n_worlds, n_agents = pos.shape[0], pos.shape[1]
-    fov = maps.shape[3]
-    half = fov // 2
-    as_channel = maps.shape[2] > 5  # a sixth channel (observe.n_channels) holds the freshness
-    with_seen = belief_seen.shape[2] > 0
-    for flat in range(n_worlds * n_agents):
-        k, i = flat // n_agents, flat % n_agents
-        sp, su = obs_scale[k, 0], obs_scale[k, 1]
-        r0 = pos[k, i, 0] + h - half
-        c0 = pos[k, i, 1] + h - half
-        out = maps[k, i]
-        occ, blk, fnd = occupant[k], blocked[k], found_grid[k]
-        bel_p, bel_u = belief[k, i, 0], belief[k, i, 1]
-        for a in range(fov):
-            r = r0 + a
-            for b in range(fov):
-                out[0, a, b] = occ[r, c0 + b] >= 0
-            for b in range(fov):
-                out[1, a, b] = blk[r, c0 + b]
-            for b in range(fov):
-                out[2, a, b] = fnd[r, c0 + b]
-            for b in range(fov):
-                out[3, a, b] = bel_p[r, c0 + b] * sp
-            for b in range(fov):
-                out[4, a, b] = bel_u[r, c0 + b] * su
-        if age_rate[k] > 0.0:
-            seen_at = belief_time[k, i]
-            for a in range(fov):
-                r = r0 + a
-                for b in range(fov):
-                    fresh = np.float32(np.exp(-age_rate[k] * (t[k] - seen_at[r, c0 + b])))
-                    if with_seen:
-                        fresh *= belief_seen[k, i, r, c0 + b]
-                    if as_channel:
-                        out[5, a, b] = fresh
-                    else:
-                        out[3, a, b] *= fresh
-                        out[4, a, b] *= fresh
-        out[0, half, half] = 0.0  # the agent itself stands at the centre and is not shown
-        vec[k, i, 0] = pos[k, i, 1] / size[k]
-        vec[k, i, 1] = pos[k, i, 0] / size[k]
-        vec[k, i, 2] = (n_targets[k] - n_found[k]) / n_targets[k] if n_targets[k] > 0 else 0.0

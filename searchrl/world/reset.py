@@ -7,7 +7,7 @@ import numpy as np
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import team_sensing_rate
 from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
-from searchrl.world.seen import update_seen
+from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
 
 _MAX_TARGET_ROUNDS = 1_000
@@ -106,14 +106,12 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
     state.belief[k, :, 1] = state.u[k]
     side = state.p.shape[1]
     state.belief_box[k] = (side, -1, side, -1)  # empty: beliefs equal the prior
-    if state.belief_time.size:
-        state.belief_time[k] = 0
     state.pos[k] = pos
     state.occupant[k] = -1
     state.occupant[k, pos[:, 0] + h, pos[:, 1] + h] = np.arange(n_agents, dtype=np.int32)
-    if state.belief_seen.size:  # the first observation already counts the neighbours in view, as greedy does
-        state.belief_seen[k] = 1.0
-        update_seen(config, state, slice(k, k + 1))
+    state.belief_time[k] = 0  # both are (K, N, 0, 0), and this a no-op, in a world that keeps neither
+    state.belief_seen[k] = 1.0
+    update_freshness(config, state, k, k + 1)  # the first observation already counts the neighbours in view
     state.target_valid[k] = False
     state.target_found[k] = False
     state.target_valid[k, :j] = True

@@ -13,8 +13,11 @@ cost more than the step itself).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from operator import attrgetter
 
 import numpy as np
+from numba import njit, types
+from numba.experimental import structref
 
 from searchrl.world.config import WorldConfig
 
@@ -63,11 +66,55 @@ class WorldState:
     def n_agents(self) -> int:
         return self.pos.shape[1]
 
+    def __setattr__(self, name: str, value: object) -> None:
+        if self.__dict__.get(name) is not value:  # a field rebound (`state.t += 1` is not): rebuild `arrays()`
+            self.__dict__.pop("_arrays", None)
+        object.__setattr__(self, name, value)
+
+    def __getstate__(self) -> dict:
+        """Pickle and deepcopy the fields only: the kernels' view is rebuilt on first use."""
+        return {name: value for name, value in self.__dict__.items() if name != "_arrays"}
+
+    def arrays(self) -> WorldArrays:
+        """The same arrays (not copies) as one `WorldArrays`, the argument through which the compiled kernels take
+        the state; built on first use and kept until a field is rebound."""
+        view = self.__dict__.get("_arrays")
+        if view is None:
+            view = self.__dict__["_arrays"] = _world_arrays(_GET_FIELDS(self))
+        return view
+
     def copy(self) -> WorldState:
         """A deep copy (tests and oracles compare against it)."""
         return WorldState(
             **{f.name: np.copy(v) if isinstance(v := getattr(self, f.name), np.ndarray) else v for f in fields(self)}
         )
+
+
+@structref.register
+class WorldArraysType(types.StructRef):
+    """The numba type of `WorldArrays`."""
+
+    def preprocess_fields(self, fields: tuple) -> tuple:
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class WorldArrays(structref.StructRefProxy):
+    """WorldState's fields as one numba object (a kernel reads `w.pos`, `w.halo`, ... with the shapes documented
+    above): numba does not take a dataclass. A StructRef rather than a named tuple: a call types and unboxes it in
+    constant time (under 1 µs, where a named tuple of 24 arrays cost about 5 µs a kernel call, some 10% of a step
+    on the bench's cases), and it passes to an inner compiled function as one pointer. Read it in compiled code
+    only: from Python each field is a compiled call."""
+
+
+_FIELDS = tuple(f.name for f in fields(WorldState))
+_GET_FIELDS = attrgetter(*_FIELDS)
+structref.define_proxy(WorldArrays, WorldArraysType, _FIELDS)
+
+
+@njit(cache=True)
+def _world_arrays(values):
+    """WorldArrays of `values`, WorldState's fields in order (a compiled, cached constructor)."""
+    return WorldArrays(*values)
 
 
 def allocate(config: WorldConfig, n_worlds: int) -> WorldState:

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from searchrl.world import kernels
 from searchrl.world.config import WorldConfig
-from searchrl.world.footprint import MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G
-from searchrl.world.seen import update_seen
+from searchrl.world.footprint import MOVES, SUPPORT
+from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
 
 
@@ -33,17 +32,6 @@ class StepResult:
         return self.terminated | self.truncated
 
 
-@lru_cache(maxsize=8)
-def _scratch(side: int) -> tuple[np.ndarray, ...]:
-    """Per-side scratch grids; every kernel leaves them as it found them (claim = -1, done = False)."""
-    claim = np.full((side, side), -1, np.int32)
-    surv = np.empty((side, side), np.float64)
-    fsum = np.empty((side, side), np.float64)
-    removed = np.empty((2, side, side), np.float64)
-    done = np.zeros((side, side), np.bool_)
-    return claim, surv, fsum, removed, done
-
-
 def check_actions(config: WorldConfig, state: WorldState, actions: np.ndarray) -> np.ndarray:
     """(K, N) int64 actions, or a ValueError naming the problem (the kernels do not bounds-check)."""
     actions = np.asarray(actions)
@@ -61,40 +49,25 @@ def step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.ra
     """Advance every world one step in place. actions: (K, N) ints in [0, config.n_actions)."""
     actions = check_actions(config, state, actions)
     k, n = actions.shape
-    h = state.halo
-    claim, surv, fsum, removed, done = _scratch(state.p.shape[1])
+    w = state.arrays()
+    scratch = kernels.scratch_grids(state.p.shape[1])
     priority = rng.random((k, n))  # tie-break for contested cells
     detect = rng.random(state.target_valid.shape)  # one uniform per target slot
 
     collided = np.empty((k, n), np.bool_)
-    kernels.move_agents(state.pos, state.occupant, state.blocked, actions, priority, MOVES, h, claim, collided)
+    kernels.move_agents(w, actions, priority, MOVES, scratch, collided)
 
     targets_found = np.empty((k, n), np.int64)
-    kernels.detect_targets(
-        state.target_pos, state.target_valid, state.target_found, state.found_grid, state.n_found,
-        state.occupant, detect, SUPPORT_DR, SUPPORT_DC, SUPPORT_G, h, targets_found,
-    )  # fmt: skip
+    kernels.detect_targets(w, detect, SUPPORT, targets_found)
 
     info = np.empty((k, n), np.float64)
-    kernels.sense(
-        state.p, state.u, state.pos, SUPPORT_DR, SUPPORT_DC, SUPPORT_G, config.sensing_rate(state.size), h,
-        surv, fsum, removed, done, info,
-    )  # fmt: skip
+    kernels.sense(w, SUPPORT, config.sensing_rate(state.size), scratch, info)
 
-    kernels.refresh_beliefs(
-        state.belief, state.belief_box, state.belief_time, state.p, state.u, state.pos, state.t,
-        config.explicit_area // 2, h,
-    )  # fmt: skip
-
-    if state.belief_seen.size:  # observation only: what each agent infers from the neighbours it sees
-        update_seen(config, state, slice(None))
+    kernels.refresh_beliefs(w, config.explicit_area // 2)
 
     comm_pairs = np.empty(k, np.int64)
     comm_gain = np.empty((k, n), np.float64)
-    kernels.communicate(
-        state.belief, state.belief_box, state.occupant, state.pos, config.comm_range // 2, h,
-        config.communication, comm_pairs, comm_gain,
-    )  # fmt: skip
+    kernels.communicate(w, config.comm_range // 2, config.communication, comm_pairs, comm_gain)
 
     reward64 = (
         config.step_reward
@@ -104,6 +77,7 @@ def step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.ra
         + (config.tau / config.lam) * comm_gain
     )
     state.t += 1
+    update_freshness(config, state, 0, k)  # observation only: when each agent last saw a cell, what it saw sensed
     terminated = state.n_found == state.n_targets
     truncated = (state.t >= config.max_steps) & ~terminated
     state.ep_return += reward64.sum(axis=1)
