@@ -32,6 +32,7 @@ NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 def fixture_dirs(tmp_path_factory):
     """Three tiny evaluations (surfing, coverage, a tiny model B policy) and that tiny training run."""
     from tests.test_evaluate import _evaluate
+    from tests.test_sweep import make_fixture_sweep
     from tests.test_train import TINY, _run
 
     base = tmp_path_factory.mktemp("analysis")
@@ -41,6 +42,7 @@ def fixture_dirs(tmp_path_factory):
     model = _run(base / "run", ["+model=b", *TINY, "total_timesteps=768", "validation.every=256"])
     _evaluate(base / "eval" / "policy", f"checkpoint={model}", "grid.world_sizes=[20,160]", "grid.max_agents=[2,2]",
               "grid.n_targets=[4,32]", "grid.n_distributions=[8,64]")  # fmt: skip
+    make_fixture_sweep(base / "sweep")
     return base
 
 
@@ -57,6 +59,7 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
         **os.environ,
         "SEARCHRL_EVAL_DIRS": ",".join(map(str, eval_dirs)),
         "SEARCHRL_RUN_DIRS": str(run_dir),
+        "SEARCHRL_SWEEP_DIR": str(eval_dirs[0].parent.parent / "sweep"),
         "SEARCHRL_ANALYSIS_OUT": str(out_dir),
         "MPLBACKEND": "Agg",
     }
@@ -77,6 +80,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "compare.py": ["compare.csv", "compare.md"],
         "missed_targets.py": ["small.csv", "missed_targets.md"],
         "calibration.py": ["calibration.csv", "calibration.md", "calibration.png"],
+        "sweep.py": ["sweep.csv", "sweep.md", "sweep_curves.png"],
     }[notebook]
     for name in expected:
         assert (tmp_path / name).stat().st_size > 0, name
@@ -143,6 +147,7 @@ def test_a_missing_or_empty_folder_is_named_in_one_line(tmp_path):
         ("table3.py", ["--outt=x"], "unrecognized arguments: --outt=x"),
         ("missed_targets.py", ["controller=planner"], "Could not find 'controller/planner'"),
         ("missed_targets.py", ["--cells", "n7_N1"], "--cells has ['n7_N1']: not cells of the grid"),
+        ("sweep.py", [str(empty)], f"{empty} holds no sweep jobs"),
     ]:
         out = _script(notebook, *args)
         assert out.returncode in (1, 2) and message in out.stderr, (notebook, out.stderr[-2000:])

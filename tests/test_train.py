@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import os
 import signal
 import subprocess
@@ -61,8 +62,12 @@ def test_tiny_run_trains_saves_reloads_and_predicts(tmp_path, model):
         ]
     assert (tmp_path / "config.yaml").exists() and any((tmp_path / "tensorboard").iterdir())
     rows = list(csv.DictReader(open(tmp_path / "progress.csv")))
-    assert [int(r["time/total_timesteps"]) for r in rows] == list(range(256, 2049, 256))
+    # one row per rollout, then the final model's validation (with the last update's losses) and its score
+    assert [int(r["time/total_timesteps"]) for r in rows] == [*range(256, 2049, 256), 2048]
     assert rows[-1]["val/found_fraction"] and rows[-1]["train/value_loss"]
+    score = json.loads((tmp_path / "score.json").read_text())
+    found = [float(r["val/found_fraction"]) for r in rows if r["val/found_fraction"]]
+    assert score["validations"] == 3 and score["score"] == pytest.approx(np.mean(found[-3:]))
     cfg = _compose([f"+model={model}", *TINY])
     env = make_vec_env(cfg, seed=0)
     loaded = load_algorithm(cfg, str(final), env)
@@ -88,7 +93,7 @@ def test_mixed_team_sizes_train_in_one_rollout(tmp_path):
     actions, _ = loaded.predict(env.reset(), episode_start=np.ones(14, bool))
     assert actions.shape == (14,)
     rows = list(csv.DictReader(open(tmp_path / "progress.csv")))
-    assert rows and rows[-1]["team/found_fraction"]
+    assert rows and rows[-2]["team/found_fraction"]  # the last rollout's row; the final one is the validation's
 
 
 def test_imitation_warm_start_clones_before_rl(tmp_path):
@@ -214,7 +219,7 @@ def test_resume_after_kill_loses_nothing(tmp_path):
     # 4096 / 256 = 16 rollouts, each 4 epochs × 2 minibatches of 128: optimiser state carried across the kill.
     assert _adam_steps(final) == 16 * 4 * 2
     steps = [int(r["time/total_timesteps"]) for r in csv.DictReader(open(run_dir / "progress.csv"))]
-    assert steps == list(range(256, 4097, 256))  # no gap and no duplicate row
+    assert steps == [*range(256, 4097, 256), 4096]  # no gap and no duplicate row; then the final validation
     assert (run_dir / "checkpoints" / "step_2048.zip").stat().st_mtime_ns == before  # not saved again
     record = OmegaConf.load(run_dir / "config.yaml")  # the run's record holds the budget it was trained to
     assert record.total_timesteps == 4096 and record.keep_checkpoints == 3 and record.resume is None

@@ -1,10 +1,10 @@
 """`python -m searchrl.train +model=<a|b|c|diagonal> [algo=a2c|ppo] [network=small] [key=value ...]`
 
 Trains one shared policy for all agents (parameter sharing) and writes under the run directory: the resolved
-`config.yaml`, `progress.csv` and TensorBoard logs (team metrics, losses, validation), `checkpoints/`, and
-`model.zip` at the end, every file written atomically. `resume=<run dir>` continues a killed run from its newest
-readable checkpoint with step count and optimiser state intact. The run folder is locked while in use
-(docs/files.md).
+`config.yaml`, `progress.csv` and TensorBoard logs (team metrics, losses, validation), `checkpoints/`, and at the
+end `model.zip` and `score.json` (the run's score, score.py, which `main` returns to Hydra's sweepers), every file
+written atomically. `resume=<run dir>` continues a killed run from its newest readable checkpoint with step count
+and optimiser state intact. The run folder is locked while in use (docs/files.md).
 """
 
 from __future__ import annotations
@@ -55,6 +55,7 @@ from searchrl.train.callbacks import (
 from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
 from searchrl.train.imitation import clone, collect
 from searchrl.train.schema import TrainConfig, override_keys, register_configs
+from searchrl.train.score import read_score, write_score
 from searchrl.world.config import ConfigError, WorldConfig
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -252,11 +253,9 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
         TeamMetricsCallback(),
         AtomicCheckpointCallback(run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints)),
     ]
-    if int(cfg.validation.every) > 0:
-        v = cfg.validation
-        callbacks.append(
-            ValidationCallback(world_config(cfg), int(v.every), int(v.n_worlds), int(v.seed), bool(v.deterministic))
-        )
+    v = cfg.validation
+    validation = ValidationCallback(world_config(cfg), int(v.every), int(v.n_worlds), int(v.seed), v.deterministic)
+    callbacks.append(validation)
 
     remaining = int(cfg.total_timesteps) - model.num_timesteps
     if remaining > 0:
@@ -267,16 +266,23 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
             reset_num_timesteps=not resuming,
             progress_bar=bool(cfg.progress_bar),
         )
+    elif not resuming:  # total_timesteps=0 (a clone only): the score is the clone's
+        validation.init_callback(model)
+        validation.on_training_end()
     final = write_atomic(run_dir / "model.zip", lambda tmp: model.save(tmp))
-    print(f"trained {model.num_timesteps} agent-steps; model: {final}", file=sys.stderr)
+    score = write_score(run_dir, int(v.score_last))
+    print(f"trained {model.num_timesteps} agent-steps; model: {final}; score {score['score']:.4f} (mean found "
+          f"fraction of the last {score['validations']} validations)", file=sys.stderr)  # fmt: skip
     env.close()
     return final
 
 
 @hydra.main(version_base="1.3", config_path="../../conf", config_name="train")
-def main(cfg: DictConfig) -> None:
+def main(cfg: DictConfig) -> float:
+    """Train, and return the run's score (score.py) for Hydra sweepers: `-m hydra/sweeper=optuna` maximises it."""
     hydra_cfg = HydraConfig.get()
-    train(cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
+    final = train(cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
+    return read_score(final.parent)
 
 
 def check_resume_argument(argv: list[str]) -> None:

@@ -122,8 +122,10 @@ def check_config(cfg: DictConfig) -> None:
             f"total_timesteps={cfg.total_timesteps!r} is not allowed: must be >= 1, or 0 with imitation.teacher "
             "or init (a run without RL)"
         )
-    if int(cfg.validation.every) < 0 or int(cfg.validation.n_worlds) < 1:
-        raise ConfigError(f"validation={dict(cfg.validation)!r} is not allowed: every >= 0 and n_worlds >= 1")
+    if int(cfg.validation.every) < 0 or int(cfg.validation.n_worlds) < 1 or int(cfg.validation.score_last) < 1:
+        raise ConfigError(
+            f"validation={dict(cfg.validation)!r} is not allowed: every >= 0, n_worlds >= 1 and score_last >= 1"
+        )
     rollout = rollout_size(cfg)
     batch = cfg.algo.get("batch_size")
     if batch is not None and not 1 <= int(batch) <= rollout:
@@ -151,20 +153,17 @@ def check_config(cfg: DictConfig) -> None:
 
 def unused_settings(cfg: DictConfig, overrides: list[str]) -> list[str]:
     """Notes on what this run will not use that the command line set: imitation settings without a teacher, the
-    LSTM size of a feed-forward algorithm, validation settings with validation off, a minibatch larger than the
-    demonstrations. Said, not refused: a sweep over `imitation.teacher=null,greedy` or `algo=ppo,recurrent_ppo`
-    keeps one command line for all its jobs."""
+    LSTM size of a feed-forward algorithm, a minibatch larger than the demonstrations. (Validation settings always
+    count: the final model is validated for the run's score even with validation.every=0.) Said, not refused: a
+    sweep over `imitation.teacher=null,greedy` or `algo=ppo,recurrent_ppo` keeps one command line for all its
+    jobs."""
     keys = override_keys(overrides)
     unused = []
     if cfg.imitation.teacher is None:
         unused += [k for k in keys if k.startswith("imitation.") and k != "imitation.teacher"]
     if cfg.algo.name != "recurrent_ppo":
         unused += [k for k in keys if k == "network.lstm_hidden_size"]
-    if int(cfg.validation.every) == 0:
-        unused += [k for k in keys if k.startswith("validation.") and k != "validation.every"]
-    notes = [
-        f"{k} has no effect here (no imitation.teacher, a feed-forward algo, or validation.every=0)" for k in unused
-    ]
+    notes = [f"{k} has no effect here (no imitation.teacher, or a feed-forward algo)" for k in unused]
     sequences = team_slots(cfg) * int(cfg.imitation.episodes)
     if cfg.imitation.teacher is not None and int(cfg.imitation.batch_sequences) > sequences:
         notes.append(f"imitation.batch_sequences={cfg.imitation.batch_sequences} is more than the {sequences} teacher "

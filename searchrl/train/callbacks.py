@@ -79,8 +79,10 @@ def checkpoints(directory: Path) -> list[tuple[int, Path]]:
 
 
 class ValidationCallback(BaseCallback):
-    """Every `every` agent-steps, runs the policy on fixed validation worlds and logs `val/<metric>`; the
-    random-walk level on the same worlds is logged once as `val/random_<metric>` for reference."""
+    """Every `every` agent-steps (never if 0), and once more for the final model when training ends, runs the
+    policy on fixed validation worlds and logs `val/<metric>`; the random-walk level on the same worlds is logged
+    with each as `val/random_<metric>` for reference. The final validation's row also holds the last update's
+    losses, which SB3 records after its last log row."""
 
     def __init__(self, world_config: WorldConfig, every: int, n_worlds: int, seed: int, deterministic: bool) -> None:
         super().__init__()
@@ -90,14 +92,19 @@ class ValidationCallback(BaseCallback):
         self.random_level: dict[str, float] = {}
 
     def _init_callback(self) -> None:
-        self._next = (self.model.num_timesteps // self.every + 1) * self.every
+        self._next = (self.model.num_timesteps // self.every + 1) * self.every if self.every > 0 else 0
         self.random_level = run_episodes(self.world_config, self.n_worlds, self.seed, None)
 
     def _on_step(self) -> bool:
-        if self.num_timesteps >= self._next:
+        if self.every > 0 and self.num_timesteps >= self._next:
             self._next = (self.num_timesteps // self.every + 1) * self.every
             self.validate()
         return True
+
+    def _on_training_end(self) -> None:
+        self.validate()
+        self.logger.record("time/total_timesteps", self.num_timesteps)
+        self.logger.dump(self.num_timesteps)
 
     def validate(self) -> dict[str, float]:
         metrics = run_episodes(self.world_config, self.n_worlds, self.seed, self.model, self.deterministic)

@@ -102,10 +102,11 @@ class A2CConfig(AlgoConfig):
 
 @dataclass
 class ValidationConfig:
-    every: int = 250_000  # agent-steps between validations; 0 disables
+    every: int = 250_000  # agent-steps between validations; 0: only the final model's, which training always runs
     n_worlds: int = 32  # fixed validation worlds, N = env.world.n_agents each
     seed: int = 1_000_000  # disjoint from training seeds (small integers)
     deterministic: bool = False  # argmax actions can deadlock against walls and other agents; sample instead
+    score_last: int = 3  # the run's score (score.json, what a sweeper optimises): mean of the last validations
 
 
 @dataclass

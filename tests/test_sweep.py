@@ -1,0 +1,149 @@
+"""Sweeps: every run's score, the Optuna sweeper end to end (tiny budget, resumed study), the sweep table."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from searchrl.analysis.sweep import load_jobs, mean_ci, score_table, setting_keys, validation_curves
+from searchrl.train.score import run_score
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = ["+model=b", "total_timesteps=512", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,20]",
+        "env.world.n_targets=[2,4]", "env.world.n_distributions=[4,8]", "network=small", "algo.batch_size=128",
+        "checkpoint_every=1024", "validation.every=256", "validation.n_worlds=2", "progress_bar=false",
+        "threads=1"]  # fmt: skip
+
+
+def _optuna(sweep_dir: Path, storage: Path, trials: int) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "searchrl.train", "-m", "hydra/sweeper=optuna_searchrl", *TINY,
+           f"hydra.sweeper.n_trials={trials}", f"hydra.sweeper.storage=sqlite:///{storage}",
+           f"hydra.sweep.dir={sweep_dir}"]  # fmt: skip
+    out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    return out
+
+
+@pytest.fixture(scope="module")
+def optuna_sweep(tmp_path_factory):
+    base = tmp_path_factory.mktemp("optuna")
+    _optuna(base / "sweep", base / "study.db", trials=2)
+    return base
+
+
+def test_optuna_sweeps_the_search_space_and_reports_the_best_trial(optuna_sweep):
+    sweep = optuna_sweep / "sweep"
+    jobs = load_jobs(sweep)
+    assert len(jobs) == 2 and jobs.finished.all() and (jobs.validations == 3).all()
+    # Each trial draws every parameter of conf/hydra/sweeper/optuna_searchrl.yaml, inside its range.
+    assert jobs["algo.learning_rate"].between(3e-5, 3e-3).all() and jobs["algo.ent_coef"].between(0, 0.05).all()
+    assert set(jobs["algo.gamma"]) <= {0.95, 0.98, 0.99, 0.995}
+    best = yaml.safe_load((sweep / "optimization_results.yaml").read_text())
+    assert best["best_value"] == pytest.approx(jobs.score.max())  # maximised: the score is a found fraction
+    winner = jobs.loc[jobs.score.idxmax()]
+    assert best["best_params"]["algo.learning_rate"] == pytest.approx(winner["algo.learning_rate"])
+
+
+def test_the_same_command_resumes_the_study(optuna_sweep):
+    import optuna
+
+    _optuna(optuna_sweep / "again", optuna_sweep / "study.db", trials=1)
+    study = optuna.load_study(study_name="b_recurrent_ppo", storage=f"sqlite:///{optuna_sweep / 'study.db'}")
+    assert len(study.trials) == 3 and all(t.state.name == "COMPLETE" for t in study.trials)
+    first = load_jobs(optuna_sweep / "sweep")
+    assert study.trials[2].params["algo.learning_rate"] not in set(first["algo.learning_rate"])  # a new trial
+    # ... the one an uninterrupted three-trial sweep proposes (each trial's draws are seeded by its number)
+    _optuna(optuna_sweep / "whole", optuna_sweep / "whole.db", trials=3)
+    whole = optuna.load_study(study_name="b_recurrent_ppo", storage=f"sqlite:///{optuna_sweep / 'whole.db'}")
+    assert [t.params for t in whole.trials] == [t.params for t in study.trials]
+
+
+def _progress(path: Path, rows: list[tuple[int, float | None]]) -> None:
+    frame = pd.DataFrame(rows, columns=["time/total_timesteps", "val/found_fraction"])
+    frame.to_csv(path / "progress.csv", index=False)
+
+
+def test_the_score_averages_the_last_validations(tmp_path):
+    _progress(tmp_path, [(256, None), (512, 0.2), (768, None), (1024, 0.4), (1280, 0.6), (1280, 0.8)])
+    record = run_score(tmp_path, last=3)
+    assert record["score"] == pytest.approx(0.6) and record["validations"] == 3
+    assert record["steps"] == [1024, 1280, 1280]
+    assert run_score(tmp_path, last=10)["validations"] == 4
+    _progress(tmp_path, [(256, None)])
+    assert math.isnan(run_score(tmp_path, last=3)["score"])
+
+
+def test_a_run_without_periodic_validation_is_scored_on_its_final_model(tmp_path):
+    from searchrl.train.__main__ import train
+    from tests.test_train import _compose
+
+    overrides = [*TINY, "validation.every=0"]
+    train(_compose(overrides), tmp_path, overrides)
+    record = json.loads((tmp_path / "score.json").read_text())
+    assert record["validations"] == 1 and record["steps"] == [512] and 0 <= record["score"] <= 1
+    with pytest.raises(SystemExit):
+        train(_compose([*TINY, "validation.score_last=0"]), tmp_path / "bad", [])
+    assert not (tmp_path / "bad").exists()
+
+
+def make_fixture_sweep(base: Path) -> Path:
+    """A multirun folder as Hydra and the training app write it: 2 learning rates x 3 seeds, known scores and
+    curves, and one job killed before its score."""
+    scores = {"0.0003": [0.50, 0.52, 0.54], "0.001": [0.60, 0.70, 0.65]}
+    job = 0
+    for lr, values in scores.items():
+        for seed, score in enumerate(values):
+            folder = base / f"{job}_b_seed{seed}"
+            (folder / ".hydra").mkdir(parents=True)
+            overrides = ["+model=b", f"algo.learning_rate={lr}", f"seed={seed}", "hydra.launcher.n_jobs=2"]
+            (folder / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(overrides))
+            _progress(folder, [(100, None), (200, score - 0.1), (300, None), (400, score)])
+            (folder / "score.json").write_text(json.dumps({"score": score, "validations": 2}))
+            job += 1
+    killed = base / f"{job}_b_seed3"
+    (killed / ".hydra").mkdir(parents=True)
+    (killed / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["+model=b", "algo.learning_rate=0.001",
+                                                                      "seed=3"]))  # fmt: skip
+    return base
+
+
+def test_the_sweep_table_gives_each_setting_its_mean_and_interval_over_seeds(tmp_path):
+    sweep = make_fixture_sweep(tmp_path)
+    jobs = load_jobs(sweep)
+    assert setting_keys(jobs) == ["algo.learning_rate"] and len(jobs) == 7 and jobs.finished.sum() == 6
+    table = score_table(jobs)
+    assert list(table["algo.learning_rate"]) == [0.001, 0.0003]  # best first
+    assert list(table.seeds) == [3, 3]  # the killed job counts as no seed
+    assert table.score.to_numpy() == pytest.approx([0.65, 0.52])
+    assert (table.low <= table.score).all() and (table.score <= table.high).all()
+    assert table.loc[0, "low"] >= 0.60 and table.loc[0, "high"] <= 0.70  # within the seeds' range
+    curves = validation_curves(sweep, jobs)
+    assert len(curves) == 12 and set(curves.step) == {200, 400}
+
+
+def test_mean_ci_of_one_and_of_equal_values():
+    assert math.isnan(mean_ci(np.array([0.5]))[1])
+    assert mean_ci(np.array([0.5, 0.5, 0.5])) == (0.5, 0.5, 0.5)
+    assert math.isnan(mean_ci(np.array([math.nan]))[0])
+
+
+def test_the_sweep_notebook_writes_table_and_plot(tmp_path):
+    sweep = make_fixture_sweep(tmp_path / "multirun")
+    out = subprocess.run([sys.executable, "analysis/sweep.py", str(sweep), "--out", str(tmp_path / "out")], cwd=ROOT,
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr[-3000:]
+    table = (tmp_path / "out" / "sweep.md").read_text()
+    assert "| 0.001 | 3 | 0.650 |" in table and "| 0.0003 | 3 | 0.520 |" in table
+    assert pd.read_csv(tmp_path / "out" / "sweep.csv").shape[0] == 2
+    assert (tmp_path / "out" / "sweep_curves.png").stat().st_size > 0
+    missing = subprocess.run([sys.executable, "analysis/sweep.py", str(tmp_path / "nowhere")], cwd=ROOT,
+                             capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert missing.returncode == 1 and missing.stderr.strip().count("\n") == 0 and "nowhere" in missing.stderr
