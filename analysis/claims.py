@@ -28,6 +28,7 @@ import pandas as pd
 
 from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown, paired_margins
+from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load
 
 ROOT = Path.cwd()
@@ -64,7 +65,7 @@ pairs += [(policies[x], policies[y]) for x, y in [("b", "c"), ("diagonal", "a"),
 margins = pd.concat([paired_margins(episodes, a, b) for a, b in pairs], ignore_index=True) if pairs else None
 sections = []
 if margins is not None:
-    margins.to_csv(OUT / "margins.csv", index=False)
+    write_atomic(OUT / "margins.csv", lambda tmp: margins.to_csv(tmp, index=False))
     labelled = margins.assign(
         entry=[f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
                zip(margins["diff"], margins.low, margins.high, margins.verdict, strict=True)]
@@ -72,7 +73,7 @@ if margins is not None:
     for (mine, base), block in labelled.groupby(["controller", "baseline"], sort=False):
         layout = block.pivot_table(index="N", columns="n", values="entry", aggfunc="first").fillna("–")
         sections.append(f"### {mine} − {base}\n\n" + markdown(layout))
-    (OUT / "margins.md").write_text("\n".join(sections))
+    write_text_atomic(OUT / "margins.md", "\n".join(sections))
 print("\n".join(sections) or "no policy results to compare")
 
 # %% [markdown]
@@ -174,5 +175,5 @@ if "diagonal" in policies:
     best = means.groupby(["n", "N"]).idxmax().map(lambda key: key[2]).unstack("n")
     lines.append("\nModel with the highest mean found fraction per cell (rows N, columns n):\n")
     lines.append(markdown(best.fillna("–")))
-(OUT / "claims.md").write_text("\n".join(lines) + "\n")
+write_text_atomic(OUT / "claims.md", "\n".join(lines) + "\n")
 print("\n".join(lines))

@@ -28,6 +28,7 @@ import pandas as pd
 
 from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown, paired_margins
+from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load
 
 ROOT = Path.cwd()
@@ -48,7 +49,7 @@ episodes = pd.concat([load(d).assign(controller=d.name) for d in EVAL_DIRS], ign
 # %%
 mine = EVAL_DIRS[0].name
 margins = pd.concat([paired_margins(episodes, mine, other.name) for other in EVAL_DIRS[1:]], ignore_index=True)
-margins.to_csv(OUT / "compare.csv", index=False)
+write_atomic(OUT / "compare.csv", lambda tmp: margins.to_csv(tmp, index=False))
 lines = [f"# {mine} against {', '.join(d.name for d in EVAL_DIRS[1:])}\n"]
 for other, block in margins.groupby("baseline", sort=False):
     counts = block.verdict.value_counts()
@@ -59,5 +60,5 @@ for other, block in margins.groupby("baseline", sort=False):
                                   zip(block["diff"], block.low, block.high, block.verdict, strict=True)])  # fmt: skip
     lines.append(markdown(entries.pivot_table(index="N", columns="n", values="entry", aggfunc="first").fillna("–")))
     lines.append("")
-(OUT / "compare.md").write_text("\n".join(lines))
+write_text_atomic(OUT / "compare.md", "\n".join(lines))
 print("\n".join(lines))

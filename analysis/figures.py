@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt
 
 from searchrl.analysis import cli
 from searchrl.analysis.stats import paper_table3, summarize
+from searchrl.atomic import write_atomic
 from searchrl.evaluate.results import load
 
 ROOT = Path.cwd()
@@ -51,7 +52,7 @@ ax.set(xscale="log", xlabel="agents N", ylabel="found fraction", title="n = 160"
 ax.set_xticks(sorted(summary[summary.n == 160].N.unique()), labels=sorted(summary[summary.n == 160].N.unique()))
 ax.legend(fontsize=7)
 fig.tight_layout()
-fig.savefig(OUT / "fig7_n160.png", dpi=120)
+write_atomic(OUT / "fig7_n160.png", lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
 
 # %% [markdown]
 # ## Fig. 8: every world size
@@ -70,5 +71,5 @@ for ax, n in zip(axes[0], sizes, strict=True):
 axes[0][0].set_ylabel("found fraction")
 axes[0][-1].legend(fontsize=7)
 fig.tight_layout()
-fig.savefig(OUT / "fig8_all_sizes.png", dpi=120)
+write_atomic(OUT / "fig8_all_sizes.png", lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
 print(f"wrote {OUT / 'fig7_n160.png'} and {OUT / 'fig8_all_sizes.png'}")

@@ -65,6 +65,10 @@ write_atomic(OUT / "sweep.csv", lambda tmp: table.to_csv(tmp, index=False))
 # Settings as the command line gives them (markdown() rounds numbers to 3 digits: 3e-4 would read 0.000).
 shown = table.assign(**{k: table[k].map(lambda v: f"{v:.4g}" if isinstance(v, float) else str(v)) for k in keys})
 report = markdown(shown.set_index(keys) if keys else shown)
+curves = validation_curves(SWEEP, jobs)
+if curves.random_found_fraction.notna().any():  # the same validation worlds in every job of a sweep over algo.*
+    levels = curves.random_found_fraction.dropna().unique()
+    report += f"\nRandom walk on the validation worlds: {', '.join(f'{v:.3f}' for v in sorted(levels))}\n"
 results = SWEEP / "optimization_results.yaml"  # an Optuna sweep's best trial (hydra-optuna-sweeper writes it)
 if results.is_file():
     best = yaml.safe_load(results.read_text())
@@ -77,7 +81,7 @@ print(report)
 # ## Validation curves by setting
 
 # %%
-curves = validation_curves(SWEEP, jobs).merge(jobs[["job", *keys]], on="job")
+curves = curves.merge(jobs[["job", *keys]], on="job")
 fig, ax = plt.subplots(figsize=(6.5, 4.0))
 for index, (key, group) in enumerate(curves.groupby(keys, sort=False) if keys else [("all", curves)]):
     label = ", ".join(f"{k}={v}" for k, v in zip(keys, key if isinstance(key, tuple) else (key,), strict=True))

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from searchrl.analysis import cli
 from searchrl.analysis.stats import beside_paper, markdown, paper_table3, summarize, table3
+from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load
 
 ROOT = Path.cwd()
@@ -41,7 +42,7 @@ print(f"{len(episodes)} episodes from {[d.name for d in EVAL_DIRS]}")
 # %%
 summary = summarize(episodes)
 compared = beside_paper(summary, paper_table3(ROOT / "analysis" / "paper_table3.csv"))
-compared.to_csv(OUT / "table3.csv", index=False)
+write_atomic(OUT / "table3.csv", lambda tmp: compared.to_csv(tmp, index=False))
 compared.head(12)
 
 # %% [markdown]
@@ -49,7 +50,7 @@ compared.head(12)
 
 # %%
 wide = table3(summary)
-(OUT / "table3.md").write_text(markdown(wide))
+write_text_atomic(OUT / "table3.md", markdown(wide))
 print(markdown(wide))
 
 # %% [markdown]
@@ -63,5 +64,5 @@ if len(policies):
     entries = policies.assign(entry=[f"{o:.3f} ({p:.2f})" for o, p in zip(policies["mean"], policies.paper,
                                                                           strict=True)])  # fmt: skip
     side_by_side = entries.pivot_table(index=["model", "N"], columns="n", values="entry", aggfunc="first")
-    (OUT / "table3_vs_paper.md").write_text(markdown(side_by_side.fillna("–")))
+    write_text_atomic(OUT / "table3_vs_paper.md", markdown(side_by_side.fillna("–")))
     print(markdown(side_by_side.fillna("–")))

@@ -25,12 +25,13 @@ import matplotlib.pyplot as plt
 
 from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown, training_curves
+from searchrl.atomic import write_atomic, write_text_atomic
 
 ROOT = Path.cwd()
 RUN_DIRS, OUT = cli.run_inputs("Fig. 5 and Fig. 6: training curves", ROOT / "analysis" / "out")
 OUT.mkdir(parents=True, exist_ok=True)
 curves = training_curves(RUN_DIRS)
-curves.to_csv(OUT / "training_curves.csv", index=False)
+write_atomic(OUT / "training_curves.csv", lambda tmp: curves.to_csv(tmp, index=False))
 print(f"{len(RUN_DIRS)} runs, {len(curves)} points")
 
 # %% [markdown]
@@ -54,7 +55,7 @@ for ax, (metric, title) in zip(axes, METRICS, strict=True):
     ax.set(title=title, xlabel="agent-steps")
 axes[-1].legend(fontsize=6)
 fig.tight_layout()
-fig.savefig(OUT / "training_curves.png", dpi=120)
+write_atomic(OUT / "training_curves.png", lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
 
 # %% [markdown]
 # ## Convergence: validation found fraction and meetings per million agent-steps
@@ -75,5 +76,5 @@ def per_million(metric: str) -> str:
 # A and C gain nothing from meeting.
 report = (f"Validation found fraction:\n\n{per_million('val/found_fraction')}\n"
           f"Validation meetings F per episode:\n\n{per_million('val/F')}")  # fmt: skip
-(OUT / "training_convergence.md").write_text(report)
+write_text_atomic(OUT / "training_convergence.md", report)
 print(report)

@@ -102,7 +102,8 @@ def score_table(jobs: pd.DataFrame, keys: list[str] | None = None, level: float 
 
 
 def validation_curves(sweep_dir: Path, jobs: pd.DataFrame) -> pd.DataFrame:
-    """Tidy (job, step, found_fraction) of every job's validations, from its progress.csv (rows in log order)."""
+    """Tidy (job, step, found_fraction, random_found_fraction) of every job's validations, from its progress.csv
+    (rows in log order); the last is the random walk on the same validation worlds."""
     frames = []
     for name in jobs["job"]:
         path = Path(sweep_dir) / name / "progress.csv"
@@ -111,8 +112,10 @@ def validation_curves(sweep_dir: Path, jobs: pd.DataFrame) -> pd.DataFrame:
         progress = pd.read_csv(path)
         if "val/found_fraction" not in progress:
             continue
-        points = progress[["time/total_timesteps", "val/found_fraction"]].dropna()
-        points.columns = ["step", "found_fraction"]
+        random = progress.get("val/random_found_fraction", pd.Series(dtype=float))
+        points = progress.assign(random=random)[["time/total_timesteps", "val/found_fraction", "random"]]
+        points = points.dropna(subset=["val/found_fraction"])
+        points.columns = ["step", "found_fraction", "random_found_fraction"]
         frames.append(points.assign(job=name))
-    columns = ["job", "step", "found_fraction"]
+    columns = ["job", "step", "found_fraction", "random_found_fraction"]
     return pd.concat(frames, ignore_index=True)[columns] if frames else pd.DataFrame(columns=columns)
