@@ -72,3 +72,23 @@ def test_the_bound_grows_with_reach_and_saturates_at_the_target_count():
     bounds = [search_bound(p, u, free, 3, k, 2000, np.random.default_rng(5)).expected for k in range(1, 9)]
     assert all(a <= b for a, b in itertools.pairwise(bounds)) and bounds[-1] == pytest.approx(3)
     assert bounds[2] < 3  # three cells do not hold all three targets every time
+
+
+@pytest.mark.parametrize("controller", ["surfing", "greedy_target"])
+def test_no_controller_finds_more_than_the_bound(controller):
+    """On the hardest small cells (one agent, n = 40 and 80) the bound binds least loosely; a controller's mean
+    found fraction stays under the mean bound fraction of the same maps."""
+    from searchrl.controllers.registry import make_controller
+    from searchrl.evaluate.bound import cell_bounds
+    from searchrl.evaluate.grid import Cell, map_seed
+    from searchrl.evaluate.runner import cell_config, run_cell
+    from searchrl.world.config import WorldConfig
+
+    world = WorldConfig(n_agents=1, explicit_area=5, communication=True)
+    for index, cell in enumerate([Cell(40, 1, 8, 16), Cell(80, 1, 16, 32)]):
+        episodes = run_cell(lambda config: make_controller(controller, config, seed=0), world, cell, index,
+                            maps=6, repeats=1, seed=10**6, needs_observation=False)  # fmt: skip
+        bounds = cell_bounds(world, cell, [map_seed(10**6, index, m) for m in range(6)], draws=400)
+        assert (bounds.reach == 13 + 5 * (cell_config(world, cell).max_steps - 1)).all()
+        joined = episodes.merge(bounds, on="map_seed")
+        assert len(joined) == 6 and joined.found_fraction.mean() <= joined.bound_fraction.mean()
