@@ -25,10 +25,7 @@ def run_score(run_dir: Path, last: int) -> dict[str, object]:
     `run_dir/progress.csv`; score is NaN when the run logged no validation."""
     path = Path(run_dir) / "progress.csv"
     frame = pd.read_csv(path) if path.is_file() and path.stat().st_size else pd.DataFrame()
-    if METRIC in frame:
-        points = frame[[STEP, METRIC]].dropna().tail(last)
-    else:
-        points = pd.DataFrame({STEP: [], METRIC: []})
+    points = frame.reindex(columns=[STEP, METRIC]).dropna().tail(last)  # no validation logged: no rows
     score = float(points[METRIC].mean()) if len(points) else math.nan
     return {
         "score": score,

@@ -24,6 +24,7 @@ from typing import NamedTuple
 import numpy as np
 
 from searchrl.world.footprint import MOVES, SUPPORT, Footprint
+from searchrl.world.reset import keep_probability
 
 
 class SearchBound(NamedTuple):
@@ -47,8 +48,8 @@ def team_reach(n_agents: int, steps: int, n_actions: int = 5, support: Footprint
 
 
 def placement_weights(p: np.ndarray, u: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """w (n, n) float64 of `place_targets`: p times the keep probability 1 - u/max(u), zero off the free cells."""
-    return np.where(free, p * (1.0 - u / u.max()), 0.0)
+    """w (n, n) float64 of `place_targets`: p times its keep probability, zero off the free cells."""
+    return np.where(free, p * keep_probability(u), 0.0)
 
 
 def target_marginals(

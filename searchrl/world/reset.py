@@ -13,18 +13,23 @@ from searchrl.world.state import WorldState
 _MAX_TARGET_ROUNDS = 1_000
 
 
+def keep_probability(u: np.ndarray) -> np.ndarray:
+    """The second stage of §4.1.4's placement: a tentative cell is kept with probability 1 - u/max(u) (the paper's
+    `1 - u` needs u on a [0, 1] scale and u sums to 1, so we read it relative to its maximum). Same shape as u."""
+    return 1.0 - u / u.max()
+
+
 def place_targets(p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
     """Two-stage placement of §4.1.4 on distinct free cells.
 
-    A tentative cell is drawn from p over the free cells, then kept when a uniform draw is below 1 - u/max(u):
-    the paper's `1 - u` needs u on a [0, 1] scale and u sums to 1, so we read it relative to its maximum.
-    A tentative cell that already holds a target is redrawn (rejection from p restricted to empty cells).
-    Candidates are drawn in batches of `4 · count` from one CDF. p, u, free: (n, n).
+    A tentative cell is drawn from p over the free cells, then kept when a uniform draw is below
+    `keep_probability(u)`. A tentative cell that already holds a target is redrawn (rejection from p restricted
+    to empty cells). Candidates are drawn in batches of `4 · count` from one CDF. p, u, free: (n, n).
     Returns (count, 2) int64 (row, col).
     """
     n = p.shape[0]
     cdf = np.cumsum(np.where(free, p, 0.0).ravel())
-    keep_prob = (1.0 - u / u.max()).ravel()
+    keep_prob = keep_probability(u).ravel()
     chosen: list[int] = []
     taken: set[int] = set()
     for _ in range(_MAX_TARGET_ROUNDS):
