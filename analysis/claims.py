@@ -27,7 +27,7 @@ from pathlib import Path
 import pandas as pd
 
 from searchrl.analysis import cli
-from searchrl.analysis.stats import markdown, paired_margins
+from searchrl.analysis.stats import efficiency_summary, markdown, paired_margins, summarize
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load
 
@@ -175,5 +175,12 @@ if "diagonal" in policies:
     best = means.groupby(["n", "N"]).idxmax().map(lambda key: key[2]).unstack("n")
     lines.append("\nModel with the highest mean found fraction per cell (rows N, columns n):\n")
     lines.append(markdown(best.fillna("–")))
+if "bound_fraction" in episodes and episodes["bound_fraction"].notna().all():
+    # How much of what any team could expect each controller finds (searchrl/evaluate/bound.py).
+    lines.append("\n## Efficiency against the search bound\n")
+    lines.append("Mean found fraction, bound and found / bound over the hard cells (n = 40 with N <= 2, n = 80 "
+                 "with N <= 8, n = 160 with N <= 32), and mean found / bound over every cell whose bound is below "
+                 "0.995:\n")  # fmt: skip
+    lines.append(markdown(efficiency_summary(summarize(episodes))))
 write_text_atomic(OUT / "claims.md", "\n".join(lines) + "\n")
 print("\n".join(lines))

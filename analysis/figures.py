@@ -9,7 +9,9 @@
 #
 # Fig. 7: found fraction against N at n = 160, one line per controller or policy (95 % bootstrap CI bands), the
 # paper's four DRL models dashed, each in the colour of our policy of the same model. Fig. 8: every world size, DRL
-# policies against information surfing and coverage. Run from the repository root:
+# policies against information surfing and coverage. Where the evaluations carry the per-map search bound
+# (searchrl/evaluate/bound.py), both show it dotted, and Fig. 8 gains a row of efficiency = found / bound.
+# Run from the repository root:
 # `python analysis/figures.py [EVAL_DIR ...] [--out DIR]`; inputs and output as in `table3.py`.
 
 # %%
@@ -48,6 +50,9 @@ for label, group in summary[summary.n == 160].groupby("label"):
 for model, group in paper[paper.n == 160].groupby("model"):
     ax.plot(group.N, group.found_fraction, linestyle="--", linewidth=1, label=f"paper {model}",
             color=policy_colour.get(model.lower(), "grey"))  # fmt: skip
+if "bound" in summary and summary["bound"].notna().any():  # the per-map search bound: no team can expect more
+    ceiling = summary[summary.n == 160].groupby("N")["bound"].mean()
+    ax.plot(ceiling.index, ceiling.values, color="black", linestyle=":", linewidth=1.5, label="search bound")
 ax.set(xscale="log", xlabel="agents N", ylabel="found fraction", title="n = 160", ylim=(0, 1.02))
 ax.set_xticks(sorted(summary[summary.n == 160].N.unique()), labels=sorted(summary[summary.n == 160].N.unique()))
 ax.legend(fontsize=7)
@@ -58,17 +63,26 @@ write_atomic(OUT / "fig7_n160.png", lambda tmp: fig.savefig(tmp, dpi=120, format
 # ## Fig. 8: every world size
 
 # %%
+# With the search bound recorded, a second row: efficiency = found / bound, with the found fraction's CI.
 sizes = sorted(summary.n.unique())
-fig, axes = plt.subplots(1, len(sizes), figsize=(3.2 * len(sizes), 3.2), sharey=True, squeeze=False)
-for ax, n in zip(axes[0], sizes, strict=True):
-    for label, group in summary[summary.n == n].groupby("label"):
-        group = group.sort_values("N")
-        ax.errorbar(group.N, group["mean"], yerr=[group["mean"] - group["low"], group["high"] - group["mean"]],
-                    marker="o", markersize=3, capsize=2, label=label, color=colours[label])  # fmt: skip
-    ax.set(xscale="log", xlabel="agents N", title=f"n = {n}", ylim=(0, 1.02))
-    ticks = sorted(summary[summary.n == n].N.unique())
-    ax.set_xticks(ticks, labels=ticks)
-axes[0][0].set_ylabel("found fraction")
+bounded = "efficiency" in summary and summary["efficiency"].notna().any()
+rows = [("mean", "low", "high", "found fraction")]
+rows += [("efficiency", "efficiency_low", "efficiency_high", "found / search bound")] if bounded else []
+fig, axes = plt.subplots(len(rows), len(sizes), figsize=(3.2 * len(sizes), 3.2 * len(rows)), sharey="row",
+                         squeeze=False)  # fmt: skip
+for row, (value, low, high, name) in zip(axes, rows, strict=True):
+    for ax, n in zip(row, sizes, strict=True):
+        for label, group in summary[summary.n == n].groupby("label"):
+            group = group.sort_values("N")
+            ax.errorbar(group.N, group[value], yerr=[group[value] - group[low], group[high] - group[value]],
+                        marker="o", markersize=3, capsize=2, label=label, color=colours[label])  # fmt: skip
+        if bounded and value == "mean":
+            ceiling = summary[summary.n == n].groupby("N")["bound"].mean()
+            ax.plot(ceiling.index, ceiling.values, color="black", linestyle=":", label="search bound")
+        ax.set(xscale="log", xlabel="agents N", title=f"n = {n}", ylim=(0, 1.02))
+        ticks = sorted(summary[summary.n == n].N.unique())
+        ax.set_xticks(ticks, labels=ticks)
+    row[0].set_ylabel(name)
 axes[0][-1].legend(fontsize=7)
 fig.tight_layout()
 write_atomic(OUT / "fig8_all_sizes.png", lambda tmp: fig.savefig(tmp, dpi=120, format="png"))

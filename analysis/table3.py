@@ -9,8 +9,9 @@
 #
 # Loads evaluation results (`python -m searchrl.evaluate ...`, one directory per controller or policy), averages
 # the repeats of each map, and bootstraps a 95 % confidence interval over maps. Writes `table3.csv` (tidy, with
-# CIs and the paper's number for the same model where there is one) and `table3.md` (the paper's layout: rows N,
-# columns n). Run as a script from the repository root:
+# CIs and the paper's number for the same model where there is one; with the search bound where the evaluations
+# carry it) and `table3.md` (the paper's layout: rows N, columns n), and `table3_efficiency.md` with the bound.
+# Run as a script from the repository root:
 #
 #     python analysis/table3.py [EVAL_DIR ...] [--out DIR]
 #
@@ -21,7 +22,7 @@
 from pathlib import Path
 
 from searchrl.analysis import cli
-from searchrl.analysis.stats import beside_paper, markdown, paper_table3, summarize, table3
+from searchrl.analysis.stats import beside_paper, efficiency_summary, markdown, paper_table3, summarize, table3
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load
 
@@ -66,3 +67,17 @@ if len(policies):
     side_by_side = entries.pivot_table(index=["model", "N"], columns="n", values="entry", aggfunc="first")
     write_text_atomic(OUT / "table3_vs_paper.md", markdown(side_by_side.fillna("–")))
     print(markdown(side_by_side.fillna("–")))
+
+# %% [markdown]
+# ## Efficiency against the search bound
+#
+# Where the evaluations carry the per-map search bound (`bound_fraction`; searchrl/evaluate/bound.py): per cell,
+# found / bound (rows N, columns n), and per controller its means over the hard cells and the unsaturated ones.
+# Written to `table3_efficiency.md`.
+
+# %%
+if "efficiency" in summary and summary["efficiency"].notna().any():
+    per_cell, overall = markdown(table3(summary, "efficiency")), markdown(efficiency_summary(summary))
+    efficiency = f"Efficiency, found / search bound:\n\n{per_cell}\nOver the hard and unsaturated cells:\n\n{overall}"
+    write_text_atomic(OUT / "table3_efficiency.md", efficiency)
+    print(efficiency)

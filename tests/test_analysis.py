@@ -51,6 +51,8 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
     if notebook == "missed_targets.py":  # it runs a controller itself: a small greedy on two small cells
         args = ["controller=greedy", "controller.reach=2", "controller.seen=true", "grid.maps_per_cell=3",
                 "grid.repeats=2"]  # fmt: skip
+    if notebook == "bounds.py":  # the whole grid with one map per cell, joined with the shipped Table 3
+        args = ["--maps", "1", "--draws", "100", "--cache", str(out_dir / "cache"), "analysis/out/table3.csv"]
     if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
         args = [str(eval_dirs[0].parent.parent), str(out_dir)]
     env = {
@@ -73,7 +75,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
     eval_dirs = [fixture_dirs / "eval" / c for c in ("surfing", "coverage", "policy")]
     _run_notebook(notebook, eval_dirs, fixture_dirs / "run", tmp_path)
     expected = {
-        "table3.py": ["table3.csv", "table3.md", "table3_vs_paper.md"],
+        "table3.py": ["table3.csv", "table3.md", "table3_vs_paper.md", "table3_efficiency.md"],
+        "bounds.py": ["bounds.csv", "bounds.md", "efficiency.csv", "efficiency.md"],
         "figures.py": ["fig7_n160.png", "fig8_all_sizes.png"],
         "training_curves.py": ["training_curves.png", "training_curves.csv", "training_convergence.md"],
         "claims.py": ["margins.csv", "margins.md", "claims.md"],
@@ -94,6 +97,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         table = pd.read_csv(tmp_path / "table3.csv")
         assert set(table.controller) == {"surfing", "coverage", "policy:run"} and table["paper"].notna().all()
         assert (table["low"] <= table["mean"]).all() and (table["mean"] <= table["high"]).all()
+        assert (table["mean"] <= table["bound"]).all()  # the fixture's episodes carry their maps' bounds
+        assert (table["efficiency"] == table["mean"] / table["bound"]).all()
         policy = table[table.controller == "policy:run"].iloc[0]
         assert f"{policy['mean']:.3f} ({policy['paper']:.2f})" in (tmp_path / "table3_vs_paper.md").read_text()
     if notebook == "compare.py":  # the first directory against each other one, labelled by folder name
@@ -107,6 +112,11 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         assert pairs == {("policy:run", "surfing"), ("policy:run", "coverage")}
         assert len(margins) == 2 * 4 and (margins.maps == 3).all()  # 4 cells, 3 maps each
         assert "## 1. DRL beats information surfing" in (tmp_path / "claims.md").read_text()
+        assert "## Efficiency against the search bound" in (tmp_path / "claims.md").read_text()
+    if notebook == "bounds.py":
+        bounds = pd.read_csv(tmp_path / "bounds.csv")
+        assert len(bounds) == 30 and (bounds.maps == 1).all() and bounds.bound.between(0, 1).all()
+        assert len(list((tmp_path / "cache").glob("*.parquet"))) == 30  # per-map rows kept for the next run
 
 
 def _script(notebook: str, *args: str) -> subprocess.CompletedProcess:

@@ -4,8 +4,10 @@ placement, the team's reach, and that a controller's finds stay under it."""
 from __future__ import annotations
 
 import itertools
+from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from searchrl.world.bound import (
@@ -17,6 +19,8 @@ from searchrl.world.bound import (
 )
 from searchrl.world.footprint import MOVES
 from searchrl.world.reset import place_targets
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _tiny_map(seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -92,3 +96,51 @@ def test_no_controller_finds_more_than_the_bound(controller):
         assert (bounds.reach == 13 + 5 * (cell_config(world, cell).max_steps - 1)).all()
         joined = episodes.merge(bounds, on="map_seed")
         assert len(joined) == 6 and joined.found_fraction.mean() <= joined.bound_fraction.mean()
+
+
+def test_the_cache_gives_the_same_bounds_and_only_for_the_same_map(tmp_path):
+    from searchrl.evaluate.bound import cell_bounds
+    from searchrl.evaluate.grid import Cell
+    from searchrl.world.config import WorldConfig
+
+    world, cell, seeds = WorldConfig(), Cell(20, 2, 4, 8), [11, 12, 13]
+    fresh = cell_bounds(world, cell, seeds, draws=200)
+    assert cell_bounds(world, cell, seeds[:2], draws=200, cache=tmp_path).equals(fresh.iloc[:2])
+    assert cell_bounds(world, cell, seeds, draws=200, cache=tmp_path).equals(fresh)  # two read, one added
+    cached = pd.read_parquet(tmp_path / "n20_N2_draws200.parquet")
+    assert sorted(cached.map_seed) == seeds
+    cached.loc[:, "bound"] = -1.0  # a row is reused only for its own map: another digest is recomputed
+    cached.loc[:, "digest"] = "another map"
+    cached.to_parquet(tmp_path / "n20_N2_draws200.parquet")
+    assert cell_bounds(world, cell, seeds, draws=200, cache=tmp_path).equals(fresh)
+
+
+def test_the_maps_and_so_the_bounds_do_not_depend_on_the_model_or_the_sensing():
+    """analysis/bounds.py computes one table of bounds for every model and world: that holds while a map is a
+    function of the cell and its seed alone."""
+    from dataclasses import replace
+
+    from searchrl.evaluate.bound import map_prior
+    from searchrl.evaluate.grid import Cell
+    from searchrl.evaluate.runner import cell_config
+    from searchrl.world.config import WorldConfig
+
+    base, cell = WorldConfig(), Cell(40, 2, 8, 16)
+    variants = [replace(base, explicit_area=11, communication=False), replace(base, diagonal=True),
+                replace(base, k=0.0, k_per_n=1.0), replace(base, belief_age=0.9)]  # fmt: skip
+    reference = map_prior(cell_config(base, cell), 123)
+    for variant in variants:
+        assert all(np.array_equal(a, b) for a, b in zip(reference, map_prior(cell_config(variant, cell), 123),
+                                                        strict=True))  # fmt: skip
+
+
+TABLES = [ROOT / "analysis" / "out" / "bounds" / "efficiency.csv"]
+
+
+def test_no_controller_of_the_shipped_tables_exceeds_the_bound_on_any_cell():
+    """The full-grid check: every controller with results in docs (analysis/out/bounds/efficiency.csv, made by
+    analysis/bounds.py from the Table 3 and calibration tables) stays under the per-cell bound on all 30 cells,
+    allowing 3 Monte Carlo standard errors of the bound's mean."""
+    joined = pd.read_csv(TABLES[0])
+    assert set(joined.groupby(["table", "world", "controller", "model"]).size()) == {30}  # every cell of the grid
+    assert (joined["mean"] <= joined["bound"] + 3 * joined["mc_stderr"]).all()

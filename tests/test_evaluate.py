@@ -13,13 +13,15 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 from searchrl.evaluate.__main__ import CONF_DIR, evaluate
+from searchrl.evaluate.bound import BOUND_COLUMNS
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
 SLICE = ["grid.world_sizes=[20,40]", "grid.n_targets=[4,8]", "grid.n_distributions=[8,16]", "grid.max_agents=[2,1]",
-         "grid.maps_per_cell=3", "grid.repeats=2", "progress_bar=false", "threads=1"]  # fmt: skip
+         "grid.maps_per_cell=3", "grid.repeats=2", "progress_bar=false", "threads=1", "bound_draws=200",
+         "bound_cache=null"]  # fmt: skip
 
 
 def _evaluate(out: Path, *overrides: str) -> pd.DataFrame:
@@ -37,7 +39,9 @@ def test_table2_grid_has_the_papers_30_cells():
 @pytest.mark.parametrize("controller", ["surfing", "greedy", "coverage", "random"])
 def test_slice_rows_and_rerun_skips_done_cells(tmp_path, controller, capsys):
     frame = _evaluate(tmp_path, f"controller={controller}")
-    assert list(frame.columns) == COLUMNS
+    assert list(frame.columns) == COLUMNS + BOUND_COLUMNS
+    per_map = frame.groupby(["n", "N", "map_seed"]).bound_fraction.nunique()
+    assert (per_map == 1).all() and frame.bound_fraction.between(0, 1).all()  # one bound per map, for every repeat
     assert len(frame) == 3 * 3 * 2  # cells (20,1) (20,2) (40,1) × 3 maps × 2 repeats
     assert set(zip(frame.n, frame.N, strict=True)) == {(20, 1), (20, 2), (40, 1)}
     assert frame.found_fraction.between(0, 1).all() and frame.L.between(1, 256).all()
@@ -130,6 +134,7 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
         ("grid.max_agents=[2]", "grid lists differ"),
         ("shard=2", "shard=2"),
         ("grid.repeats=0", "grid.repeats=0"),
+        ("bound_draws=10", "bound_draws=10"),
         ("checkpoint=/nonexistent/model.zip", "does not exist"),
         ("controller.radius=-1", "radius=-1"),
         ("controller.horizon=9", "horizon=9"),

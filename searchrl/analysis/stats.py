@@ -9,6 +9,26 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 GROUP = ["controller", "model", "n", "N"]
+# Where search is hard (issue 29): the largest team per world size whose cells are far from saturated.
+HARD_CELLS = {40: 2, 80: 8, 160: 32}  # n = 40 with N <= 2, n = 80 with N <= 8, n = 160 with N <= 32: 12 cells
+
+
+def is_hard(frame: pd.DataFrame) -> pd.Series:
+    """Which rows of a frame with columns n and N are hard cells (HARD_CELLS)."""
+    return frame["N"] <= frame["n"].map(HARD_CELLS).fillna(0)
+
+
+def efficiency_summary(summary: pd.DataFrame) -> pd.DataFrame:
+    """Per (controller, model): the mean found fraction, bound and efficiency over the hard cells, and the mean
+    efficiency over every cell whose bound is below 0.995 (where there is something the team could miss)."""
+    rows = []
+    for key, block in summary.groupby(["controller", "model"]):
+        hard, open_cells = block[is_hard(block)], block[block["bound"] < 0.995]
+        rows.append({"controller": key[0], "model": key[1], "hard found": hard["mean"].mean(),
+                     "hard bound": hard["bound"].mean(), "hard efficiency": hard["efficiency"].mean(),
+                     "unsaturated cells": len(open_cells),
+                     "their efficiency": open_cells["efficiency"].mean()})  # fmt: skip
+    return pd.DataFrame(rows).set_index(["controller", "model"])
 
 
 def bootstrap_mean_ci(
@@ -26,13 +46,30 @@ def bootstrap_mean_ci(
 
 def summarize(episodes: pd.DataFrame, metric: str = "found_fraction", n_boot: int = 2000) -> pd.DataFrame:
     """One row per (controller, model, n, N): mean of `metric` with a 95 % CI. Repeats of a map are averaged
-    first, so the bootstrap resamples maps, the independent units."""
-    per_map = episodes.groupby([*GROUP, "map_seed"], as_index=False)[metric].mean()
+    first, so the bootstrap resamples maps, the independent units. Where episodes have their map's search bound
+    (`bound_fraction`, searchrl/evaluate/bound.py), also `bound` (its mean over the cell's maps) and `efficiency`
+    = mean / bound with its CI (`efficiency_low`, `efficiency_high`: the found fraction's CI over the same bound,
+    whose own Monte Carlo error is far smaller)."""
+    values = [metric, "bound_fraction"] if "bound_fraction" in episodes else [metric]
+    per_map = episodes.groupby([*GROUP, "map_seed"], as_index=False)[values].agg(lambda v: v.mean(skipna=False))
     rows = []
     for key, group in per_map.groupby(GROUP):
         mean, low, high = bootstrap_mean_ci(group[metric].to_numpy(), n_boot)
         rows.append({**dict(zip(GROUP, key, strict=True)), "mean": mean, "low": low, "high": high, "maps": len(group)})
+        if "bound_fraction" in group:  # NaN for a cell run before bounds were recorded: no efficiency
+            rows[-1]["bound"] = bound = group["bound_fraction"].mean(skipna=False)
+            rows[-1].update(efficiency=mean / bound, efficiency_low=low / bound, efficiency_high=high / bound)
     return pd.DataFrame(rows)
+
+
+def with_bounds(summary: pd.DataFrame, bounds: pd.DataFrame) -> pd.DataFrame:
+    """`summary` (summarize's columns, e.g. a table3.csv) with the grid's per-cell `bound` (analysis/bounds.py's
+    bounds.csv: the mean bound fraction over the same maps) and the efficiency columns `summarize` gives."""
+    merged = summary.drop(columns=["bound"], errors="ignore").merge(
+        bounds[["n", "N", "bound", "mc_stderr"]], on=["n", "N"], how="left", validate="many_to_one"
+    )
+    return merged.assign(efficiency=merged["mean"] / merged["bound"], efficiency_low=merged["low"] / merged["bound"],
+                         efficiency_high=merged["high"] / merged["bound"])  # fmt: skip
 
 
 def paired_margins(

@@ -12,6 +12,7 @@ from searchrl.envs.spaces import observation_space
 from searchrl.policies.actor import Actor, sample_actions
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.world.config import WorldConfig
+from searchrl.world.context import observe_context
 from searchrl.world.state import WorldState
 
 
@@ -63,7 +64,14 @@ def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> 
     (channels, side) or acts in another action set than `config`'s world."""
     _, algo, _ = checkpoint_config(path)
     model = load_checkpoint(path, algo, device="cpu")
-    seen, shown = model.observation_space["map"].shape, observation_space(config)["map"].shape
+    space = observation_space(config)
+    seen, shown = model.observation_space["map"].shape, space["map"].shape
+    context = (model.observation_space.spaces.get("context"), space.spaces.get("context"))
+    if context[0] != context[1]:
+        raise ValueError(
+            f"checkpoint={str(path)!r} observes the whole-belief context {context[0]} but the world shows "
+            f"{context[1]} (env.world.context must be the checkpoint's)"
+        )
     if seen != shown:
         raise ValueError(
             f"checkpoint={str(path)!r} sees a {seen} field of view but the world shows {shown}"
@@ -108,16 +116,19 @@ class PolicyController:
     ) -> np.ndarray:
         k, n = state.n_worlds, state.n_agents
         maps, vector = maps.reshape(k * n, *maps.shape[2:]), vector.reshape(k * n, -1)
+        context = observe_context(self.config, state)  # the whole-belief context, None when off
+        context = None if context is None else context.reshape(k * n, *context.shape[2:])
         actions = np.zeros(k * n, np.int64)
         if active is None or active.all():
             rows = slice(None)
         else:
             rows = np.flatnonzero(np.repeat(active, n))
             maps, vector = maps[rows], vector[rows]
+            context = None if context is None else context[rows]
         lstm = None
         if self._state is not None:
             lstm = self._state[:, :, rows] * ~self._start[rows][None, None, :, None]
-        logits, lstm = self.actor.logits(maps, vector, lstm)
+        logits, lstm = self.actor.logits(maps, vector, lstm, context)
         if lstm is not None:
             self._state[:, :, rows] = lstm
         actions[rows] = sample_actions(logits, self.rng)

@@ -14,6 +14,7 @@ from pettingzoo import ParallelEnv
 
 from searchrl.envs.spaces import action_space, observation_space
 from searchrl.world.config import WorldConfig, check_seed, is_int
+from searchrl.world.context import observe_context
 from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.render import world_frame
@@ -99,10 +100,13 @@ class SearchParallelEnv(ParallelEnv):
 
     def _observations(self) -> dict[AgentID, dict[str, np.ndarray]]:
         maps, vector = observe(self.config, self.world_state, self._buffers)
-        return {
-            agent: {"map": maps[0, i].copy(), "vector": vector[0, i].copy()}
-            for i, agent in enumerate(self.possible_agents)
-        }
+        context = observe_context(self.config, self.world_state)  # None unless config.context
+        obs = {agent: {"map": maps[0, i].copy(), "vector": vector[0, i].copy()}
+               for i, agent in enumerate(self.possible_agents)}  # fmt: skip
+        if context is not None:
+            for i, agent in enumerate(self.possible_agents):
+                obs[agent]["context"] = context[0, i].copy()
+        return obs
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":

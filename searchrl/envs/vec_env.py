@@ -49,7 +49,7 @@ class SearchVecEnv(VecEnv):
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = [{} for _ in range(self.num_envs)]
-        return self._flat_obs(maps, vector)
+        return self._flat_obs(maps, vector, self.world.context)
 
     def step_async(self, actions: np.ndarray) -> None:
         actions = np.asarray(actions)
@@ -75,6 +75,8 @@ class SearchVecEnv(VecEnv):
                     "map": tr.final_maps[k, i].copy(),
                     "vector": tr.final_vector[k, i].copy(),
                 }
+                if tr.final_context is not None:
+                    infos[base + i]["terminal_observation"]["context"] = tr.final_context[k, i].copy()
                 infos[base + i]["TimeLimit.truncated"] = bootstrap
             metrics = {name: float(values[k]) for name, values in tr.metrics.items()}
             infos[base]["team_metrics"] = metrics
@@ -83,15 +85,18 @@ class SearchVecEnv(VecEnv):
                 "l": int(metrics["L"]),
                 "t": now,
             }
-        obs = self._flat_obs(tr.maps, tr.vector)
+        obs = self._flat_obs(tr.maps, tr.vector, tr.context)
         return obs, result.reward.reshape(-1).copy(), dones, infos
 
-    def _flat_obs(self, maps: np.ndarray, vector: np.ndarray) -> dict[str, np.ndarray]:
+    def _flat_obs(self, maps: np.ndarray, vector: np.ndarray, context: np.ndarray | None) -> dict[str, np.ndarray]:
         # Copies: the world reuses its buffers, and SB3 keeps the previous observation while stepping.
-        return {
+        obs = {
             "map": maps.reshape(self.num_envs, *maps.shape[2:]).copy(),
             "vector": vector.reshape(self.num_envs, -1).copy(),
         }
+        if context is not None:
+            obs["context"] = context.reshape(self.num_envs, *context.shape[2:]).copy()
+        return obs
 
     def close(self) -> None:
         pass

@@ -8,6 +8,7 @@ Runs the controller on the Table 2/3 grid and writes one parquet file per cell, 
 run with; a run with other settings into the same folder stops before any work (`searchrl/evaluate/record.py`).
 Every setting and every grid cell is checked before the folder is claimed; a job runs a cell only while it holds
 that cell's lock (`<out_dir>/.locks/`), so jobs sharing a folder never write one cell twice (docs/files.md).
+Each row carries its map's search bound (`bound`, `bound_stderr`, `bound_fraction`; searchrl/evaluate/bound.py).
 Load the results with `searchrl.evaluate.results.load`.
 """
 
@@ -32,6 +33,7 @@ from tqdm import tqdm
 from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, write_atomic
 from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
 from searchrl.controllers.registry import heuristic, make_controller
+from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.runner import cell_config, run_cell
@@ -120,6 +122,7 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path]
     need(0 <= int(cfg.seed) <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
     need(int(cfg.threads) >= 1, "threads", cfg.threads, "an integer >= 1 (torch threads)")
     need(math.isfinite(cfg.batch_mb) and cfg.batch_mb > 0, "batch_mb", cfg.batch_mb, "a number of MiB > 0")
+    need(int(cfg.bound_draws) >= 100, "bound_draws", cfg.bound_draws, "an integer >= 100 (placements per map)")
     need(int(cfg.num_shards) >= 1, "num_shards", cfg.num_shards, "an integer >= 1")
     need(0 <= int(cfg.shard) < int(cfg.num_shards), "shard", cfg.shard, f"0 <= shard < num_shards={cfg.num_shards}")
     for name in ("maps_per_cell", "repeats"):
@@ -180,6 +183,9 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
                     remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
                     frame = run_cell(factory, world, cell, index, maps, repeats, int(cfg.seed), float(cfg.batch_mb),
                                      needs_obs, on_steps=bar.update)  # fmt: skip
+                    seeds = frame["map_seed"].unique().tolist()
+                    bounds = cell_bounds(world, cell, seeds, int(cfg.bound_draws), cfg.bound_cache)
+                    frame = frame.merge(bounds[["map_seed", *BOUND_COLUMNS]], on="map_seed", validate="many_to_one")
                     frame.insert(0, "world", world.sensing_label)
                     frame.insert(0, "model", model_name)
                     frame.insert(0, "controller", controller_name)

@@ -1,17 +1,29 @@
 """The per-map search bound of evaluation episodes (searchrl/world/bound.py), from a cell and its map seeds.
 
 An episode's map (p, u, obstacles, target count) is a function of the cell and its map seed (runner.run_cell resets
-each world from `np.random.default_rng(map_seed)`), so the bound is computed from the same seed, for new
-evaluations and for folders written before it existed alike. `bound_fraction` = bound / targets sits beside an
-episode's `found_fraction`; a cell's efficiency is its mean found fraction over its mean bound fraction.
+each world from `np.random.default_rng(map_seed)`), so the bound is computed from the same seed. `bound_fraction` =
+bound / targets sits beside an episode's `found_fraction`; a cell's efficiency is its mean found fraction over its
+mean bound fraction (`searchrl.analysis.stats.summarize`).
+
+Bounds are kept in a cache folder (`runs/bounds/` by default), one file per cell and draw count, each row keyed by
+its map seed, the digest of the map it was computed on, and the team's reach: the maps do not depend on the model
+or the sensing constant, so every evaluation of the grid reuses the first one's bounds, and a row is only reused
+for the very map and reach it was computed for.
+
+`analysis/bounds.py` computes the whole grid's (`grid_bounds`) into the per-cell table that docs/results.md joins
+with its Table 3 means.
 """
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 
-from searchrl.evaluate.grid import Cell
+from searchrl.atomic import write_atomic
+from searchrl.evaluate.grid import Cell, map_seed
 from searchrl.evaluate.runner import cell_config
 from searchrl.world.bound import search_bound, team_reach
 from searchrl.world.config import WorldConfig
@@ -19,6 +31,7 @@ from searchrl.world.reset import reset_world
 from searchrl.world.state import allocate
 
 BOUND_DRAWS = 1000  # placements per map: a standard error of about 0.075 targets of 32 at n = 160
+BOUND_COLUMNS = ["bound", "bound_stderr", "bound_fraction"]
 
 
 def map_prior(config: WorldConfig, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -30,14 +43,60 @@ def map_prior(config: WorldConfig, seed: int) -> tuple[np.ndarray, np.ndarray, n
     return state.p[inner].astype(np.float64), state.u[inner].astype(np.float64), ~state.blocked[inner]
 
 
-def cell_bounds(world: WorldConfig, cell: Cell, seeds: list[int], draws: int = BOUND_DRAWS) -> pd.DataFrame:
-    """One row per map seed: `bound` (expected targets at most), `bound_stderr`, `bound_fraction`, `reach`."""
+def map_digest(p: np.ndarray, u: np.ndarray, free: np.ndarray, targets: int) -> str:
+    """A short hash of everything the bound depends on besides the reach: the prior, the obstacles, the count."""
+    digest = hashlib.sha256(np.int64(targets).tobytes())
+    for array in (p, u, free):
+        digest.update(np.ascontiguousarray(array).tobytes())
+    return digest.hexdigest()[:16]
+
+
+def cell_bounds(
+    world: WorldConfig, cell: Cell, seeds: list[int], draws: int = BOUND_DRAWS, cache: str | Path | None = None
+) -> pd.DataFrame:
+    """One row per map seed: `bound` (expected targets at most), `bound_stderr`, `bound_fraction`, `reach`.
+    With `cache`, rows computed before for the same map, reach and draws are read from it and new ones added."""
     config = cell_config(world, cell)
     reach = team_reach(cell.n_agents, config.max_steps, config.n_actions)
-    rows = []
+    path = Path(cache) / f"{cell.key}_draws{draws}.parquet" if cache is not None else None
+    known = pd.read_parquet(path) if path is not None and path.exists() else None
+    if known is not None and not {"map_seed", "digest", "team_reach"} <= set(known.columns):
+        known = None  # a cache file of another layout: computed afresh and replaced
+    rows, new = [], []
     for seed in seeds:
         p, u, free = map_prior(config, seed)
-        bound = search_bound(p, u, free, cell.n_targets, reach, draws, np.random.default_rng([seed, 29]))
-        rows.append({"map_seed": seed, "bound": bound.expected, "bound_stderr": bound.stderr,
-                     "bound_fraction": bound.expected / cell.n_targets, "reach": bound.reach})  # fmt: skip
+        digest = map_digest(p, u, free, cell.n_targets)
+        hit = None
+        if known is not None:
+            match = known[(known.map_seed == seed) & (known.digest == digest) & (known.team_reach == reach)]
+            hit = match.iloc[0].to_dict() if len(match) else None
+        if hit is None:
+            bound = search_bound(p, u, free, cell.n_targets, reach, draws, np.random.default_rng([seed, 29]))
+            hit = {"map_seed": seed, "digest": digest, "team_reach": reach, "reach": bound.reach,
+                   "bound": bound.expected, "bound_stderr": bound.stderr}  # fmt: skip
+            new.append(hit)
+        rows.append(hit)
+    if path is not None and new:
+        merged = pd.concat([known, pd.DataFrame(new)] if known is not None else [pd.DataFrame(new)])
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(path, lambda tmp: merged.reset_index(drop=True).to_parquet(tmp))
+    frame = pd.DataFrame(rows).astype({"map_seed": np.int64, "reach": np.int64})
+    frame["bound_fraction"] = frame["bound"] / cell.n_targets
+    return frame[["map_seed", *BOUND_COLUMNS, "reach"]]
+
+
+def grid_bounds(
+    world: WorldConfig, cells: list[Cell], maps: int, seed: int, draws: int, cache: str | Path | None
+) -> pd.DataFrame:
+    """Per cell of the grid: n, N, targets, maps, reach, the mean bound fraction over its maps, the Monte Carlo
+    standard error of that mean, and the smallest and largest map's."""
+    rows = []
+    for index, cell in enumerate(cells):
+        per_map = cell_bounds(world, cell, [map_seed(seed, index, m) for m in range(maps)], draws, cache)
+        fraction = per_map["bound_fraction"]
+        mc = np.sqrt((per_map["bound_stderr"] ** 2).sum()) / len(per_map) / cell.n_targets
+        rows.append({"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "maps": len(per_map),
+                     "reach": int(per_map["reach"].iloc[0]), "bound": fraction.mean(), "mc_stderr": mc,
+                     "min": fraction.min(), "max": fraction.max()})  # fmt: skip
+        print(f"{cell.key}: bound fraction {fraction.mean():.3f}", flush=True)
     return pd.DataFrame(rows)

@@ -18,6 +18,7 @@ from searchrl.world.state import WorldState, allocate
 from searchrl.world.step import step
 
 # `world` names the sensing the episodes ran under (WorldConfig.sensing_label: "bayes" λk = 1, "paper" k = n).
+# The evaluation app (__main__) adds the map's search bound, searchrl/evaluate/bound.py's BOUND_COLUMNS.
 COLUMNS = ["controller", "model", "world", "n", "N", "targets", "map_seed", "repeat", "found_fraction", "L", "R",
            "F", "M_bar"]  # fmt: skip
 

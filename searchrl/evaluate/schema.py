@@ -38,6 +38,8 @@ class EvaluateConfig:
     num_shards: int = 1
     out_dir: str | None = None  # default runs/eval/<controller or checkpoint run>
     batch_mb: float = 1024.0  # memory budget of one batch of worlds
+    bound_draws: int = 1000  # placements per map for the search bound columns (searchrl/evaluate/bound.py)
+    bound_cache: str | None = "runs/bounds"  # bounds computed once per map, shared by evaluations; null: no cache
     threads: int = 2
     progress_bar: bool = True
 

@@ -68,6 +68,8 @@ def policy_kwargs(cfg: DictConfig) -> dict[str, Any]:
             "conv_channels": list(net.conv_channels),
             "vector_size": int(net.vector_size),
             "fc_sizes": list(net.fc_sizes),
+            "context_channels": list(net.context_channels),
+            "context_size": int(net.context_size),
         },
         "net_arch": [],  # policy and value heads are linear on the features (or the LSTM output), as in PRIMAL
     }

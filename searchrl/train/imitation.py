@@ -68,13 +68,14 @@ class Demonstrations:
     starts: np.ndarray  # (S, T) float32, 1 where an episode starts inside the sequence (not at t = 0)
     returns: np.ndarray  # (S, T) float32, discounted return-to-go within the episode
     found_fraction: float  # mean found fraction of the teacher's episodes that ended
+    context: np.ndarray | None = None  # (S, T, 3, G, G) float16 with the whole-belief context (env.world.context)
 
     def __len__(self) -> int:
         return self.actions.shape[0]
 
     def join(self, other: Demonstrations) -> Demonstrations:
         """Both sets of sequences (DAgger's aggregate); found_fraction stays this one's (the teacher's)."""
-        fields = ("maps", "vector", "actions", "starts", "returns")
+        fields = ("maps", "vector", "actions", "starts", "returns") + (("context",) if self.context is not None else ())
         joined = {f: np.concatenate([getattr(self, f), getattr(other, f)]) for f in fields}
         return Demonstrations(**joined, found_fraction=self.found_fraction)
 
@@ -116,9 +117,13 @@ def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, 
                 "rewards": np.empty((steps, slots), np.float32),
                 "dones": np.empty((steps, slots), np.float32),
             }
+            if world.context is not None:
+                rec["context"] = np.empty((steps, slots, *world.context.shape[2:]), np.float16)
             for t in range(steps):
                 actions = controller.act(world.state, maps, vector)
                 rec["maps"][t], rec["vector"][t] = maps.reshape(slots, *maps.shape[2:]), vector.reshape(slots, -1)
+                if world.context is not None:
+                    rec["context"][t] = world.context.reshape(slots, *world.context.shape[2:])
                 rec["actions"][t] = actions.reshape(-1)
                 tr = world.step(actions if mover is controller else mover.act(world.state, maps, vector))
                 done = tr.result.done
@@ -141,6 +146,7 @@ def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, 
         starts=cat["starts"],
         returns=discounted_returns(cat["rewards"], cat["dones"], gamma),
         found_fraction=float(np.mean(found)) if found else float("nan"),
+        context=cat.get("context"),
     )
 
 
@@ -151,6 +157,9 @@ def _evaluate(policy: ActorCriticPolicy, demos: Demonstrations, idx: np.ndarray)
         "map": torch.as_tensor(demos.maps[idx].reshape(-1, *demos.maps.shape[2:]), device=device).float(),
         "vector": torch.as_tensor(demos.vector[idx].reshape(-1, demos.vector.shape[2]), device=device),
     }
+    if demos.context is not None:
+        context = demos.context[idx].reshape(-1, *demos.context.shape[2:])
+        obs["context"] = torch.as_tensor(context, device=device).float()
     actions = torch.as_tensor(demos.actions[idx].reshape(-1), device=device)
     if isinstance(policy, RecurrentActorCriticPolicy):
         # The batch is read as len(idx) sequences laid end to end, each from zero LSTM states.

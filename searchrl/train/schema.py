@@ -66,6 +66,8 @@ class NetworkConfig:
     vector_size: int = 32  # FC on the 3-vector
     fc_sizes: list[int] = field(default_factory=lambda: [256, 256])  # FC after concatenation
     lstm_hidden_size: int = 256  # recurrent algorithms only
+    context_channels: list[int] = field(default_factory=lambda: [16, 32])  # with env.world.context: two convs
+    context_size: int = 64  # FC on the context stream
 
 
 @dataclass

@@ -27,6 +27,8 @@ def run_episodes(
             actions = act_rng.integers(0, world_config.n_actions, size=(n_worlds, n))
         else:
             obs = {"map": maps.reshape(n_worlds * n, *maps.shape[2:]), "vector": vector.reshape(n_worlds * n, -1)}
+            if world.context is not None:  # the whole-belief context (env.world.context)
+                obs["context"] = world.context.reshape(n_worlds * n, *world.context.shape[2:])
             flat, lstm_state = model.predict(
                 obs, state=lstm_state, episode_start=episode_start, deterministic=deterministic
             )

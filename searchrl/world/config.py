@@ -106,6 +106,9 @@ class WorldConfig:
     # merging (model C) this is all an agent can learn of what others cleared, and it is what C's teacher keeps
     # in memory (greedy's `seen`); shown, a clone need not remember it. Costs K·N·S² float32 more when on.
     belief_seen: bool = False
+    # Observation only (not in the paper; 0 = off): G > 0 adds a third observation part, the agent's own belief
+    # over the whole world pooled to G × G bins and where its field of view sits (searchrl/world/context.py).
+    context: int = 0
 
     # --- rewards (Table 1, eq. 5, eq. 17)
     step_reward: float = -0.05
@@ -210,6 +213,12 @@ class WorldConfig:
             "belief_seen",
             self.belief_seen,
             "True or False, and False unless belief_age > 0 (it scales the belief's freshness)",
+        )
+        need(
+            self.context == 0 or 2 <= self.context <= min(64, self.world_size[0]),
+            "context",
+            self.context,
+            f"0 (off) or 2 <= G <= min(64, smallest world size {self.world_size[0]}): G × G bins of the whole world",
         )
         need(self.max_steps >= 1, "max_steps", self.max_steps, ">= 1")
         need(self.xi >= 0, "xi", self.xi, ">= 0")

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from searchrl.world.config import WorldConfig, check_seed, is_int, need
+from searchrl.world.context import context_buffer, observe_context
 from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_worlds
@@ -25,6 +26,8 @@ class Transition:
     final_maps: np.ndarray  # (K, N, C, fov, fov) float32, valid where result.done
     final_vector: np.ndarray  # (K, N, 3) float32, valid where result.done
     metrics: dict[str, np.ndarray]  # (K,) each, episode metrics, valid where result.done
+    context: np.ndarray | None = None  # (K, N, 3, G, G) float32 with `config.context` (world/context.py), else None
+    final_context: np.ndarray | None = None  # (K, N, 3, G, G) float32, valid where result.done; None when off
 
 
 class SearchWorld:
@@ -41,6 +44,9 @@ class SearchWorld:
         self.rng = np.random.default_rng(seed)
         self._obs = observation_buffers(config, n_worlds)
         self._final = tuple(np.zeros_like(a) for a in self._obs)
+        self._context = context_buffer(config, n_worlds)  # None when the context is off: nothing computed
+        self._final_context = None if self._context is None else np.zeros_like(self._context)
+        self.context: np.ndarray | None = None  # the context observed with the last reset or step
 
     @property
     def n_worlds(self) -> int:
@@ -53,18 +59,24 @@ class SearchWorld:
             self.rng = np.random.default_rng(seed)
         mask = np.ones(self.n_worlds, bool) if mask is None else np.asarray(mask, bool)
         reset_worlds(self.config, self.state, mask, self.rng)
+        self.context = observe_context(self.config, self.state, self._context)
         return observe(self.config, self.state, self._obs)
 
     def step(self, actions: np.ndarray) -> Transition:
         """Step all worlds with actions (K, N), then reset the finished ones."""
         result = step(self.config, self.state, actions, self.rng)
         maps, vector = observe(self.config, self.state, self._obs)
+        context = observe_context(self.config, self.state, self._context)
         done = result.done
         metrics: dict[str, np.ndarray] = {}
         if done.any():
             self._final[0][done] = maps[done]
             self._final[1][done] = vector[done]
+            if context is not None:
+                self._final_context[done] = context[done]
             metrics = episode_metrics(self.state)
             reset_worlds(self.config, self.state, done, self.rng)
             maps, vector = observe(self.config, self.state, self._obs)
-        return Transition(maps, vector, result, self._final[0], self._final[1], metrics)
+            context = observe_context(self.config, self.state, self._context)
+        self.context = context
+        return Transition(maps, vector, result, self._final[0], self._final[1], metrics, context, self._final_context)
