@@ -26,7 +26,7 @@ from pathlib import Path
 import pandas as pd
 
 from searchrl.analysis import cli
-from searchrl.analysis.stats import HARD_CELLS, is_hard, markdown, with_bounds
+from searchrl.analysis.stats import is_hard, markdown, with_bounds
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.bound import BOUND_DRAWS, grid_bounds
 from searchrl.evaluate.grid import table2_cells
@@ -86,7 +86,7 @@ if frames:
         f"Upper-bound check: {len(over)} of {len(joined)} cells have a mean above the bound "
         f"(largest found/bound: {joined['efficiency'].max():.3f}; on the {len(unsaturated)} cells whose bound is "
         f"below 0.995: {unsaturated['efficiency'].max():.3f}).\n",
-        f"Mean over the {sum(1 for c in cells if HARD_CELLS.get(c.n, 0) >= c.n_agents)} hard cells "
+        f"Mean over the {int(is_hard(bounds).sum())} hard cells "
         "(n = 40 with N <= 2, n = 80 with N <= 8, n = 160 with N <= 32) of found fraction, bound and efficiency "
         "(mean of the per-cell found / bound):\n",
         markdown(by_controller),

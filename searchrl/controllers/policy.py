@@ -12,7 +12,7 @@ from searchrl.envs.spaces import observation_space
 from searchrl.policies.actor import Actor, sample_actions
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.world.config import WorldConfig
-from searchrl.world.context import observe_context
+from searchrl.world.context import context_buffer, observe_context
 from searchrl.world.state import WorldState
 
 
@@ -93,6 +93,7 @@ class PolicyController:
     def __init__(self, actor: Actor, config: WorldConfig, deterministic: bool = False, seed: int = 0) -> None:
         self.actor = actor
         self.config = config
+        self._context: np.ndarray | None = None  # (K, N, 3, G, G) reused each step; None while the context is off
         self.rng = None if deterministic else np.random.default_rng(seed)
         self._state: np.ndarray | None = None  # (2, layers, K·N, hidden)
         self._start = np.zeros(0, bool)  # (K·N,) slots whose next step begins an episode
@@ -116,7 +117,9 @@ class PolicyController:
     ) -> np.ndarray:
         k, n = state.n_worlds, state.n_agents
         maps, vector = maps.reshape(k * n, *maps.shape[2:]), vector.reshape(k * n, -1)
-        context = observe_context(self.config, state)  # the whole-belief context, None when off
+        if self._context is None or self._context.shape[:2] != (k, n):
+            self._context = context_buffer(self.config, k)
+        context = observe_context(self.config, state, self._context)  # the whole-belief context, None when off
         context = None if context is None else context.reshape(k * n, *context.shape[2:])
         actions = np.zeros(k * n, np.int64)
         if active is None or active.all():

@@ -71,8 +71,8 @@ class SearchCNN(BaseFeaturesExtractor):
         if "context" in observation_space.spaces:
             c_ctx, grid, _ = observation_space["context"].shape
             k1, k2 = context_channels
-            convs = nn.Sequential(*_conv_block(c_ctx, k1, pool=False)[:2], *_conv_block(k1, k2, pool=grid >= 2)[:2],
-                                  *([nn.MaxPool2d(2)] if grid >= 2 else []), nn.Flatten())  # fmt: skip
+            convs = nn.Sequential(nn.Conv2d(c_ctx, k1, 3, padding=1), nn.ReLU(), nn.Conv2d(k1, k2, 3, padding=1),
+                                  nn.ReLU(), nn.MaxPool2d(2), nn.Flatten())  # fmt: skip
             with torch.no_grad():
                 n_ctx = convs(torch.zeros(1, c_ctx, grid, grid)).shape[1]
             self.context = nn.Sequential(convs, nn.Linear(n_ctx, context_size), nn.ReLU())

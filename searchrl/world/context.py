@@ -47,6 +47,8 @@ def context_into(belief, obs_scale, pos, size, halo, fov, out):
     belief (K, N, 2, S, S) float32 padded by `halo`; obs_scale (K, 2); pos (K, N, 2) unpadded; size (K,)."""
     n_worlds, n_agents, grid = out.shape[0], out.shape[1], out.shape[3]
     half = fov // 2
+    acc = np.empty((2, grid, grid), np.float64)  # scratch reused by every agent: no allocation per agent
+    view = np.empty((grid, grid), np.float64)
     for k in range(n_worlds):
         n = size[k]
         bin_of = np.empty(n, np.int64)  # the bin of each row (and column): ⌊r·G/n⌋
@@ -56,14 +58,14 @@ def context_into(belief, obs_scale, pos, size, halo, fov, out):
             count[bin_of[r]] += 1.0
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
         for i in range(n_agents):
-            acc = np.zeros((2, grid, grid), np.float64)
+            acc[:] = 0.0
             bel_p, bel_u = belief[k, i, 0], belief[k, i, 1]
             for r in range(n):
                 br = bin_of[r]
                 for c in range(n):
                     acc[0, br, bin_of[c]] += bel_p[r + halo, c + halo]
                     acc[1, br, bin_of[c]] += bel_u[r + halo, c + halo]
-            view = np.zeros((grid, grid), np.float64)
+            view[:] = 0.0
             r_lo, r_hi = max(pos[k, i, 0] - half, 0), min(pos[k, i, 0] + half, n - 1)
             c_lo, c_hi = max(pos[k, i, 1] - half, 0), min(pos[k, i, 1] + half, n - 1)
             for r in range(r_lo, r_hi + 1):
