@@ -52,6 +52,9 @@ ADDED_LATER = {
     "env.extra_teams.world_size": "null: a group's worlds draw env.world.world_size, as before the field",
     "imitation": "teacher null: no warm start (the RL runs predate imitation)",
     "imitation.lr_schedule": "constant: the only imitation rate before the field",
+    "imitation.rl_weight": "0: plain PPO after the clone, the only RL before the field",
+    "imitation.rl_schedule": "constant: unused with rl_weight 0",
+    "imitation.critic_warmup": "0: PPO updates the policy from the first rollout, as before the field",
     "init": "null: fresh weights, the only start before the field",
 }
 

@@ -36,7 +36,9 @@ from searchrl.controllers.policy import PolicyController
 from searchrl.policies.actor import Actor
 from searchrl.train.build import (
     TRAINABLE_MODELS,
+    attach_teacher,
     check_config,
+    label_env,
     load_algorithm,
     make_algorithm,
     make_vec_env,
@@ -214,7 +216,7 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
     cfg.device = str(get_device(cfg.device))  # recorded as used (device=auto becomes cpu or cuda)
 
     # Environment and algorithm: fresh, or the newest readable checkpoint with its step count and optimiser state.
-    env = make_vec_env(cfg)
+    env = label_env(cfg, make_vec_env(cfg))  # labelled by the teacher when the teacher term needs it
     model, start_step = None, 0
     if not resuming:
         model = make_algorithm(cfg, env, tensorboard_log=None)
@@ -234,12 +236,13 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
                  f"agent-steps already ({checkpoint.name}); give total_timesteps >= {start_step}")  # fmt: skip
         model.set_random_seed((int(cfg.seed) + start_step) % 2**32)  # new scenarios, not a replay of the first
         print(f"resuming {run_dir} from {checkpoint.name} at {start_step} agent-steps", file=sys.stderr)
+    attach_teacher(cfg, model, env)
     # The run's record, written once the run has started well: a resume writes back what it changed (say
     # total_timesteps) but never what it resumes from.
     record = copy.deepcopy(cfg)
     record.resume = None
     write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(record, resolve=True))
-    if not resuming and cfg.imitation.teacher is not None:
+    if not resuming and cfg.imitation.teacher is not None and int(cfg.imitation.epochs) > 0:
         warm_start(cfg, model, run_dir)
         # A kill before the first RL checkpoint then resumes from the clone rather than losing it.
         write_atomic(run_dir / "checkpoints" / "step_0.zip", lambda tmp: model.save(tmp))
@@ -254,7 +257,9 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
         AtomicCheckpointCallback(run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints)),
     ]
     v = cfg.validation
-    validation = ValidationCallback(world_config(cfg), int(v.every), int(v.n_worlds), int(v.seed), v.deterministic)
+    started = cfg.init is not None or (cfg.imitation.teacher is not None and int(cfg.imitation.epochs) > 0)
+    validation = ValidationCallback(world_config(cfg), int(v.every), int(v.n_worlds), int(v.seed), v.deterministic,
+                                    at_start=started and not resuming)  # fmt: skip
     callbacks.append(validation)
 
     remaining = int(cfg.total_timesteps) - model.num_timesteps

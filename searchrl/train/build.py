@@ -18,8 +18,10 @@ from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
+from searchrl.policies.teacher_term import SCHEDULES, TEACHER_ALGORITHMS, TeacherTerm
 from searchrl.train.imitation import lr_factor, make_teacher
 from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig, override_keys
+from searchrl.train.teacher_labels import TeacherLabels
 from searchrl.world.config import ConfigError, WorldConfig, need
 
 ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "ppo": PPOConfig, "a2c": A2CConfig}
@@ -140,17 +142,39 @@ def check_config(cfg: DictConfig) -> None:
     imitation = cfg.imitation
     if imitation.teacher is not None:
         make_teacher(imitation.teacher, world, 0, teacher_args(cfg))  # unknown teacher or bad arguments
-        for name in ("episodes", "epochs", "batch_sequences"):
+        for name in ("episodes", "batch_sequences"):
             if int(imitation[name]) < 1:
                 raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 1")
-        for name in ("value_epochs", "dagger_rounds"):
+        for name in ("epochs", "value_epochs", "dagger_rounds"):
             if int(imitation.get(name, 0)) < 0:
                 raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 0")
+        if int(imitation.epochs) == 0 and int(imitation.get("dagger_rounds", 0)) > 0:
+            raise ConfigError(f"imitation.dagger_rounds={imitation.dagger_rounds!r} is not allowed with "
+                              "imitation.epochs=0 (no clone to refit): 0, or epochs >= 1")  # fmt: skip
         lr = float(imitation.learning_rate)
         need(0 < lr < math.inf, "imitation.learning_rate", imitation.learning_rate, "must be > 0")
         lr_factor(str(imitation.get("lr_schedule", "constant")), 0, 1)  # an unknown schedule, named
+    check_teacher_term(cfg)
     net = cfg.network
     SearchCNN.check_sizes(list(net.conv_channels), int(net.vector_size), list(net.fc_sizes), world.fov)
+
+
+def uses_teacher_term(cfg: DictConfig) -> bool:
+    """Whether RL runs with the teacher term or critic warm-up (searchrl/policies/teacher_term.py)."""
+    return float(cfg.imitation.get("rl_weight", 0.0)) != 0 or int(cfg.imitation.get("critic_warmup", 0)) != 0
+
+
+def check_teacher_term(cfg: DictConfig) -> None:
+    im = cfg.imitation
+    weight, warmup, schedule = im.get("rl_weight", 0.0), im.get("critic_warmup", 0), im.get("rl_schedule", "constant")
+    need(0 <= weight < math.inf, "imitation.rl_weight", weight, "a number >= 0 (0: plain PPO)")
+    need(int(warmup) >= 0, "imitation.critic_warmup", warmup, "an integer >= 0 (rollouts of critic-only fitting)")
+    need(schedule in SCHEDULES, "imitation.rl_schedule", schedule, f"one of {', '.join(SCHEDULES)}")
+    if weight > 0 and im.teacher is None:
+        need(False, "imitation.rl_weight", weight, "0 without imitation.teacher (the term imitates the teacher)")
+    if uses_teacher_term(cfg) and cfg.algo.name not in TEACHER_ALGORITHMS:
+        need(False, "algo", cfg.algo.name, f"one of {', '.join(TEACHER_ALGORITHMS)} with imitation.rl_weight or "
+             "imitation.critic_warmup (the teacher term is a PPO loss term)")  # fmt: skip
 
 
 def unused_settings(cfg: DictConfig, overrides: list[str]) -> list[str]:
@@ -162,7 +186,8 @@ def unused_settings(cfg: DictConfig, overrides: list[str]) -> list[str]:
     keys = override_keys(overrides)
     unused = []
     if cfg.imitation.teacher is None:
-        unused += [k for k in keys if k.startswith("imitation.") and k != "imitation.teacher"]
+        used = ("imitation.teacher", "imitation.critic_warmup")
+        unused += [k for k in keys if k.startswith("imitation.") and k not in used]
     if cfg.algo.name != "recurrent_ppo":
         unused += [k for k in keys if k == "network.lstm_hidden_size"]
     notes = [f"{k} has no effect here (no imitation.teacher, or a feed-forward algo)" for k in unused]
@@ -202,8 +227,28 @@ def check_device(device: str) -> None:
         need(parsed.type == "cpu", "device", device, allowed)
 
 
+def algorithm_class(cfg: DictConfig) -> type[BaseAlgorithm]:
+    """SB3's class of algo.name, or its teacher-term subclass when the run uses the term or critic warm-up."""
+    return TEACHER_ALGORITHMS[cfg.algo.name] if uses_teacher_term(cfg) else ALGORITHMS[cfg.algo.name][0]
+
+
+def label_env(cfg: DictConfig, env: VecEnv) -> VecEnv:
+    """`env` wrapped to label every step with the teacher's action when the teacher term needs them."""
+    if not uses_teacher_term(cfg) or cfg.imitation.teacher is None:
+        return env
+    return TeacherLabels(env, str(cfg.imitation.teacher), teacher_args(cfg), int(cfg.seed))
+
+
+def attach_teacher(cfg: DictConfig, model: BaseAlgorithm, env: VecEnv) -> None:
+    """Give a teacher-term algorithm its settings and the wrapper's labels (None without a teacher)."""
+    if isinstance(model, TeacherTerm):
+        im = cfg.imitation
+        source = env if isinstance(env, TeacherLabels) else None
+        model.configure_teacher(float(im.rl_weight), str(im.rl_schedule), int(im.critic_warmup), source)
+
+
 def make_algorithm(cfg: DictConfig, env: VecEnv, tensorboard_log: str | None) -> BaseAlgorithm:
-    algo_class, policy = ALGORITHMS[cfg.algo.name]
+    algo_class, policy = algorithm_class(cfg), ALGORITHMS[cfg.algo.name][1]
     return algo_class(
         policy,
         env,
@@ -219,6 +264,11 @@ def make_algorithm(cfg: DictConfig, env: VecEnv, tensorboard_log: str | None) ->
 def load_algorithm(cfg: DictConfig, path: str, env: VecEnv) -> BaseAlgorithm:
     """Load a checkpoint with its step count and optimiser state, attached to `env`; ValueError naming the file
     if it cannot be read."""
+    if uses_teacher_term(cfg):
+        try:
+            return algorithm_class(cfg).load(path, env=env, device=cfg.device)
+        except Exception as err:  # the same message as load_checkpoint's
+            raise ValueError(f"checkpoint={path!r} cannot be read ({type(err).__name__}: {err})") from None
     return load_checkpoint(path, cfg.algo.name, env=env, device=cfg.device)
 
 

@@ -80,20 +80,29 @@ def checkpoints(directory: Path) -> list[tuple[int, Path]]:
 
 class ValidationCallback(BaseCallback):
     """Every `every` agent-steps (never if 0), and once more for the final model when training ends, runs the
-    policy on fixed validation worlds and logs `val/<metric>`; the random-walk level on the same worlds is logged
-    with each as `val/random_<metric>` for reference. The final validation's row also holds the last update's
-    losses, which SB3 records after its last log row."""
+    policy on fixed validation worlds and logs `val/<metric>` (with `at_start`, also before the first rollout); the
+    random-walk level on the same worlds is logged with each as `val/random_<metric>` for reference. The final
+    validation's row also holds the last update's losses, which SB3 records after its last log row."""
 
-    def __init__(self, world_config: WorldConfig, every: int, n_worlds: int, seed: int, deterministic: bool) -> None:
+    def __init__(self, world_config: WorldConfig, every: int, n_worlds: int, seed: int, deterministic: bool,
+                 at_start: bool = False) -> None:  # fmt: skip
         super().__init__()
         self.world_config, self.every, self.n_worlds, self.seed = world_config, every, n_worlds, seed
-        self.deterministic = deterministic
+        self.deterministic, self.at_start = deterministic, at_start
         self._next = 0
         self.random_level: dict[str, float] = {}
 
     def _init_callback(self) -> None:
         self._next = (self.model.num_timesteps // self.every + 1) * self.every if self.every > 0 else 0
         self.random_level = run_episodes(self.world_config, self.n_worlds, self.seed, None)
+
+    def _on_training_start(self) -> None:
+        """With `at_start` (a run that starts from a clone or init weights), the starting policy's row at step 0,
+        so the curve shows where RL began."""
+        if self.at_start and self.model.num_timesteps == 0:
+            self.validate()
+            self.logger.record("time/total_timesteps", 0)
+            self.logger.dump(0)
 
     def _on_step(self) -> bool:
         if self.every > 0 and self.num_timesteps >= self._next:

@@ -122,7 +122,7 @@ class ImitationConfig:
     # empty: that controller's defaults.
     teacher_args: dict[str, Any] = field(default_factory=dict)
     episodes: int = 32  # teacher episodes per world of the run's rollout worlds (K·N·episodes sequences)
-    epochs: int = 4  # cross-entropy on the teacher's actions
+    epochs: int = 4  # cross-entropy on the teacher's actions; 0: no clone before RL (nothing is collected)
     value_epochs: int = 1  # then the value-only parameters on the teacher's discounted returns (0 skips)
     # DAgger rounds after the first fit: the clone plays `episodes` more episodes per world, the teacher labels the
     # states it reaches, and the clone is refitted on all sequences so far (memory grows by the first set per round).
@@ -131,6 +131,14 @@ class ImitationConfig:
     learning_rate: float = 1e-3
     # "linear": each fit's rate falls from learning_rate to 0 over its minibatches; "constant" keeps it.
     lr_schedule: str = "constant"
+    # During RL (searchrl/policies/teacher_term.py): PPO's loss gains rl_weight × the cross-entropy toward the
+    # teacher's action on every state the learner visits (0: plain PPO); "linear" takes the weight to 0 by the end
+    # of the run. epochs=0 skips the clone (say with init= a clone made before).
+    rl_weight: float = 0.0
+    rl_schedule: str = "constant"
+    # The first critic_warmup rollouts of RL fit only the value-only parameters on the learner's own returns; the
+    # policy does not move until the critic knows the learner's states. Needs no teacher.
+    critic_warmup: int = 0
 
 
 @dataclass
