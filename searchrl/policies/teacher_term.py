@@ -28,6 +28,7 @@ from sb3_contrib import RecurrentPPO
 from sb3_contrib.common.recurrent.buffers import RecurrentDictRolloutBuffer
 from stable_baselines3 import PPO
 from stable_baselines3.common.buffers import DictRolloutBuffer
+from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.utils import explained_variance
 
 SCHEDULES = ("constant", "linear")
@@ -37,6 +38,12 @@ class LabelSource(Protocol):
     def rollout_labels(self, n_steps: int) -> np.ndarray:
         """(n_steps, n_envs) int64: the teacher's action for the observation each slot acted on, at each step of
         the rollout just collected (the same layout as the rollout buffer's arrays)."""
+
+
+def value_parameters(policy: ActorCriticPolicy) -> list[torch.nn.Parameter]:
+    """The parameters only the value estimate uses: value head, its MLP and (RecurrentPPO) the critic's LSTM."""
+    modules = [policy.value_net, policy.mlp_extractor.value_net, getattr(policy, "lstm_critic", None)]
+    return [p for m in modules if m is not None for p in m.parameters()]
 
 
 class _Labelled:
@@ -132,9 +139,7 @@ class TeacherTerm:
 
     def _fit_critic(self) -> None:
         """Value loss on the value-only parameters; every other gradient is dropped, so Adam moves nothing else."""
-        policy = self.policy
-        modules = (policy.value_net, policy.mlp_extractor.value_net, getattr(policy, "lstm_critic", None))
-        value_only = {id(p) for m in modules if m is not None for p in m.parameters()}
+        value_only = {id(p) for p in value_parameters(self.policy)}
         losses = []
         for _ in range(self.n_epochs):
             for data, _labels in self.rollout_buffer.get(self.batch_size):

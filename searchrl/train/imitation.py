@@ -36,6 +36,7 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 
 from searchrl.controllers.base import Controller
 from searchrl.controllers.registry import HEURISTICS, make_controller
+from searchrl.policies.teacher_term import value_parameters
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
@@ -173,12 +174,6 @@ def _evaluate(policy: ActorCriticPolicy, demos: Demonstrations, idx: np.ndarray)
     return dist, values.flatten(), actions
 
 
-def _value_parameters(policy: ActorCriticPolicy) -> list[torch.nn.Parameter]:
-    """The parameters only the value estimate uses: value head, its MLP and (RecurrentPPO) the critic's LSTM."""
-    modules = [policy.value_net, policy.mlp_extractor.value_net, getattr(policy, "lstm_critic", None)]
-    return [p for m in modules if m is not None for p in m.parameters()]
-
-
 LR_SCHEDULES = ("constant", "linear")
 
 
@@ -212,7 +207,7 @@ def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_e
     returns = torch.as_tensor(demos.returns)
     policy.set_training_mode(True)
     history = []
-    phases = [("policy", list(policy.parameters()), epochs), ("value", _value_parameters(policy), value_epochs)]
+    phases = [("policy", list(policy.parameters()), epochs), ("value", value_parameters(policy), value_epochs)]
     for phase, parameters, n_epochs in phases:
         optimizer = torch.optim.Adam(parameters, lr=learning_rate)  # its own: PPO's Adam starts afresh
         steps = n_epochs * math.ceil(len(demos) / batch_sequences)  # minibatches in the phase
