@@ -30,6 +30,7 @@ FLOAT_RESULTS = {
     "reward": ((-1, -1), np.float32),
     "info_collected": ((-1, -1), np.float64),
     "comm_gain": ((-1, -1), np.float64),
+    "expected_targets": ((-1, -1), np.float64),
 }
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -45,6 +45,7 @@ ADDED_LATER = {
     "env.world.belief_age": "0: the belief channels show the belief as it is, with no age",
     "env.world.belief_age_channel": "false: five channels, no age channel",
     "env.world.belief_seen": "false: the neighbours seen do not scale what is shown",
+    "env.world.info_reward": "information: eq. 5 pays for p and u removed, the only reward before the field",
     "env.world.context": "0: no whole-belief context, the paper's two observation parts",
     "network.context_channels": "unused without env.world.context (no context stream is built)",
     "network.context_size": "unused without env.world.context (no context stream is built)",

@@ -79,13 +79,20 @@ def _check_accounting(config: WorldConfig, before: WorldState, after: WorldState
     if not config.communication:
         assert (res.comm_gain == 0).all(), "comm_gain with communication off"
     # Table 1 with eq. 5 and eq. 17, rebuilt from the other fields of the result.
+    paid = res.info_collected if config.info_reward == "information" else 2 * res.expected_targets  # eq. 5
     want = (
         config.step_reward
         + config.collision_reward * res.collided
         + config.target_reward * res.targets_found
-        + (config.xi / config.lam) * res.info_collected
+        + (config.xi / config.lam) * paid
         + (config.tau / config.lam) * res.comm_gain
     )
+    if config.info_reward == "information":
+        assert (res.expected_targets == 0).all()
+    else:  # a share of the p removed, each unit worth at most max(target_weight)
+        assert (res.expected_targets >= 0).all()
+        bound = (before.p - after.p).sum(axis=(1, 2)) * before.target_weight.max(axis=(1, 2))
+        assert (res.expected_targets.sum(axis=1) <= bound * (1 + 1e-6) + 1e-12).all()
     np.testing.assert_allclose(res.reward, want, rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(after.ep_return - before.ep_return, want.sum(axis=1), rtol=1e-5, atol=1e-5)
 

@@ -15,7 +15,7 @@ DISCRETE_FIELDS = (
 )  # fmt: skip
 # Float state: SPEC fixes the order of the products, but sums over cells and agents may be taken in any order,
 # so floats are compared to float32 rounding (rtol 1e-5) rather than bit for bit.
-FLOAT_FIELDS = ("p", "u", "belief", "belief_seen", "obs_scale", "ep_return", "ep_info")
+FLOAT_FIELDS = ("p", "u", "belief", "belief_seen", "obs_scale", "target_weight", "ep_return", "ep_info")
 RTOL, ATOL = 1e-5, 1e-7
 
 
@@ -46,6 +46,7 @@ def small_configs(draw: st.DrawFn, max_steps: tuple[int, int] = (3, 30)) -> Worl
         belief_age=age,
         belief_age_channel=age > 0 and draw(st.booleans()),
         belief_seen=age > 0 and draw(st.booleans()),
+        info_reward=draw(st.sampled_from(["information", "targets"])),
     )
 
 

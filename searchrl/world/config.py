@@ -35,6 +35,9 @@ def check_seed(seed: object, name: str = "seed") -> None:
     need(seed is None or (is_int(seed) and seed >= 0), name, seed, "None or an integer >= 0")
 
 
+INFO_REWARDS = ("information", "targets")  # what eq. 5 pays for (WorldConfig.info_reward)
+
+
 def _is_number(value: object) -> bool:
     return (is_int(value) or isinstance(value, (float, np.floating))) and math.isfinite(value)
 
@@ -44,6 +47,7 @@ _KINDS = {
     "int": (is_int, "an integer"),
     "float": (_is_number, "a finite number"),
     "bool": (lambda v: isinstance(v, (bool, np.bool_)), "True or False"),
+    "str": (lambda v: isinstance(v, str), "a string"),
     "tuple[int, int]": (
         lambda v: isinstance(v, (tuple, list)) and len(v) == 2 and all(is_int(x) for x in v),
         "a pair of integers (low, high)",
@@ -115,6 +119,10 @@ class WorldConfig:
     collision_reward: float = -0.2
     target_reward: float = 10.0
     xi: float = 0.05  # ξ of eq. 5; 2ξ/λ = 100 is the whole map's worth of information
+    # What eq. 5's information reward pays for: "information" (the paper: M_p + M_u removed) or "targets" (not in
+    # the paper: the p removed times the targets §4.1.4's placement expects per unit of p there, keep(u)/Σ p·keep(u),
+    # scaled to the same total of 2ξ/λ a world). The paper's pays for u as much as p, and targets sit where u is low.
+    info_reward: str = "information"
     tau: float = 0.01  # τ of eq. 17
 
     max_steps: int = 256  # episode length (§4.1.1)
@@ -195,6 +203,7 @@ class WorldConfig:
             self.explicit_area,
             f"Φ must fit inside the field of view (fov={self.fov})",
         )
+        need(self.info_reward in INFO_REWARDS, "info_reward", self.info_reward, f"one of {', '.join(INFO_REWARDS)}")
         need(0 <= self.belief_age <= 4, "belief_age", self.belief_age, "0 <= belief_age <= 4 (0: beliefs do not age)")
         need(
             self.belief_age == 0 or self.bayesian_sensing,

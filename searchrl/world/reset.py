@@ -126,6 +126,10 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
     state.n_targets[k] = j
     state.n_found[k] = 0
     state.obs_scale[k] = (_unit_scale(state.p[inner].max()), _unit_scale(state.u[inner].max()))
+    if state.target_weight.shape[1] > 0:  # info_reward="targets": p·weight sums to 1 over the world
+        keep = np.where(free, keep_probability(u), 0.0)
+        state.target_weight[k] = 0.0
+        state.target_weight[inner] = keep / (p * keep).sum()
     state.ep_return[k] = 0.0
     state.ep_comm_pairs[k] = 0
     state.ep_info[k] = 0.0
