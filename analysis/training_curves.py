@@ -78,3 +78,15 @@ report = (f"Validation found fraction:\n\n{per_million('val/found_fraction')}\n"
           f"Validation meetings F per episode:\n\n{per_million('val/F')}")  # fmt: skip
 write_text_atomic(OUT / "training_convergence.md", report)
 print(report)
+
+# %% [markdown]
+# ## Every validation, run by run
+#
+# The validation found fraction at each validation step (rows) of each run (columns); a run started from a clone
+# or `init=` has a row at step 0, the starting policy's. Written to `validation.md`.
+
+# %%
+points = curves[curves.metric == "val/found_fraction"]
+validation = points.pivot_table(index="step", columns="run", values="value", aggfunc="last")
+write_text_atomic(OUT / "validation.md", markdown(validation))
+print(markdown(validation))

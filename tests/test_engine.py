@@ -118,7 +118,17 @@ def test_bench_json_rows(capsys):
 def test_bench_train_reports_fps_and_env_share(capsys):
     assert bench_main(["train", "--updates", "1", "--threads", "1", "--network", "small", "--json"]) == 0
     (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert row["agent_steps_per_s"] > 0 and 0 < row["env_share"] < 1
+    assert row["agent_steps_per_s"] > 0 and 0 < row["env_share"] < 1 and row["labels_share"] == 0
+    assert 0 < row["update_share"] < 1
+
+
+def test_bench_train_times_a_recipe_with_the_teacher_term(capsys):
+    assert bench_main(["train", "--updates", "1", "--threads", "1", "--experiment", "rl_term_b", "--json"]) == 0
+    (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert row["case"] == "rl_term_b_threads1" and 0 < row["labels_share"] < 1 and 0 < row["update_share"] < 1
+    with pytest.raises(SystemExit):
+        bench_main(["train", "--experiment", "nothing"])
+    assert "--experiment=nothing is not allowed: one of" in capsys.readouterr().err
 
 
 def test_bench_rejects_bad_arguments(capsys):

@@ -16,8 +16,11 @@ import argparse
 import json
 import math
 import sys
+from pathlib import Path
 
 from searchrl.controllers.registry import HEURISTICS
+
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 
 SUITES = {
     "world": "engine throughput, batched against the oracle (--seconds)",
@@ -43,6 +46,7 @@ def _parser() -> argparse.ArgumentParser:
         sub[name].add_argument("--context", type=int, default=0, help=text)
     sub["train"].add_argument("--updates", type=int, default=4, help="timed rollouts + updates (1 to 1000)")
     sub["train"].add_argument("--network", choices=["paper", "small"], default="paper", help="network config")
+    sub["train"].add_argument("--experiment", help="a recipe of conf/experiment/ instead of model B with --network")
     sub["eval"].add_argument("--controller", choices=list(HEURISTICS),
                              help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
     sub["eval"].add_argument("--maps", type=int, default=10, help="maps per cell (1 to 1000)")
@@ -65,6 +69,10 @@ def main(argv: list[str] | None = None) -> int:
         value = getattr(args, attr, None)
         if value is not None and not (ok(value) and math.isfinite(value)):
             parser.error(f"{flag}={value} is not allowed: {allowed}")
+    experiment = getattr(args, "experiment", None)
+    if experiment is not None and not (CONF_DIR / "experiment" / f"{experiment}.yaml").is_file():
+        known = ", ".join(sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml")))
+        parser.error(f"--experiment={experiment} is not allowed: one of {known}")
     checkpoint = getattr(args, "checkpoint", None)
     if checkpoint and getattr(args, "controller", None):
         parser.error("--controller cannot apply with --checkpoint: give one of them")
@@ -95,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         from searchrl.bench import train
 
-        rows = train.run(updates=args.updates, threads=args.threads, network=args.network, log=log)
+        rows = train.run(args.updates, args.threads, args.network, args.experiment, log=log)
     if args.json:
         for row in rows:
             print(json.dumps(row))

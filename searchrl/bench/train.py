@@ -1,52 +1,62 @@
-"""SB3 training throughput: RecurrentPPO with the paper network on the VecEnv (model B, training scenarios),
-for a fixed number of updates; reports agent-steps/s and the share of wall time spent in the environment."""
+"""SB3 training throughput: RecurrentPPO on the VecEnv for a fixed number of updates, with the paper network on
+model B's training scenarios, or a recipe (`--experiment`, e.g. one with the teacher term). Reports agent-steps/s
+and where the wall time goes: the environment's steps, the teacher's labels (runs with the teacher term), the
+updates (`train`); the rest is the policy acting during the rollout and SB3's bookkeeping."""
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import TextIO
 
 import torch
 from hydra import compose, initialize_config_dir
 
 from searchrl.train.__main__ import CONF_DIR
-from searchrl.train.build import make_algorithm, make_vec_env
+from searchrl.train.build import attach_teacher, label_env, make_algorithm, make_vec_env, rollout_size
+from searchrl.train.teacher_labels import TeacherLabels
 
 
-def run(updates: int = 4, threads: int = 2, network: str = "paper", log: TextIO | None = None) -> list[dict]:
-    """One RecurrentPPO run of `updates` rollouts (plus one warm-up rollout, not timed)."""
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        cfg = compose(config_name="train", overrides=["+model=b", f"network={network}", f"threads={threads}"])
-    torch.set_num_threads(threads)
-    env = make_vec_env(cfg, seed=0)
-    env_time = [0.0]
-    step_wait = env.step_wait
-
-    def timed_step_wait():
+def _timed(fn: Callable, total: list[float]) -> Callable:
+    def timed(*args, **kwargs):
         start = time.perf_counter()
-        out = step_wait()
-        env_time[0] += time.perf_counter() - start
+        out = fn(*args, **kwargs)
+        total[0] += time.perf_counter() - start
         return out
 
-    env.step_wait = timed_step_wait
+    return timed
+
+
+def run(updates: int = 4, threads: int = 2, network: str = "paper", experiment: str | None = None,
+        log: TextIO | None = None) -> list[dict]:  # fmt: skip
+    """One run of `updates` rollouts (plus one warm-up rollout, not timed); `experiment` composes
+    `+experiment=<name>` (its own model and network) instead of model B with `network`."""
+    overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", f"network={network}"]
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose(config_name="train", overrides=[*overrides, f"threads={threads}"])
+    torch.set_num_threads(threads)
+    base = make_vec_env(cfg, seed=0)
+    env = label_env(cfg, base)
+    spent = {"env": [0.0], "labels": [0.0], "update": [0.0]}
+    base.step_wait = _timed(base.step_wait, spent["env"])
+    if isinstance(env, TeacherLabels):
+        env._label = _timed(env._label, spent["labels"])
     model = make_algorithm(cfg, env, tensorboard_log=None)
-    rollout = model.n_steps * env.num_envs
+    attach_teacher(cfg, model, env)
+    model.train = _timed(model.train, spent["update"])
+    rollout = rollout_size(cfg)
     model.learn(rollout)  # warm-up: numba cache, torch kernels
-    env_time[0] = 0.0
+    for total in spent.values():
+        total[0] = 0.0
     start = time.perf_counter()
     model.learn(rollout * updates, reset_num_timesteps=False)
     wall = time.perf_counter() - start
     fps = rollout * updates / wall
-    row = {
-        "case": f"recurrent_ppo_{network}_model_b_K{cfg.env.n_worlds}_N{cfg.env.world.n_agents}_threads{threads}",
-        "engine": "sb3",
-        "agent_steps_per_s": round(fps, 1),
-        "env_share": round(env_time[0] / wall, 4),
-    }
+    name = experiment or f"recurrent_ppo_{network}_model_b_K{cfg.env.n_worlds}_N{cfg.env.world.n_agents}"
+    row = {"case": f"{name}_threads{threads}", "engine": "sb3", "agent_steps_per_s": round(fps, 1)}
+    row.update({f"{part}_share": round(total[0] / wall, 4) for part, total in spent.items()})
     if log:
-        print(
-            f"{row['case']}: {fps:,.0f} agent-steps/s over {updates} updates of {rollout} agent-steps; "
-            f"environment {100 * row['env_share']:.1f}% of wall time",
-            file=log,
-        )
+        shares = ", ".join(f"{part} {100 * row[f'{part}_share']:.1f}%" for part in spent)
+        print(f"{row['case']}: {fps:,.0f} agent-steps/s over {updates} updates of {rollout} agent-steps; "
+              f"wall time: {shares}, the rest acting and bookkeeping", file=log)  # fmt: skip
     return [row]
