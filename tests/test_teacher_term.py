@@ -96,9 +96,11 @@ def test_labels_cover_every_group_of_a_team_mix():
 def _teacher_log_prob(model) -> float:
     """Mean log-probability of the teacher's labels over the last rollout (recomputed with the current weights)."""
     buffer = model.rollout_buffer
+    values = []
     with torch.no_grad():
-        values = [model._evaluate(data, labels[None])[1][0][model._evaluate(data, labels[None])[3]].mean().item()
-                  for data, labels in buffer.get(None)]  # fmt: skip
+        for data, labels in buffer.get(None):
+            _, log_probs, _, mask = model._evaluate(data, labels[None])
+            values.append(log_probs[0][mask].mean().item())
     return float(np.mean(values))
 
 

@@ -45,13 +45,14 @@ def checkpoint_label(path: str | Path) -> str:
     return run.name if path.name == "model.zip" else f"{run.name}@{path.stem}"
 
 
-def load_checkpoint(path: str | Path, algo: str, **kwargs: object) -> BaseAlgorithm:
-    """The SB3 model saved at `path` by algorithm `algo`; ValueError naming the file if it cannot be read
-    (truncated, not an SB3 zip, another algorithm's)."""
+def load_checkpoint(path: str | Path, algo: str, cls: type[BaseAlgorithm] | None = None,
+                    **kwargs: object) -> BaseAlgorithm:  # fmt: skip
+    """The SB3 model saved at `path` by algorithm `algo` (loaded as `cls`, a subclass of that algorithm's class, if
+    given); ValueError naming the file if it cannot be read (truncated, not an SB3 zip, another algorithm's)."""
     if algo not in ALGORITHMS:
         raise ValueError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
     try:
-        return ALGORITHMS[algo][0].load(str(path), **kwargs)
+        return (cls or ALGORITHMS[algo][0]).load(str(path), **kwargs)
     except Exception as err:  # BadZipFile, EOFError, KeyError, RuntimeError of torch.load, ...
         raise ValueError(
             f"checkpoint={str(path)!r} cannot be read as a {algo} model ({type(err).__name__}: "

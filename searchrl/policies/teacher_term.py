@@ -40,6 +40,17 @@ class LabelSource(Protocol):
         the rollout just collected (the same layout as the rollout buffer's arrays)."""
 
 
+def check_settings(weight: float, schedule: str, critic_warmup: int) -> None:
+    """ValueError naming the `imitation.*` setting that is not allowed (the training app checks them before work)."""
+    if not (weight >= 0 and np.isfinite(weight)):
+        raise ValueError(f"imitation.rl_weight={weight!r} is not allowed: a number >= 0 (0: plain PPO)")
+    if schedule not in SCHEDULES:
+        raise ValueError(f"imitation.rl_schedule={schedule!r} is not allowed: one of {', '.join(SCHEDULES)}")
+    if int(critic_warmup) < 0:
+        raise ValueError(f"imitation.critic_warmup={critic_warmup!r} is not allowed: an integer >= 0 (rollouts of "
+                         "critic-only fitting)")  # fmt: skip
+
+
 def value_parameters(policy: ActorCriticPolicy) -> list[torch.nn.Parameter]:
     """The parameters only the value estimate uses: value head, its MLP and (RecurrentPPO) the critic's LSTM."""
     modules = [policy.value_net, policy.mlp_extractor.value_net, getattr(policy, "lstm_critic", None)]
@@ -79,12 +90,7 @@ class TeacherTerm:
     label_source: LabelSource | None = None
 
     def configure_teacher(self, weight: float, schedule: str, critic_warmup: int, source: LabelSource | None) -> None:
-        if not (weight >= 0 and np.isfinite(weight)):
-            raise ValueError(f"imitation.rl_weight={weight!r} is not allowed: a number >= 0")
-        if schedule not in SCHEDULES:
-            raise ValueError(f"imitation.rl_schedule={schedule!r} is not allowed: one of {', '.join(SCHEDULES)}")
-        if critic_warmup < 0:
-            raise ValueError(f"imitation.critic_warmup={critic_warmup!r} is not allowed: an integer >= 0")
+        check_settings(weight, schedule, critic_warmup)
         self.teacher_weight, self.teacher_schedule, self.critic_warmup = float(weight), schedule, int(critic_warmup)
         self.label_source = source
 

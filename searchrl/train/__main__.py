@@ -237,12 +237,13 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
         model.set_random_seed((int(cfg.seed) + start_step) % 2**32)  # new scenarios, not a replay of the first
         print(f"resuming {run_dir} from {checkpoint.name} at {start_step} agent-steps", file=sys.stderr)
     attach_teacher(cfg, model, env)
+    clones = cfg.imitation.teacher is not None and int(cfg.imitation.epochs) > 0  # a warm start before RL
     # The run's record, written once the run has started well: a resume writes back what it changed (say
     # total_timesteps) but never what it resumes from.
     record = copy.deepcopy(cfg)
     record.resume = None
     write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(record, resolve=True))
-    if not resuming and cfg.imitation.teacher is not None and int(cfg.imitation.epochs) > 0:
+    if not resuming and clones:
         warm_start(cfg, model, run_dir)
         # A kill before the first RL checkpoint then resumes from the clone rather than losing it.
         write_atomic(run_dir / "checkpoints" / "step_0.zip", lambda tmp: model.save(tmp))
@@ -257,9 +258,8 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
         AtomicCheckpointCallback(run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints)),
     ]
     v = cfg.validation
-    started = cfg.init is not None or (cfg.imitation.teacher is not None and int(cfg.imitation.epochs) > 0)
     validation = ValidationCallback(world_config(cfg), int(v.every), int(v.n_worlds), int(v.seed), v.deterministic,
-                                    at_start=started and not resuming)  # fmt: skip
+                                    at_start=(clones or cfg.init is not None) and not resuming)  # fmt: skip
     callbacks.append(validation)
 
     remaining = int(cfg.total_timesteps) - model.num_timesteps

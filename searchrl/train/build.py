@@ -18,7 +18,7 @@ from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
-from searchrl.policies.teacher_term import SCHEDULES, TEACHER_ALGORITHMS, TeacherTerm
+from searchrl.policies.teacher_term import TEACHER_ALGORITHMS, TeacherTerm, check_settings
 from searchrl.train.imitation import lr_factor, make_teacher
 from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig, override_keys
 from searchrl.train.teacher_labels import TeacherLabels
@@ -161,15 +161,13 @@ def check_config(cfg: DictConfig) -> None:
 
 def uses_teacher_term(cfg: DictConfig) -> bool:
     """Whether RL runs with the teacher term or critic warm-up (searchrl/policies/teacher_term.py)."""
-    return float(cfg.imitation.get("rl_weight", 0.0)) != 0 or int(cfg.imitation.get("critic_warmup", 0)) != 0
+    return float(cfg.imitation.rl_weight) != 0 or int(cfg.imitation.critic_warmup) != 0
 
 
 def check_teacher_term(cfg: DictConfig) -> None:
     im = cfg.imitation
-    weight, warmup, schedule = im.get("rl_weight", 0.0), im.get("critic_warmup", 0), im.get("rl_schedule", "constant")
-    need(0 <= weight < math.inf, "imitation.rl_weight", weight, "a number >= 0 (0: plain PPO)")
-    need(int(warmup) >= 0, "imitation.critic_warmup", warmup, "an integer >= 0 (rollouts of critic-only fitting)")
-    need(schedule in SCHEDULES, "imitation.rl_schedule", schedule, f"one of {', '.join(SCHEDULES)}")
+    weight = float(im.rl_weight)
+    check_settings(weight, str(im.rl_schedule), int(im.critic_warmup))
     if weight > 0 and im.teacher is None:
         need(False, "imitation.rl_weight", weight, "0 without imitation.teacher (the term imitates the teacher)")
     if uses_teacher_term(cfg) and cfg.algo.name not in TEACHER_ALGORITHMS:
@@ -264,12 +262,7 @@ def make_algorithm(cfg: DictConfig, env: VecEnv, tensorboard_log: str | None) ->
 def load_algorithm(cfg: DictConfig, path: str, env: VecEnv) -> BaseAlgorithm:
     """Load a checkpoint with its step count and optimiser state, attached to `env`; ValueError naming the file
     if it cannot be read."""
-    if uses_teacher_term(cfg):
-        try:
-            return algorithm_class(cfg).load(path, env=env, device=cfg.device)
-        except Exception as err:  # the same message as load_checkpoint's
-            raise ValueError(f"checkpoint={path!r} cannot be read ({type(err).__name__}: {err})") from None
-    return load_checkpoint(path, cfg.algo.name, env=env, device=cfg.device)
+    return load_checkpoint(path, cfg.algo.name, cls=algorithm_class(cfg), env=env, device=cfg.device)
 
 
 def teacher_args(cfg: DictConfig) -> dict[str, Any]:
