@@ -90,3 +90,25 @@ points = curves[curves.metric == "val/found_fraction"]
 validation = points.pivot_table(index="step", columns="run", values="value", aggfunc="last")
 write_text_atomic(OUT / "validation.md", markdown(validation))
 print(markdown(validation))
+
+# %% [markdown]
+# ## Distance to the teacher, and the critic
+#
+# For runs with a teacher (`imitation.teacher`), the cross-entropy of the policy's action distribution toward the
+# teacher's actions on the learner's own states (nats; the teacher term's loss, logged also when its weight is 0)
+# and the critic's explained variance, each the mean over windows of 250k agent-steps (labelled by their end).
+# A run whose cross-entropy climbs while its validation falls is being moved away from its teacher by PPO's
+# advantages. Written to `teacher_distance.md`.
+
+
+# %%
+def per_window(metric: str, width: int = 250_000) -> str:
+    points = curves[curves.metric == metric].assign(window=lambda f: (f.step // width + 1) * width)
+    return markdown(points.pivot_table(index="window", columns="run", values="value", aggfunc="mean"))
+
+
+if (curves.metric == "train/imitation_loss").any():
+    report = (f"Cross-entropy toward the teacher (nats):\n\n{per_window('train/imitation_loss')}\n"
+              f"Explained variance of the critic:\n\n{per_window('train/explained_variance')}")  # fmt: skip
+    write_text_atomic(OUT / "teacher_distance.md", report)
+    print(report)

@@ -21,6 +21,7 @@ from searchrl.analysis.stats import (
     paper_table3,
     summarize,
     table3,
+    training_curves,
 )
 from searchrl.render import main as render_main
 
@@ -303,3 +304,20 @@ def test_paired_margins_compare_the_same_maps():
     other_maps = pd.DataFrame(rows).assign(map_seed=lambda f: f.map_seed + (f.controller == "y") * 1000)
     with pytest.raises(ValueError, match="share no map"):
         paired_margins(other_maps, "x", "y")
+
+
+def test_training_curves_carry_the_teacher_distance_and_the_critic(tmp_path):
+    """A teacher-term run's cross-entropy toward its teacher and explained variance reach the tidy frame;
+    analysis/training_curves.py tabulates them (teacher_distance.md) where a run logged them."""
+    run = tmp_path / "term"
+    run.mkdir()
+    log = {"time/total_timesteps": [0, 100_000, 300_000], "val/found_fraction": [0.7, np.nan, 0.75],
+           "train/imitation_loss": [np.nan, 0.2, 0.4], "train/explained_variance": [np.nan, 0.3, 0.5],
+           "train/value_loss": [np.nan, 1.0, 2.0]}  # fmt: skip
+    pd.DataFrame(log).to_csv(run / "progress.csv", index=False)
+    curves = training_curves([run])
+    assert set(curves.metric) == {"val/found_fraction", "train/imitation_loss", "train/explained_variance"}
+    out = _script("training_curves.py", str(run), "--out", str(tmp_path / "tc"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    table = (tmp_path / "tc" / "teacher_distance.md").read_text()
+    assert "| 250000 | 0.200 |" in table and "| 500000 | 0.400 |" in table

@@ -129,13 +129,19 @@ def beside_paper(summary: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
     return merged.assign(diff=merged["mean"] - merged["paper"])
 
 
+# The teacher term's cross-entropy toward the teacher's actions (logged whatever its weight, 0 included) and the
+# critic's explained variance: how far RL has moved the policy from its teacher, and how good its advantages are.
+TRAIN_DIAGNOSTICS = ("train/imitation_loss", "train/explained_variance")
+
+
 def training_curves(run_dirs: list[str | Path]) -> pd.DataFrame:
-    """Tidy frame (run, model, step, metric, value) of team metrics and validation from each run's progress.csv."""
+    """Tidy frame (run, model, step, metric, value) of team metrics, validation and the PPO diagnostics of
+    TRAIN_DIAGNOSTICS from each run's progress.csv."""
     frames = []
     for run in map(Path, run_dirs):
         progress = pd.read_csv(run / "progress.csv")
         model = _model_name(run)
-        keep = [c for c in progress.columns if c.startswith(("team/", "val/"))]
+        keep = [c for c in progress.columns if c.startswith(("team/", "val/")) or c in TRAIN_DIAGNOSTICS]
         long = progress.melt(id_vars=["time/total_timesteps"], value_vars=keep, var_name="metric").dropna()
         frames.append(long.rename(columns={"time/total_timesteps": "step"}).assign(run=run.name, model=model))
     if not frames:

@@ -129,10 +129,10 @@ def _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_othe
 
 
 @njit(cache=True)
-def greedy_actions(w, params, memory, fallback, out):
+def greedy_actions(w, params, memory, fallback, out, scores):
     """out (K,N) int64 <- footprint-greedy actions of the agents of w (`WorldState.arrays()`) with settings `params`
     (GreedyParams) and `memory` (GreedyMemory, seen and known already brought to this step). fallback (K,N) int64:
-    random moves used where nothing is sensed."""
+    random moves used where nothing is sensed. scores (K,N) float64 <- the chosen move's score (0: fallback)."""
     pos, occupant, blocked, h, moves, view = w.pos, w.occupant, w.blocked, w.halo, params.moves, params.fov_half
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     others = np.empty(((2 * view + 1) ** 2, 2), np.int64)
@@ -161,6 +161,7 @@ def greedy_actions(w, params, memory, fallback, out):
                 if score > best_score:
                     best, best_score = a, score
             out[k, i] = best if best >= 1 else fallback[k, i]
+            scores[k, i] = best_score
 
 
 def reach_weights(blocked: np.ndarray, exponent: float) -> np.ndarray:
@@ -257,6 +258,7 @@ class FootprintGreedy(FallbackHeuristic):
         # GreedyMemory's arrays, sized on the first reset
         self._weights, self._seen = np.ones((0, 0, 0)), np.ones((0, 0, 0, 0), np.float32)
         self._known, self._rates = np.zeros((0, 0, 0, 0), np.int32), np.zeros(0)
+        self.scores = np.zeros((0, 0))  # (K, N) float64: the score of each agent's last move (greedy_actions)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         if self._weights.shape != state.blocked.shape:
@@ -279,4 +281,6 @@ class FootprintGreedy(FallbackHeuristic):
             remember_sightings(w, SUPPORT, self._seen, self._known, self.config.fov // 2,
                                self.config.explicit_area // 2, self.age > 0, 0, state.n_worlds)  # fmt: skip
         memory = GreedyMemory(self._weights, self._seen, self._known, self._rates)
-        greedy_actions(w, self._params, memory, fallback, out)
+        if self.scores.shape != out.shape:
+            self.scores = np.zeros(out.shape)
+        greedy_actions(w, self._params, memory, fallback, out, self.scores)
