@@ -96,14 +96,14 @@ print(markdown(validation))
 #
 # For runs with a teacher (`imitation.teacher`), the cross-entropy of the policy's action distribution toward the
 # teacher's actions on the learner's own states (nats; the teacher term's loss, logged also when its weight is 0)
-# and the critic's explained variance, each the mean over windows of 250k agent-steps (labelled by their end).
+# and the critic's explained variance, each the mean over windows of 250k agent-steps (labelled by their first step).
 # A run whose cross-entropy climbs while its validation falls is being moved away from its teacher by PPO's
 # advantages. Written to `teacher_distance.md`.
 
 
 # %%
 def per_window(metric: str, width: int = 250_000) -> str:
-    points = curves[curves.metric == metric].assign(window=lambda f: (f.step // width + 1) * width)
+    points = curves[curves.metric == metric].assign(window=lambda f: f.step // width * width)
     return markdown(points.pivot_table(index="window", columns="run", values="value", aggfunc="mean"))
 
 

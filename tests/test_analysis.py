@@ -320,4 +320,4 @@ def test_training_curves_carry_the_teacher_distance_and_the_critic(tmp_path):
     out = _script("training_curves.py", str(run), "--out", str(tmp_path / "tc"))
     assert out.returncode == 0, out.stderr[-3000:]
     table = (tmp_path / "tc" / "teacher_distance.md").read_text()
-    assert "| 250000 | 0.200 |" in table and "| 500000 | 0.400 |" in table
+    assert "| 0 | 0.200 |" in table and "| 250000 | 0.400 |" in table

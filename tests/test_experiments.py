@@ -32,6 +32,7 @@ EXPERIMENTS = {
     "rl_diagonal": "rl/diagonal",
     "rl_b_tau0": "ablations/b_tau0",
     "rl_term_b": "term/b",
+    "rl_term_linear_b": "ablations/b_term_linear",
 }
 # Settings that do not decide what is trained, so a rerun may change them: speed and place (threads, device),
 # display (progress_bar, log_interval: rows of the log, not updates), what is kept on disk (checkpoint_every,
