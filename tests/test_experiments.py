@@ -31,7 +31,9 @@ EXPERIMENTS = {
     "rl_c": "rl/c",
     "rl_diagonal": "rl/diagonal",
     "rl_b_tau0": "ablations/b_tau0",
+    "rl_term_a": "term/a",
     "rl_term_b": "term/b",
+    "rl_term_diagonal": "term/diagonal",
     "rl_term_linear_b": "ablations/b_term_linear",
 }
 # Settings that do not decide what is trained, so a rerun may change them: speed and place (threads, device),
