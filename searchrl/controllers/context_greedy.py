@@ -34,7 +34,7 @@ from searchrl.world.state import WorldState
 
 @dataclass
 class GreedyContextConfig(GreedyTargetConfig):
-    """Settings of `controller=greedy_context`: target-greedy's, and the context's resolution G."""
+    """Settings of `controller=greedy_context`: target-greedy's, the context's resolution G and the margin."""
 
     name: str = "greedy_context"
     context: int = 16  # G: bins per side of the pooled belief it reads (the policies' env.world.context)
