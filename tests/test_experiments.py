@@ -14,7 +14,7 @@ import yaml
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from searchrl.train.__main__ import CONF_DIR
+from searchrl.train.__main__ import CONF_DIR, recipe_arguments
 from searchrl.train.build import check_config
 from searchrl.train.schema import TrainConfig
 
@@ -33,6 +33,7 @@ EXPERIMENTS = {
     "rl_b_tau0": "ablations/b_tau0",
     "rl_term_a": "term/a",
     "rl_term_b": "term/b",
+    "rl_term_c": "term/c",
     "rl_term_diagonal": "term/diagonal",
     "rl_term_linear_b": "ablations/b_term_linear",
 }
@@ -75,9 +76,10 @@ def _flat(node: Any, prefix: str = "") -> dict[str, Any]:
     return {k: v for key, sub in items for k, v in _flat(sub, f"{prefix}{key}.").items()}
 
 
-def _composed(name: str) -> dict[str, Any]:
+def _composed(name: str, overrides: tuple[str, ...] | None = None) -> dict[str, Any]:
+    """The config of `+experiment=<name>`, or of the command line `overrides` as the app composes it."""
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        cfg = compose(config_name="train", overrides=[f"+experiment={name}"])
+        cfg = compose(config_name="train", overrides=recipe_arguments(list(overrides or [f"+experiment={name}"])))
     check_config(cfg)  # the recipe is a valid run for the current code (teacher arguments included)
     return OmegaConf.to_container(cfg, resolve=True)
 
@@ -134,3 +136,29 @@ def test_the_command_line_composes_an_experiment():
     assert out.returncode == 0, out.stderr[-2000:]
     printed = yaml.safe_load(out.stdout)
     assert printed == _composed("clone_c")
+
+
+@pytest.mark.parametrize("model", ["a", "b", "c", "diagonal"])
+def test_the_main_command_runs_the_shipped_recipe_of_its_model(model):
+    """`python -m searchrl.train +model=<m>` is the recipe of runs/reference/term/<m> (conf/recipe/<m>.yaml); the
+    command line still wins over it, and `recipe=paper` is the paper's recipe from scratch."""
+    assert _composed("", ("+model=" + model,)) == _composed(f"rl_term_{model}")
+    assert _composed("", ("+model=" + model, "total_timesteps=1000"))["total_timesteps"] == 1000
+    paper = _composed("", ("+model=" + model, "recipe=paper"))
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        bare = OmegaConf.to_container(compose(config_name="train", overrides=["recipe=paper"]), resolve=True)
+    assert {k: v for k, v in paper.items() if k not in ("model", "env")} == {
+        k: v for k, v in bare.items() if k not in ("model", "env")
+    }
+    assert paper["init"] is None and paper["imitation"]["teacher"] is None and paper["total_timesteps"] == 18400000
+
+
+def test_a_command_line_without_a_model_gets_the_papers_recipe_and_a_recipe_fixes_its_network(capsys):
+    assert recipe_arguments(["resume=runs/x", "threads=2"]) == ["resume=runs/x", "threads=2", "recipe=paper"]
+    assert recipe_arguments(["--help"]) == ["--help", "recipe=paper"]
+    for argv in (["+model=b"], ["+experiment=clone_b"], ["+model=b", "recipe=paper", "network=paper"]):
+        assert recipe_arguments(argv) == argv
+    with pytest.raises(SystemExit):
+        recipe_arguments(["+model=b", "network=paper"])
+    line = capsys.readouterr().err.strip()
+    assert line.startswith("error: network=") and "recipe=paper" in line and len(line.splitlines()) == 1

@@ -18,13 +18,14 @@ import pandas as pd
 import pytest
 import torch
 from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
 
 from searchrl.atomic import hold, temporary_path
 from searchrl.envs.parallel_env import SearchParallelEnv
 from searchrl.evaluate.__main__ import CONF_DIR, evaluate
 from searchrl.evaluate.results import load
-from searchrl.train.__main__ import train
+from searchrl.train.__main__ import recipe_arguments, train
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
@@ -34,12 +35,13 @@ SLICE = ["grid.world_sizes=[20]", "grid.n_targets=[4]", "grid.n_distributions=[8
          "grid.maps_per_cell=2", "grid.repeats=1", "progress_bar=false", "threads=1"]  # fmt: skip
 TINY = ["+model=b", "total_timesteps=2048", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,20]",
         "env.world.n_targets=[2,4]", "env.world.n_distributions=[4,8]", "network=small", "algo.batch_size=128",
-        "checkpoint_every=1024", "validation.every=0", "progress_bar=false", "threads=1"]  # fmt: skip
+        "checkpoint_every=1024", "validation.every=0", "progress_bar=false", "threads=1",
+        "recipe=paper"]  # fmt: skip
 
 
 def _compose(app: str, overrides: list[str]):
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        return compose(config_name=app, overrides=overrides)
+        return compose(config_name=app, overrides=recipe_arguments(overrides) if app == "train" else overrides)
 
 
 def _evaluate(out: Path, *overrides: str) -> Path:
@@ -144,6 +146,29 @@ def test_resume_that_cannot_start_leaves_the_run_as_it_was(tmp_path, tiny_run, c
     overrides = [f"resume={run}", "total_timesteps=9999"]
     _refused(capsys, lambda: train(_compose("train", overrides), run / "r", overrides), "no checkpoint", "be read")
     assert (run / "config.yaml").read_bytes() == record and not (run / "model.zip").exists()
+
+
+def test_a_finished_run_without_checkpoints_is_not_trained_over(tmp_path, tiny_run, capsys):
+    """A shipped folder (model.zip, no checkpoints/) is refused on resume, not restarted over its model."""
+    run = tmp_path / "shipped"
+    shutil.copytree(tiny_run, run)
+    shutil.rmtree(run / "checkpoints")
+    model = (run / "model.zip").read_bytes()
+    overrides = [f"resume={run}", "total_timesteps=4096"]
+    _refused(capsys, lambda: train(_compose("train", overrides), run / "r", overrides), "finished run", "init=")
+    assert (run / "model.zip").read_bytes() == model
+
+
+def test_a_run_killed_before_its_first_checkpoint_starts_again_from_its_init(tmp_path, tiny_run, capsys):
+    """Its restart takes the weights of `init=` again (a file that does not fit is named, so it was read)."""
+    run = _copy(tiny_run, tmp_path / "run")
+    shutil.rmtree(run / "checkpoints")
+    (tmp_path / "other.zip").write_bytes(b"not a zip")
+    config = OmegaConf.load(run / "config.yaml")
+    config.init = str(tmp_path / "other.zip")
+    (run / "config.yaml").write_text(OmegaConf.to_yaml(config))
+    overrides = [f"resume={run}"]
+    _refused(capsys, lambda: train(_compose("train", overrides), run / "r", overrides), "init=", "does not fit")
 
 
 # 4. A failed evaluation claims nothing; cells impossible for their n or N fail before any other cell runs.

@@ -17,7 +17,7 @@ from searchrl.world.state import allocate
 from searchrl.world.step import step
 
 SMALL = ["env.n_worlds=3", "env.world.n_agents=4", "env.world.world_size=[12,20]", "network=small", "threads=1",
-         "algo.batch_size=128"]  # fmt: skip
+         "algo.batch_size=128", "recipe=paper"]  # fmt: skip
 
 
 def _model(algo: str, *overrides: str):

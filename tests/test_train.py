@@ -18,7 +18,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
 
-from searchrl.train.__main__ import CONF_DIR, train
+from searchrl.train.__main__ import CONF_DIR, recipe_arguments, train
 from searchrl.train.build import load_algorithm, make_vec_env
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -30,6 +30,7 @@ TINY = [
     "env.world.world_size=[12,20]",
     "env.world.n_targets=[2,4]",
     "env.world.n_distributions=[4,8]",
+    "recipe=paper",  # the paper's values, scaled down (a model's own recipe starts from its shipped clone)
     "network=small",
     "algo.batch_size=128",
     "checkpoint_every=1024",
@@ -41,8 +42,9 @@ TINY = [
 
 
 def _compose(overrides: list[str]):
+    """The config the app composes from this command line (`recipe=paper` added where it names no model)."""
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        return compose(config_name="train", overrides=overrides)
+        return compose(config_name="train", overrides=recipe_arguments(overrides))
 
 
 def _run(tmp_path: Path, overrides: list[str]) -> Path:
@@ -297,7 +299,7 @@ def test_check_config_names_the_bad_value(override, message):
     from searchrl.train.build import check_config
 
     with pytest.raises(ValueError, match=message.replace("(", r"\(")):
-        check_config(_compose(["+model=b", *override.split()]))
+        check_config(_compose(["+model=b", "recipe=paper", *override.split()]))
 
 
 def test_slurm_launcher_config_composes():

@@ -30,8 +30,8 @@ def _timed(fn: Callable, total: list[float]) -> Callable:
 def run(updates: int = 4, threads: int = 2, network: str = "paper", experiment: str | None = None,
         log: TextIO | None = None) -> list[dict]:  # fmt: skip
     """One run of `updates` rollouts (plus one warm-up rollout, not timed); `experiment` composes
-    `+experiment=<name>` (its own model and network) instead of model B with `network`."""
-    overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", f"network={network}"]
+    `+experiment=<name>` (its own model and network) instead of model B on the paper's recipe with `network`."""
+    overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", "recipe=paper", f"network={network}"]
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose(config_name="train", overrides=[*overrides, f"threads={threads}"])
     torch.set_num_threads(threads)

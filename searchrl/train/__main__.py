@@ -96,7 +96,7 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     if not (run_dir / "config.yaml").is_file():
         fail(f"resume={cfg.resume!r} is not a run directory: it has no config.yaml")
     keys = override_keys(overrides)
-    other = [k for k in keys if k not in (*RESUME_OVERRIDES, "resume") and not k.startswith("hydra")]
+    other = [k for k in keys if k not in (*RESUME_OVERRIDES, "resume", "recipe") and not k.startswith("hydra")]
     if other:
         fail(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
     # Merged into the schema: a run saved by an older version gains new fields' defaults, and types are checked.
@@ -210,6 +210,9 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
 def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
     if not resuming and ((run_dir / "config.yaml").exists() or checkpoints(run_dir / "checkpoints")):
         fail(f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder")
+    if resuming and not checkpoints(run_dir / "checkpoints") and (run_dir / "model.zip").exists():
+        fail(f"resume={str(run_dir)!r} is a finished run with no checkpoints/ left (a shipped folder): start a new "
+             f"run from its weights with init={run_dir / 'model.zip'}")  # fmt: skip
     for folder in (run_dir, run_dir / "checkpoints"):  # left by a killed writer; we hold the folder's lock
         remove_temporaries(folder)
     torch.set_num_threads(int(cfg.threads))
@@ -228,6 +231,8 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
         print(f"{run_dir} has no checkpoint yet: starting it again from step 0", file=sys.stderr)
         resuming = False
         model = make_algorithm(cfg, env, tensorboard_log=None)
+        if cfg.init is not None:
+            init_weights(model, str(cfg.init))
         start_step = 0
     elif resuming:
         start_step = model.num_timesteps
@@ -299,6 +304,21 @@ def check_resume_argument(argv: list[str]) -> None:
             fail(f"{arg} is not allowed: a run folder (with config.yaml and checkpoints/)")
 
 
+def recipe_arguments(argv: list[str]) -> list[str]:
+    """The command line as Hydra gets it. conf/train.yaml picks the recipe by the model (`optional recipe:
+    ${model}`), which Hydra cannot resolve when no model is chosen: such a command line (a resume, whose model is in
+    its saved config; `--help`; a missing model, which check_model then names) gets `recipe=paper`, the paper's
+    values. A model's recipe fine-tunes its shipped clone and so fixes the network: `network=` with it is refused."""
+    keys = {arg.split("=", 1)[0].lstrip("+") for arg in argv if "=" in arg and not arg.startswith("-")}
+    if "network" in keys and "model" in keys and not keys & {"recipe", "experiment"}:
+        fail("network= does not apply to a model's recipe (conf/recipe/<model>.yaml), which starts from the shipped "
+             "clone and so has its network: add recipe=paper to train another network from scratch")  # fmt: skip
+    if keys & {"model", "experiment", "recipe"}:
+        return argv
+    return [*argv, "recipe=paper"]
+
+
 if __name__ == "__main__":
     check_resume_argument(sys.argv[1:])
+    sys.argv[1:] = recipe_arguments(sys.argv[1:])
     main()
