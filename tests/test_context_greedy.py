@@ -89,3 +89,13 @@ def test_bad_settings_are_named(settings, named):
     config, _ = _world()
     with pytest.raises(ValueError, match=named):
         ContextGreedy(config, **settings)
+
+
+def test_divide_sends_teammates_that_see_each_other_to_different_ground():
+    """Two agents 3 apart: without `divide` both head for the richer block east; with it the western one takes
+    the block west, to which it stands nearer than its teammate."""
+    config, state = _world(n_agents=2)  # agent 0 at (32, 32), agent 1 at (32, 29)
+    _mass(state, slice(28, 36), slice(56, 64))  # east, richer
+    _mass(state, slice(28, 36), slice(0, 8), 0.9)  # west
+    assert _act(ContextGreedy(config, context=8, **TARGET), state).tolist() == [E, E]
+    assert _act(ContextGreedy(config, context=8, divide=True, **TARGET), state).tolist() == [E, W]

@@ -17,6 +17,10 @@ the bin (an aim dropped whenever the view looked richer, or once the bin came in
 fro at the edge of their view), then takes greedy's moves again. Where its view holds little, greedy follows the
 faint slopes there; this one walks to the best remaining mass. Moves are one axis at a time (the longer way
 first), or diagonal in the diagonal model.
+
+With `divide`, a bin that a teammate in the agent's view stands nearer to is not a candidate: teammates that see
+each other (in model B, those whose beliefs just merged, which rank the bins alike) split the ground ahead as a
+Voronoi partition of their positions would, instead of walking to the same bin.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ class GreedyContextConfig(GreedyTargetConfig):
     name: str = "greedy_context"
     context: int = 16  # G: bins per side of the pooled belief it reads (the policies' env.world.context)
     margin: float = 2.0  # leave the view for a bin only when the bin is worth this many times staying (1: any gain)
+    divide: bool = False  # skip bins a teammate in view stands nearer to (a Voronoi split of the ground ahead)
 
 
 _ACTION_OF = np.full((3, 3), 99, np.int64)  # (dr + 1, dc + 1) -> the action with that move (99: none)
@@ -49,14 +54,16 @@ for _a, (_dr, _dc) in enumerate(MOVES.tolist()):
 class ContextGreedy(FootprintGreedy):
     """FootprintGreedy that heads for the best pooled bin of its own belief when that beats its view."""
 
-    def __init__(self, config: WorldConfig, context: int = 16, margin: float = 2.0, **greedy: object) -> None:
+    def __init__(
+        self, config: WorldConfig, context: int = 16, margin: float = 2.0, divide: bool = False, **greedy: object
+    ) -> None:
         if not 2 <= context <= min(64, config.world_size[0]):
             raise ValueError(f"context={context!r} is not allowed: 2 <= G <= min(64, smallest world size "
                              f"{config.world_size[0]})")  # fmt: skip
         if not margin >= 1:
             raise ValueError(f"margin={margin!r} is not allowed: margin >= 1 (1: leave for any bin worth more)")
         super().__init__(config, **greedy)
-        self.context, self.margin = int(context), float(margin)
+        self.context, self.margin, self.divide = int(context), float(margin), bool(divide)
         self._steps = sum(self.discount**t for t in range(self.horizon))  # greedy's score / this = per step
         self._pooled = np.zeros((0, 0, CONTEXT_CHANNELS, self.context, self.context), np.float32)
         self._goal = np.full((0, 0), -1, np.int64)  # (K, N) flat bin each agent heads for, -1: none
@@ -82,7 +89,10 @@ class ContextGreedy(FootprintGreedy):
         apart = np.maximum(abs(rows), abs(cols)) if self.config.diagonal else abs(rows) + abs(cols)
         left = np.maximum(self.config.max_steps - state.t, 1).astype(np.float64)[:, None, None, None]
         worth = float(GAMMA.sum()) * info * np.clip(1.0 - apart / left, 0.0, None)
-        worth = np.where(view > 0, 0.0, worth).reshape(k, n, -1)  # (K, N, G²) per step, as greedy's rate
+        worth = np.where(view > 0, 0.0, worth)
+        if self.divide:
+            worth = np.where(self._nearer_teammate(state, np.broadcast_to(apart, worth.shape)), 0.0, worth)
+        worth = worth.reshape(k, n, -1)  # (K, N, G²) per step, as greedy's rate
         staying = self.scores / self._steps  # (K, N)
         bin_of = state.pos * grid // state.size[:, None, None]  # (K, N, 2) the bin each agent stands in
         here = bin_of[..., 0] * grid + bin_of[..., 1]
@@ -104,3 +114,21 @@ class ContextGreedy(FootprintGreedy):
         action = _ACTION_OF[dr + 1, dc + 1]
         chosen = go & free & ((dr != 0) | (dc != 0)) & (action < self.config.n_actions)
         out[chosen] = action[chosen]
+
+    def _nearer_teammate(self, state: WorldState, apart: np.ndarray, most: int = 4) -> np.ndarray:
+        """(K, N, G, G): a teammate in the agent's view (up to the `most` nearest) stands nearer to the bin, or as
+        near with a lower index. `apart` (K, N, G, G) holds each agent's moves to each bin. Teammates that see each
+        other split the ground ahead between them, as a Voronoi partition would, and walk apart."""
+        k, n = state.n_worlds, state.n_agents
+        gap = abs(state.pos[:, :, None, :] - state.pos[:, None, :, :]).max(axis=-1)  # (K, N, N) Chebyshev
+        seen = (gap <= self.config.fov // 2) & ~np.eye(n, dtype=bool)
+        most = min(most, n - 1)
+        if most < 1:
+            return np.zeros(apart.shape, bool)
+        order = np.argsort(np.where(seen, gap, np.iinfo(np.int64).max), axis=2, kind="stable")[:, :, :most]
+        valid = np.take_along_axis(seen, order, axis=2)  # (K, N, M)
+        theirs = apart[np.arange(k)[:, None, None], order]  # (K, N, M, G, G)
+        mine = apart[:, :, None]
+        lower = order < np.arange(n)[None, :, None]  # (K, N, M) the teammate wins ties
+        nearer = (theirs < mine) | ((theirs == mine) & lower[..., None, None])
+        return (nearer & valid[..., None, None]).any(axis=2)
