@@ -34,6 +34,9 @@ def run(updates: int = 4, threads: int = 2, network: str = "paper", experiment: 
     overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", "recipe=paper", f"network={network}"]
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose(config_name="train", overrides=[*overrides, f"threads={threads}"])
+    # The few timed rollouts would all fall in a recipe's critic warm-up (its first rollouts, value-only updates):
+    # time the updates the rest of the run makes.
+    cfg.imitation.critic_warmup = 0
     torch.set_num_threads(threads)
     base = make_vec_env(cfg, seed=0)
     env = label_env(cfg, base)
