@@ -18,7 +18,8 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 import searchrl.evaluate.__main__  # noqa: F401  (registers the evaluate schemas)
-from searchrl.train.__main__ import CONF_DIR, recipe_arguments
+from searchrl.train.__main__ import CONF_DIR
+from searchrl.train.command_line import recipe_arguments
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"

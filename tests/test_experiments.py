@@ -14,8 +14,9 @@ import yaml
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from searchrl.train.__main__ import CONF_DIR, recipe_arguments
+from searchrl.train.__main__ import CONF_DIR
 from searchrl.train.build import check_config
+from searchrl.train.command_line import recipe_arguments
 from searchrl.train.schema import TrainConfig
 
 ROOT = Path(__file__).resolve().parents[1]

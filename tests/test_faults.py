@@ -25,7 +25,8 @@ from searchrl.atomic import hold, temporary_path
 from searchrl.envs.parallel_env import SearchParallelEnv
 from searchrl.evaluate.__main__ import CONF_DIR, evaluate
 from searchrl.evaluate.results import load
-from searchrl.train.__main__ import recipe_arguments, train
+from searchrl.train.__main__ import train
+from searchrl.train.command_line import recipe_arguments
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
@@ -361,7 +362,7 @@ def test_evaluation_output_folders_are_checked_first(tmp_path, capsys):
 def test_cli_flags_and_world_bounds_are_checked_before_work(tmp_path, capsys):
     from searchrl.bench.__main__ import main as bench
     from searchrl.render import main as render
-    from searchrl.train.__main__ import check_resume_argument
+    from searchrl.train.command_line import check_resume_argument
 
     gif = tmp_path / "x.gif"
     (tmp_path / "afile").write_text("")

@@ -18,8 +18,9 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
 
-from searchrl.train.__main__ import CONF_DIR, recipe_arguments, train
+from searchrl.train.__main__ import CONF_DIR, train
 from searchrl.train.build import load_algorithm, make_vec_env
+from searchrl.train.command_line import recipe_arguments
 
 ROOT = Path(__file__).resolve().parents[1]
 # A few thousand agent-steps: 2048, in rollouts of 2 worlds × 4 agents × 32 steps = 256 agent-steps.

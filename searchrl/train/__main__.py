@@ -54,6 +54,7 @@ from searchrl.train.callbacks import (
     ValidationCallback,
     checkpoints,
 )
+from searchrl.train.command_line import check_resume_argument, fail, recipe_arguments
 from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
 from searchrl.train.imitation import clone, collect
 from searchrl.train.schema import TrainConfig, override_keys, register_configs
@@ -62,11 +63,6 @@ from searchrl.world.config import ConfigError, WorldConfig
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 register_configs()
-
-
-def fail(message: str) -> None:
-    print(f"error: {message}", file=sys.stderr)
-    sys.exit(2)
 
 
 def check_model(cfg: DictConfig) -> None:
@@ -293,29 +289,6 @@ def main(cfg: DictConfig) -> float:
     hydra_cfg = HydraConfig.get()
     final = train(cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
     return read_score(final.parent)
-
-
-def check_resume_argument(argv: list[str]) -> None:
-    """Hydra makes `<resume>/resumed/<date>/` before the app starts: a resume= that is not a folder is named here
-    first, in one line, instead of in Hydra's traceback."""
-    for arg in argv:
-        value = arg.split("=", 1)[1] if arg.startswith("resume=") else "null"
-        if value != "null" and not (value and Path(value).is_dir()):
-            fail(f"{arg} is not allowed: a run folder (with config.yaml and checkpoints/)")
-
-
-def recipe_arguments(argv: list[str]) -> list[str]:
-    """The command line as Hydra gets it. conf/train.yaml picks the recipe by the model (`optional recipe:
-    ${model}`), which Hydra cannot resolve when no model is chosen: such a command line (a resume, whose model is in
-    its saved config; `--help`; a missing model, which check_model then names) gets `recipe=paper`, the paper's
-    values. A model's recipe fine-tunes its shipped clone and so fixes the network: `network=` with it is refused."""
-    keys = {arg.split("=", 1)[0].lstrip("+") for arg in argv if "=" in arg and not arg.startswith("-")}
-    if "network" in keys and "model" in keys and not keys & {"recipe", "experiment"}:
-        fail("network= does not apply to a model's recipe (conf/recipe/<model>.yaml), which starts from the shipped "
-             "clone and so has its network: add recipe=paper to train another network from scratch")  # fmt: skip
-    if keys & {"model", "experiment", "recipe"}:
-        return argv
-    return [*argv, "recipe=paper"]
 
 
 if __name__ == "__main__":
