@@ -71,7 +71,8 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
     assert out.returncode == 0, out.stderr[-3000:]
 
 
-@pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS])
+# context_probe.py needs a policy trained with the context: tests/test_context.py runs it on one
+@pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS if p.name != "context_probe.py"])
 def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
     eval_dirs = [fixture_dirs / "eval" / c for c in ("surfing", "coverage", "policy")]
     _run_notebook(notebook, eval_dirs, fixture_dirs / "run", tmp_path)

@@ -126,3 +126,27 @@ def test_a_context_policy_trains_evaluates_and_a_local_checkpoint_is_refused_in_
     assert len(episodes) == 4 and episodes.found_fraction.between(0, 1).all()
     with pytest.raises(ValueError, match="whole-belief context"):
         load_actor(model, replace(CONFIG, context=0))
+    # analysis/context_probe.py asks the policy again with the context blanked or swapped, the episode unchanged
+    probe = _probe(str(model), "--cells", "n40_N2", "--worlds", "2", "--out", str(tmp_path / "probe"))
+    assert probe.returncode == 0, probe.stderr[-2000:]
+    table = (tmp_path / "probe" / "context_probe.md").read_text()
+    row = next(line for line in table.splitlines() if line.startswith("| n40_N2 |"))
+    shares = [float(v) for v in row.strip("|").split("|")[1:]]
+    assert len(shares) == 8 and all(0 <= v <= 1 for v in shares)
+
+
+def _probe(*args: str):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    return subprocess.run([sys.executable, "analysis/context_probe.py", *args], cwd=root, capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+
+
+def test_the_context_probe_names_a_local_checkpoint_and_bad_cells_in_one_line():
+    local = _probe("runs/reference/b/model.zip", "--cells", "n40_N2")
+    assert local.returncode == 2 and "env.world.context=0" in local.stderr.strip().splitlines()[-1]
+    cells = _probe("runs/reference/b/model.zip", "--cells", "n30_N2")
+    assert cells.returncode == 2 and "n30_N2" in cells.stderr.strip().splitlines()[-1]
