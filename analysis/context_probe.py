@@ -21,13 +21,11 @@
 #
 #     python analysis/context_probe.py runs/train/b/context_term/model.zip --out analysis/out/context_policy
 #
-# `--cells n80_N4,n160_N8` picks the cells (targets and distributions as in Table 2: 8/16/32 and 16/32/64 for
-# n = 40/80/160), `--worlds 32` the worlds per cell, `--seed` their draw. Writes `context_probe.md`.
+# `--cells n80_N4,n160_N8` picks cells of the evaluation's default grid (Table 2's targets and distributions),
+# `--worlds 32` the worlds per cell, `--seed` their draw. Writes `context_probe.md`.
 
 # %%
 import argparse
-import re
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -37,11 +35,13 @@ import torch
 from searchrl.analysis.stats import markdown
 from searchrl.atomic import write_text_atomic
 from searchrl.controllers.policy import checkpoint_config, load_checkpoint
+from searchrl.evaluate.grid import Cell, table2_cells
+from searchrl.evaluate.runner import cell_config
+from searchrl.evaluate.schema import GridConfig
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 
-TABLE2 = {20: (4, 8), 40: (8, 16), 80: (16, 32), 160: (32, 64)}  # n -> (targets, distributions)
-CELL = re.compile(r"n(\d+)_N(\d+)")
+GRID = GridConfig()  # the evaluation's default grid, Table 2
 P_CHANNEL = 3  # belief p in the field of view, scaled by 1 / the prior's peak (searchrl/world/observe.py)
 DEPLETED = 0.1
 
@@ -55,12 +55,12 @@ args = parser.parse_args()
 
 if args.worlds < 2:
     parser.error(f"--worlds={args.worlds} is not allowed: 2 or more (the swap shows each world its neighbour's)")
-cells = []
-for key in args.cells.split(","):
-    match = CELL.fullmatch(key.strip())
-    if not match or int(match[1]) not in TABLE2 or int(match[2]) < 1:
-        parser.error(f"--cells entry {key!r} is not allowed: n<n>_N<N> with n in {sorted(TABLE2)} and N >= 1")
-    cells.append((int(match[1]), int(match[2])))
+table2 = table2_cells(GRID.world_sizes, GRID.n_targets, GRID.n_distributions, GRID.max_agents)
+grid = {cell.key: cell for cell in table2}
+unknown = [key for key in args.cells.split(",") if key not in grid]
+if unknown:
+    parser.error(f"--cells has {unknown}: not cells of the grid; allowed: {', '.join(grid)}")
+cells = [grid[key] for key in args.cells.split(",")]
 try:
     world_settings, algo, _ = checkpoint_config(args.checkpoint)
 except (FileNotFoundError, ValueError) as err:
@@ -84,11 +84,9 @@ def distribution(obs: dict[str, np.ndarray], lstm: tuple, starts: np.ndarray) ->
     return dist.distribution.probs.numpy(), state
 
 
-def probe_cell(n: int, agents: int) -> dict[str, float]:
-    targets, dists = TABLE2[n]
-    config = replace(base, world_size=(n, n), n_targets=(targets, targets), n_distributions=(dists, dists),
-                     n_agents=agents)  # fmt: skip
-    world = SearchWorld(config, args.worlds, seed=args.seed)
+def probe_cell(cell: Cell) -> dict[str, float]:
+    agents = cell.n_agents
+    world = SearchWorld(cell_config(base, cell), args.worlds, seed=args.seed)
     maps, vector = world.reset()
     flat = args.worlds * agents
     shape = (policy.lstm_actor.num_layers, flat, policy.lstm_actor.hidden_size)
@@ -105,15 +103,14 @@ def probe_cell(n: int, agents: int) -> dict[str, float]:
         probs, next_lstm = distribution(obs, lstm, starts)
         other = np.roll(world.context, 1, axis=0).reshape(context.shape)  # world k sees world k-1's beliefs
         other_view = np.roll(maps, 1, axis=0).reshape(obs["map"].shape)
+        live = np.repeat(~finished, agents)
+        depleted.append((obs["map"][:, P_CHANNEL].max(axis=(1, 2)) < DEPLETED)[live])
         for name, altered in (
             ("blank", {"context": np.zeros_like(context)}),
             ("other world", {"context": other}),
             ("view of another world", {"map": other_view}),  # the scale: what the field of view moves
         ):
             alt, _ = distribution({**obs, **altered}, lstm, starts)
-            live = np.repeat(~finished, agents)
-            if name == "blank":
-                depleted.append((obs["map"][:, P_CHANNEL].max(axis=(1, 2)) < DEPLETED)[live])
             changed[name].append((probs.argmax(1) != alt.argmax(1))[live])
             distance[name].append(0.5 * np.abs(probs - alt).sum(1)[live])
         lstm = next_lstm
@@ -124,7 +121,7 @@ def probe_cell(n: int, agents: int) -> dict[str, float]:
         finished |= tr.result.done
         starts = np.repeat(tr.result.done, agents).astype(np.float32)
     empty = np.concatenate(depleted)
-    row = {"cell": f"n{n}_N{agents}", "depleted view": float(empty.mean())}
+    row = {"cell": cell.key, "depleted view": float(empty.mean())}
     for name in changed:
         row[f"argmax changed, {name}"] = float(np.concatenate(changed[name]).mean())
         row[f"TV distance, {name}"] = float(np.concatenate(distance[name]).mean())
@@ -133,7 +130,7 @@ def probe_cell(n: int, agents: int) -> dict[str, float]:
 
 
 # %%
-rows = [probe_cell(n, agents) for n, agents in cells]
+rows = [probe_cell(cell) for cell in cells]
 table = pd.DataFrame(rows)
 print(table.to_string(index=False, float_format="%.3f"))
 out = Path(args.out)

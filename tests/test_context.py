@@ -4,7 +4,10 @@ and evaluated from a checkpoint."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +20,8 @@ from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.context import observe_context
 from searchrl.world.engine import SearchWorld
+
+ROOT = Path(__file__).resolve().parents[1]
 
 CONFIG = WorldConfig(world_size=(10, 14), n_targets=(2, 3), n_agents=4, max_steps=30, context=6)
 
@@ -135,13 +140,9 @@ def test_a_context_policy_trains_evaluates_and_a_local_checkpoint_is_refused_in_
     assert len(shares) == 8 and all(0 <= v <= 1 for v in shares)
 
 
-def _probe(*args: str):
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[1]
-    return subprocess.run([sys.executable, "analysis/context_probe.py", *args], cwd=root, capture_output=True,
+def _probe(*args: str) -> subprocess.CompletedProcess:
+    """Run analysis/context_probe.py from the repository root."""
+    return subprocess.run([sys.executable, "analysis/context_probe.py", *args], cwd=ROOT, capture_output=True,
                           text=True, timeout=300)  # fmt: skip
 
 
