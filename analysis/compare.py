@@ -17,9 +17,11 @@
 #
 #     python analysis/compare.py runs/eval/surfing runs/eval/surfing_multiscale --out analysis/out/surfing_scales
 #
-# `python analysis/compare.py EVAL_DIR EVAL_DIR [EVAL_DIR ...] [--out DIR]`: without folders as arguments, those of
-# `SEARCHRL_EVAL_DIRS` (comma-separated; what a notebook reads); output folder `--out`, else `SEARCHRL_ANALYSIS_OUT`,
-# else `analysis/out`.
+# `python analysis/compare.py EVAL_DIR EVAL_DIR [EVAL_DIR ...] [--out DIR] [--unsaturated-by NAME]`: without
+# folders as arguments, those of `SEARCHRL_EVAL_DIRS` (comma-separated; what a notebook reads); output folder
+# `--out`, else `SEARCHRL_ANALYSIS_OUT`, else `analysis/out`. With `--unsaturated-by NAME` (one of the folders'
+# names, a policy's teacher say) each tally is also split at the cells where NAME finds less than 0.95 of the
+# targets: margins mean something there, and near 1 a tie is all there is to report.
 
 # %%
 from pathlib import Path
@@ -32,14 +34,20 @@ from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load
 
 ROOT = Path.cwd()
-EVAL_DIRS, OUT = cli.eval_inputs(
-    "Two or more evaluations, cell by cell: the first against each other one",
-    ROOT / "analysis" / "out",
-    default_dirs=list,
-    min_dirs=2,
-)  # no default
-if len({d.name for d in EVAL_DIRS}) < len(EVAL_DIRS):
+UNSATURATED = 0.95  # below this found fraction of the reference a cell is "unsaturated" (issue 28's line)
+parser = cli.parser("Two or more evaluations, cell by cell: the first against each other one", "EVAL_DIR",
+                    "evaluation folders, two or more (default: $SEARCHRL_EVAL_DIRS, comma-separated)")  # fmt: skip
+parser.add_argument("--unsaturated-by", metavar="NAME", help=f"split each tally at the cells where the folder "
+                    f"named NAME finds < {UNSATURATED} of the targets")  # fmt: skip
+args, _ = cli.parse(parser)
+EVAL_DIRS = cli.folders(args.dirs, "SEARCHRL_EVAL_DIRS", list)  # no default
+cli.check_eval_dirs(EVAL_DIRS, min_dirs=2)
+OUT = cli.out_dir(args.out, ROOT / "analysis" / "out")
+names = [d.name for d in EVAL_DIRS]
+if len(set(names)) < len(names):
     cli.stop(f"evaluation folders {[str(d) for d in EVAL_DIRS]}: their names label the sides; make them differ")
+if args.unsaturated_by is not None and args.unsaturated_by not in names:
+    cli.stop(f"--unsaturated-by {args.unsaturated_by!r} is not allowed: one of the folders' names {names}")
 OUT.mkdir(parents=True, exist_ok=True)
 episodes = pd.concat([load(d).assign(controller=d.name) for d in EVAL_DIRS], ignore_index=True)
 
@@ -49,13 +57,27 @@ episodes = pd.concat([load(d).assign(controller=d.name) for d in EVAL_DIRS], ign
 # %%
 mine = EVAL_DIRS[0].name
 margins = pd.concat([paired_margins(episodes, mine, other.name) for other in EVAL_DIRS[1:]], ignore_index=True)
+if args.unsaturated_by is not None:  # the reference's mean over all the maps it ran in each cell
+    reference = episodes[episodes.controller == args.unsaturated_by].groupby(["n", "N"]).found_fraction.mean()
+    below = reference.rename("reference").reset_index().assign(unsaturated=lambda r: r.reference < UNSATURATED)
+    margins = margins.merge(below[["n", "N", "unsaturated"]], on=["n", "N"], how="left")
 write_atomic(OUT / "compare.csv", lambda tmp: margins.to_csv(tmp, index=False))
+
+
+def tally(block: pd.DataFrame) -> str:
+    counts = block.verdict.value_counts()
+    return ", ".join(f"{v} {counts.get(v, 0)}" for v in ("better", "tie", "saturated", "worse", "too few maps"))
+
+
 lines = [f"# {mine} against {', '.join(d.name for d in EVAL_DIRS[1:])}\n"]
 for other, block in margins.groupby("baseline", sort=False):
-    counts = block.verdict.value_counts()
     lines.append(f"## {mine} − {other}\n")
-    tally = ", ".join(f"{v} {counts.get(v, 0)}" for v in ("better", "tie", "saturated", "worse", "too few maps"))
-    lines.append(f"{tally} of {len(block)} cells\n")
+    lines.append(f"{tally(block)} of {len(block)} cells\n")
+    if args.unsaturated_by is not None:
+        for where, part in ((f"< {UNSATURATED}", block[block.unsaturated == True]),  # noqa: E712 (NaN: not run)
+                            (f">= {UNSATURATED}", block[block.unsaturated == False])):  # noqa: E712  # fmt: skip
+            lines.append(f"- where {args.unsaturated_by} finds {where}: {tally(part)} of {len(part)} cells")
+        lines.append("")
     entries = block.assign(entry=[f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
                                   zip(block["diff"], block.low, block.high, block.verdict, strict=True)])  # fmt: skip
     lines.append(markdown(entries.pivot_table(index="N", columns="n", values="entry", aggfunc="first").fillna("–")))

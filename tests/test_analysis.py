@@ -23,6 +23,7 @@ from searchrl.analysis.stats import (
     table3,
     training_curves,
 )
+from searchrl.evaluate.results import load
 from searchrl.render import main as render_main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -143,6 +144,17 @@ def test_notebooks_take_folders_and_out_as_arguments(fixture_dirs, tmp_path):
     out = _script("compare.py", str(coverage), str(surfing), "--out", str(tmp_path / "cmp"))
     assert out.returncode == 0, out.stderr[-3000:]
     assert set(pd.read_csv(tmp_path / "cmp" / "compare.csv").baseline) == {"surfing"}
+    out = _script("compare.py", str(coverage), str(surfing), "--unsaturated-by", "surfing", "--out", str(tmp_path))
+    assert out.returncode == 0, out.stderr[-3000:]
+    compared = pd.read_csv(tmp_path / "compare.csv")
+    surfing_found = load(surfing).groupby(["n", "N"]).found_fraction.mean()
+    expected = [surfing_found[(n, agents)] < 0.95 for n, agents in zip(compared.n, compared.N, strict=True)]
+    assert list(compared.unsaturated) == expected and 0 < sum(expected) < len(expected)  # the fixture has both
+    text = (tmp_path / "compare.md").read_text()
+    assert "- where surfing finds < 0.95: " in text and f"of {sum(expected)} cells" in text
+    assert "- where surfing finds >= 0.95: " in text and f"of {len(expected) - sum(expected)} cells" in text
+    out = _script("compare.py", str(coverage), str(surfing), "--unsaturated-by", "teacher", "--out", str(tmp_path))
+    assert out.returncode == 1 and "--unsaturated-by 'teacher' is not allowed: one of the folders' names" in out.stderr
     out = _script("training_curves.py", str(fixture_dirs / "run"), "--out", str(tmp_path / "tc"))
     assert out.returncode == 0 and (tmp_path / "tc" / "training_curves.png").exists(), out.stderr[-3000:]
     out = _script("missed_targets.py", "--cells", "n20_N1", "--label", "tiny", "--out", str(tmp_path / "mt"),
