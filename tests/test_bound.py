@@ -11,13 +11,15 @@ import pandas as pd
 import pytest
 
 from searchrl.world.bound import (
+    detection_budget,
+    detection_per_move,
     new_cells_per_move,
     placement_weights,
     search_bound,
     target_marginals,
     team_reach,
 )
-from searchrl.world.footprint import MOVES
+from searchrl.world.footprint import GAMMA, MOVES
 from searchrl.world.reset import place_targets
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -69,6 +71,47 @@ def test_the_worlds_placement_has_the_same_marginals():
 def test_a_team_covers_at_most_13_plus_5_cells_per_move_per_agent():
     assert new_cells_per_move(moves=MOVES[:5]) == 5 and new_cells_per_move(moves=MOVES) == 5  # diagonal: 5 too
     assert team_reach(1, 1) == 13 and team_reach(8, 256) == 8 * (13 + 5 * 255) == team_reach(8, 256, n_actions=9)
+
+
+def _detected_mass(paths: np.ndarray, side: int = 128) -> float:
+    """Σ_c P_T(c) of agents walking `paths` (N, T, 2) on an open side × side grid: each phase every agent senses
+    with Γ around its cell and a target on c stays unfound with probability Π(1 - Γ)."""
+    missed = np.ones((side, side))
+    for phase in range(paths.shape[1]):
+        for row, col in paths[:, phase]:
+            missed[row - 2 : row + 3, col - 2 : col + 3] *= 1.0 - GAMMA
+    return float((1.0 - missed).sum())
+
+
+@pytest.mark.parametrize("n_actions", [5, 9])
+def test_no_walk_gathers_more_detection_than_the_budget(n_actions):
+    """The lemma behind the detection bound, on walks that try hard: straight lines, zigzags, random walks, and
+    agents crossing; each phase adds at most D, the first ΣΓ, and one move from a fresh footprint adds exactly D."""
+    rng, steps = np.random.default_rng(0), 40
+    moves = MOVES[1:n_actions]
+    walks = [np.repeat(moves[[i]], steps - 1, axis=0) for i in range(len(moves))]  # straight on
+    walks += [moves[np.arange(steps - 1) % 2 + i] for i in range(len(moves) - 1)]  # zigzags
+    walks += [moves[rng.integers(len(moves), size=steps - 1)] for _ in range(20)]  # random walks
+    for n_agents in (1, 3):
+        for _ in range(len(walks)):
+            chosen = [walks[i] for i in rng.choice(len(walks), n_agents)]
+            starts = rng.integers(60, 68, size=(n_agents, 1, 2))  # 39 moves stay inside
+            paths = starts + np.concatenate([np.zeros((n_agents, 1, 2), np.int64), np.cumsum(chosen, axis=1)], 1)
+            assert _detected_mass(paths) <= detection_budget(n_agents, steps, n_actions) + 1e-9
+    one_move = [_detected_mass(np.array([[[32, 32], [32 + dr, 32 + dc]]])) for dr, dc in MOVES[:n_actions]]
+    assert max(one_move) == pytest.approx(detection_budget(1, 2, n_actions))
+    assert detection_per_move(moves=MOVES[:n_actions]) == pytest.approx(3.169 if n_actions == 5 else 3.768, abs=1e-3)
+    assert detection_budget(8, 256, n_actions) < team_reach(8, 256, n_actions)  # tighter than the cells' count
+
+
+def test_the_detection_bound_is_the_cell_bound_with_a_fractional_budget():
+    p, u, free = _tiny_map(4)
+    whole = search_bound(p, u, free, 3, 4, 2000, np.random.default_rng(5), budget=4.0)
+    assert whole.detection == pytest.approx(whole.expected)  # same draws, same cells
+    part = search_bound(p, u, free, 3, 5, 2000, np.random.default_rng(5), budget=4.5)
+    fewer = search_bound(p, u, free, 3, 4, 2000, np.random.default_rng(5))
+    assert fewer.expected < part.detection < part.expected  # half of the fifth cell's mass
+    assert part.detection == pytest.approx((fewer.expected + part.expected) / 2)
 
 
 def test_the_bound_grows_with_reach_and_saturates_at_the_target_count():
@@ -144,3 +187,7 @@ def test_no_controller_of_the_shipped_tables_exceeds_the_bound_on_any_cell():
     joined = pd.read_csv(TABLES[0])
     assert set(joined.groupby(["table", "world", "controller", "model"]).size()) == {30}  # every cell of the grid
     assert (joined["mean"] <= joined["bound"] + 3 * joined["mc_stderr"]).all()
+    cardinal = joined[joined.model != "diagonal"]  # the detection bound of cardinal moves, labelled as such
+    assert cardinal.detection_bound.notna().all() and joined[joined.model == "diagonal"].detection_bound.isna().all()
+    assert (cardinal["mean"] <= cardinal["detection_bound"] + 3 * cardinal["detection_mc_stderr"]).all()
+    assert (joined["detection_bound"].dropna() <= joined["bound"][joined["detection_bound"].notna()] + 1e-9).all()

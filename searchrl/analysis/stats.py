@@ -64,12 +64,17 @@ def summarize(episodes: pd.DataFrame, metric: str = "found_fraction", n_boot: in
 
 def with_bounds(summary: pd.DataFrame, bounds: pd.DataFrame) -> pd.DataFrame:
     """`summary` (summarize's columns, e.g. a table3.csv) with the grid's per-cell `bound` (analysis/bounds.py's
-    bounds.csv: the mean bound fraction over the same maps) and the efficiency columns `summarize` gives."""
-    merged = summary.drop(columns=["bound"], errors="ignore").merge(
-        bounds[["n", "N", "bound", "mc_stderr"]], on=["n", "N"], how="left", validate="many_to_one"
+    bounds.csv: the mean bound fraction over the same maps) and the efficiency columns `summarize` gives; where
+    `bounds` has the detection bound, also `detection_bound` and `detection_efficiency` (mean / it)."""
+    extra = [c for c in ("detection_bound", "detection_mc_stderr") if c in bounds]
+    merged = summary.drop(columns=["bound", *extra], errors="ignore").merge(
+        bounds[["n", "N", "bound", "mc_stderr", *extra]], on=["n", "N"], how="left", validate="many_to_one"
     )
-    return merged.assign(efficiency=merged["mean"] / merged["bound"], efficiency_low=merged["low"] / merged["bound"],
-                         efficiency_high=merged["high"] / merged["bound"])  # fmt: skip
+    merged = merged.assign(efficiency=merged["mean"] / merged["bound"], efficiency_low=merged["low"] / merged["bound"],
+                           efficiency_high=merged["high"] / merged["bound"])  # fmt: skip
+    if "detection_bound" in merged:
+        merged["detection_efficiency"] = merged["mean"] / merged["detection_bound"]
+    return merged
 
 
 def paired_margins(

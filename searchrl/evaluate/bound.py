@@ -25,7 +25,7 @@ import pandas as pd
 from searchrl.atomic import write_atomic
 from searchrl.evaluate.grid import Cell, map_seed
 from searchrl.evaluate.runner import cell_config
-from searchrl.world.bound import search_bound, team_reach
+from searchrl.world.bound import detection_budget, search_bound, team_reach
 from searchrl.world.config import WorldConfig
 from searchrl.world.reset import reset_world
 from searchrl.world.state import allocate
@@ -52,12 +52,15 @@ def map_digest(p: np.ndarray, u: np.ndarray, free: np.ndarray, targets: int) -> 
 
 
 def cell_bounds(
-    world: WorldConfig, cell: Cell, seeds: list[int], draws: int = BOUND_DRAWS, cache: str | Path | None = None
-) -> pd.DataFrame:
-    """One row per map seed: `bound` (expected targets at most), `bound_stderr`, `bound_fraction`, `reach`.
-    With `cache`, rows computed before for the same map, reach and draws are read from it and new ones added."""
+    world: WorldConfig, cell: Cell, seeds: list[int], draws: int = BOUND_DRAWS, cache: str | Path | None = None,
+    detection: bool = False,
+) -> pd.DataFrame:  # fmt: skip
+    """One row per map seed: `bound` (expected targets at most), `bound_stderr`, `bound_fraction`, `reach`; with
+    `detection` also the detection bound (`detection_bound`, `detection_stderr`, `detection_fraction`). With
+    `cache`, rows computed before for the same map, reach and draws are read from it and new ones added."""
     config = cell_config(world, cell)
     reach = team_reach(cell.n_agents, config.max_steps, config.n_actions)
+    budget = detection_budget(cell.n_agents, config.max_steps, config.n_actions) if detection else None
     path = Path(cache) / f"{cell.key}_draws{draws}.parquet" if cache is not None else None
     known = pd.read_parquet(path) if path is not None and path.exists() else None
     if known is not None and not {"map_seed", "digest", "team_reach"} <= set(known.columns):
@@ -70,10 +73,14 @@ def cell_bounds(
         if known is not None:
             match = known[(known.map_seed == seed) & (known.digest == digest) & (known.team_reach == reach)]
             hit = match.iloc[0].to_dict() if len(match) else None
+            if hit is not None and detection and pd.isna(hit.get("detection_bound", np.nan)):
+                known, hit = known.drop(index=match.index[0]), None  # computed without it: again, with it
         if hit is None:
-            bound = search_bound(p, u, free, cell.n_targets, reach, draws, np.random.default_rng([seed, 29]))
+            rng = np.random.default_rng([seed, 29])  # the same draws with or without the detection bound
+            bound = search_bound(p, u, free, cell.n_targets, reach, draws, rng, budget)
             hit = {"map_seed": seed, "digest": digest, "team_reach": reach, "reach": bound.reach,
-                   "bound": bound.expected, "bound_stderr": bound.stderr}  # fmt: skip
+                   "bound": bound.expected, "bound_stderr": bound.stderr, "detection_bound": bound.detection,
+                   "detection_stderr": bound.detection_stderr}  # fmt: skip
             new.append(hit)
         rows.append(hit)
     if path is not None and new:
@@ -82,21 +89,31 @@ def cell_bounds(
         write_atomic(path, lambda tmp: merged.reset_index(drop=True).to_parquet(tmp))
     frame = pd.DataFrame(rows).astype({"map_seed": np.int64, "reach": np.int64})
     frame["bound_fraction"] = frame["bound"] / cell.n_targets
-    return frame[["map_seed", *BOUND_COLUMNS, "reach"]]
+    if not detection:
+        return frame[["map_seed", *BOUND_COLUMNS, "reach"]]
+    frame["detection_fraction"] = frame["detection_bound"] / cell.n_targets
+    return frame[["map_seed", *BOUND_COLUMNS, "reach", "detection_bound", "detection_stderr", "detection_fraction"]]
 
 
 def grid_bounds(
     world: WorldConfig, cells: list[Cell], maps: int, seed: int, draws: int, cache: str | Path | None
 ) -> pd.DataFrame:
     """Per cell of the grid: n, N, targets, maps, reach, the mean bound fraction over its maps, the Monte Carlo
-    standard error of that mean, and the smallest and largest map's."""
+    standard error of that mean, and the smallest and largest map's; then the detection bound's `budget`, mean
+    fraction and standard error."""
     rows = []
     for index, cell in enumerate(cells):
-        per_map = cell_bounds(world, cell, [map_seed(seed, index, m) for m in range(maps)], draws, cache)
+        seeds = [map_seed(seed, index, m) for m in range(maps)]
+        per_map = cell_bounds(world, cell, seeds, draws, cache, detection=True)
         fraction = per_map["bound_fraction"]
         mc = np.sqrt((per_map["bound_stderr"] ** 2).sum()) / len(per_map) / cell.n_targets
+        config = cell_config(world, cell)
         rows.append({"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "maps": len(per_map),
                      "reach": int(per_map["reach"].iloc[0]), "bound": fraction.mean(), "mc_stderr": mc,
-                     "min": fraction.min(), "max": fraction.max()})  # fmt: skip
+                     "min": fraction.min(), "max": fraction.max(),
+                     "budget": detection_budget(cell.n_agents, config.max_steps, config.n_actions),
+                     "detection_bound": per_map["detection_fraction"].mean(),
+                     "detection_mc_stderr": np.sqrt((per_map["detection_stderr"] ** 2).sum()) / len(per_map)
+                     / cell.n_targets})  # fmt: skip
         print(f"{cell.key}: bound fraction {fraction.mean():.3f}", flush=True)
     return pd.DataFrame(rows)

@@ -15,6 +15,17 @@ exactly (the j largest of log w + Gumbel noise), so π is estimated from `draws`
 The bound ignores geometry (the K cells need not be reachable as N paths) and takes detection as certain on every
 covered cell, so it is loose where the best mass is scattered or one pass misses targets; it is an upper bound,
 not a target. Shapes: maps (n, n); marginals (n, n) float64.
+
+The detection bound, tighter, counts detection probability instead of cells. A target on c is found by step T with
+probability P_T(c) = 1 - Π over phases and agents of (1 - Γ(c - position)) (independent draws each phase), so
+one agent's phase raises P(c) by at most Γ(c - p')·(1 - P(c)) ≤ Γ(c - p')·(1 - Γ(c - p)): that agent sensed c
+from its previous cell p in the phase before, with probability Γ(c - p). Summed over c, a phase adds at most
+D = max over moves of Σ_c Γ(c - p - m)·(1 - Γ(c - p)) (3.17 for a cardinal move, 3.77 diagonal; staying 2.35)
+and the first phase at most ΣΓ = 5.44; several agents' phases add at most the sum of theirs. So Σ_c P_T(c) ≤
+B = N·(ΣΓ + D·(T - 1)) on every trajectory, and the expected targets found, Σ_c π(c)·P_T(c) with 0 ≤ P ≤ 1, is at
+most the mass of the ⌊B⌋ cells of largest π plus the fraction B - ⌊B⌋ of the next: the cell bound with B in
+place of K (about 0.63 K). Until a target is found the team's path does not depend on where it lies, so the
+argument holds for adaptive teams as the cell bound does.
 """
 
 from __future__ import annotations
@@ -23,7 +34,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from searchrl.world.footprint import MOVES, SUPPORT, Footprint
+from searchrl.world.footprint import GAMMA, MOVES, SUPPORT, Footprint
 from searchrl.world.reset import keep_probability
 
 
@@ -32,6 +43,8 @@ class SearchBound(NamedTuple):
     stderr: float  # its Monte Carlo standard error over the draws
     reach: int  # K, the most cells the team's footprints can cover
     draws: int
+    detection: float = float("nan")  # the detection bound: the `budget` largest marginals, the last one in part
+    detection_stderr: float = float("nan")
 
 
 def new_cells_per_move(support: Footprint = SUPPORT, moves: np.ndarray = MOVES) -> int:
@@ -45,6 +58,26 @@ def team_reach(n_agents: int, steps: int, n_actions: int = 5, support: Footprint
     """K = N·(|support| + new·(steps - 1)): the most cells N agents' footprints cover in `steps` detection phases."""
     new = new_cells_per_move(support, MOVES[:n_actions])
     return n_agents * (len(support.dr) + new * (steps - 1))
+
+
+def detection_per_move(gamma: np.ndarray = GAMMA, moves: np.ndarray = MOVES) -> float:
+    """D: the most detection probability one phase can add over all cells, max over `moves` (staying included)
+    of Σ_c Γ(c - p - m)·(1 - Γ(c - p)), given that the agent sensed from p in the phase before."""
+    r = gamma.shape[0] // 2
+    pad = np.zeros((gamma.shape[0] + 2, gamma.shape[1] + 2))
+    pad[1:-1, 1:-1] = gamma  # the footprint at p, with room for one move
+    added = []
+    for dr, dc in moves.tolist():
+        moved = np.zeros_like(pad)
+        moved[1 + dr : 1 + dr + 2 * r + 1, 1 + dc : 1 + dc + 2 * r + 1] = gamma
+        added.append(float((moved * (1.0 - pad)).sum()))
+    return max(added)
+
+
+def detection_budget(n_agents: int, steps: int, n_actions: int = 5, gamma: np.ndarray = GAMMA) -> float:
+    """B = N·(ΣΓ + D·(steps - 1)): the most detection probability, summed over cells, that N agents can gather in
+    `steps` detection phases (the module docstring proves it)."""
+    return n_agents * (float(gamma.sum()) + detection_per_move(gamma, MOVES[:n_actions]) * (steps - 1))
 
 
 def placement_weights(p: np.ndarray, u: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -70,18 +103,33 @@ def target_marginals(
     return (hits / draws).reshape(weights.shape), chosen
 
 
+def _top_mass(flat: np.ndarray, chosen: np.ndarray, amount: float) -> tuple[float, float]:
+    """(mean, standard error) over the draws `chosen` (draws, count) of the targets on the ⌊amount⌋ cells of
+    largest marginal in `flat`, plus the fraction amount - ⌊amount⌋ of those on the next cell."""
+    amount = min(float(amount), float((flat > 0).sum()))
+    whole = int(amount)
+    order = np.argsort(-flat, kind="stable")
+    share = np.zeros(flat.size)
+    share[order[:whole]] = 1.0
+    if whole < flat.size:
+        share[order[whole]] = amount - whole
+    per_draw = share[chosen].sum(axis=1)
+    return float(per_draw.mean()), float(per_draw.std(ddof=1) / np.sqrt(len(chosen)))
+
+
 def search_bound(
-    p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, reach: int, draws: int, rng: np.random.Generator
-) -> SearchBound:
-    """The bound for one map: the expected targets on the `reach` cells of largest estimated marginal.
+    p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, reach: int, draws: int, rng: np.random.Generator,
+    budget: float | None = None,
+) -> SearchBound:  # fmt: skip
+    """The bound for one map: the expected targets on the `reach` cells of largest estimated marginal, and with
+    `budget` (`detection_budget`) the detection bound on the same draws.
 
     Choosing the cells and scoring them on the same draws biases the estimate up, never down (the best of noisy
     sums), so it stays an upper bound in expectation; `stderr` is the spread of the per-draw counts on those cells.
     """
     marginals, chosen = target_marginals(placement_weights(p, u, free), count, draws, rng)
-    flat = marginals.ravel()
+    flat = np.where(free.ravel(), marginals.ravel(), 0.0)
     k = min(int(reach), int(free.sum()))
-    best = np.zeros(flat.size, bool)
-    best[np.argpartition(-flat, k - 1)[:k]] = True
-    per_draw = best[chosen].sum(axis=1)
-    return SearchBound(float(per_draw.mean()), float(per_draw.std(ddof=1) / np.sqrt(draws)), k, draws)
+    expected, stderr = _top_mass(flat, chosen, k)
+    detection = _top_mass(flat, chosen, budget) if budget is not None else (float("nan"), float("nan"))
+    return SearchBound(expected, stderr, k, draws, *detection)
