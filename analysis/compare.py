@@ -39,10 +39,7 @@ parser = cli.parser("Two or more evaluations, cell by cell: the first against ea
                     "evaluation folders, two or more (default: $SEARCHRL_EVAL_DIRS, comma-separated)")  # fmt: skip
 parser.add_argument("--unsaturated-by", metavar="NAME", help=f"split each tally at the cells where the folder "
                     f"named NAME finds < {UNSATURATED} of the targets")  # fmt: skip
-args, _ = cli.parse(parser)
-EVAL_DIRS = cli.folders(args.dirs, "SEARCHRL_EVAL_DIRS", list)  # no default
-cli.check_eval_dirs(EVAL_DIRS, min_dirs=2)
-OUT = cli.out_dir(args.out, ROOT / "analysis" / "out")
+EVAL_DIRS, OUT, args = cli.eval_args(parser, ROOT / "analysis" / "out", default_dirs=list, min_dirs=2)  # no default
 names = [d.name for d in EVAL_DIRS]
 if len(set(names)) < len(names):
     cli.stop(f"evaluation folders {[str(d) for d in EVAL_DIRS]}: their names label the sides; make them differ")

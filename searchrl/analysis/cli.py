@@ -102,13 +102,22 @@ def eval_inputs(description: str, default_out: Path, default_dirs: Callable[[], 
     """(evaluation folders, output folder) of `python analysis/<script>.py [EVAL_DIR ...] [--out DIR]`: the folders
     given, else $SEARCHRL_EVAL_DIRS, else `default_dirs()` (every folder under runs/eval/ with results); checked
     (`check_eval_dirs`)."""
-    root = Path.cwd() / "runs" / "eval"
     p = parser(description, "EVAL_DIR", "evaluation folders (default: $SEARCHRL_EVAL_DIRS, comma-separated, then "
                                         "every folder under runs/eval/ with results)")  # fmt: skip
+    dirs, out, _ = eval_args(p, default_out, default_dirs, min_dirs, argv)
+    return dirs, out
+
+
+def eval_args(
+    p: argparse.ArgumentParser, default_out: Path, default_dirs: Callable[[], list[Path]] | None = None,
+    min_dirs: int = 1, argv: Sequence[str] | None = None,
+) -> tuple[list[Path], Path, argparse.Namespace]:  # fmt: skip
+    """`eval_inputs` with a parser the script made (`parser(...)` plus its own options): also its parsed options."""
     args, _ = parse(p, argv)
-    dirs = folders(args.dirs, "SEARCHRL_EVAL_DIRS", default_dirs or (lambda: with_results(root)))
+    default = default_dirs or (lambda: with_results(Path.cwd() / "runs" / "eval"))
+    dirs = folders(args.dirs, "SEARCHRL_EVAL_DIRS", default)
     check_eval_dirs(dirs, min_dirs)
-    return dirs, out_dir(args.out, default_out)
+    return dirs, out_dir(args.out, default_out), args
 
 
 def run_inputs(description: str, default_out: Path, argv: Sequence[str] | None = None) -> tuple[list[Path], Path]:
