@@ -8,7 +8,8 @@ mean bound fraction (`searchrl.analysis.stats.summarize`).
 Bounds are kept in a cache folder (`runs/bounds/` by default), one file per cell and draw count, each row keyed by
 its map seed, the digest of the map it was computed on, and the team's reach: the maps do not depend on the model
 or the sensing constant, so every evaluation of the grid reuses the first one's bounds, and a row is only reused
-for the very map and reach it was computed for.
+for the very map and reach it was computed for. A row with the detection bound holds it for both move sets
+(cardinal and diagonal, `MOVE_SETS`, from the same draws); a world reads the one of its own moves.
 
 `analysis/bounds.py` computes the whole grid's (`grid_bounds`) into the per-cell table that docs/results.md joins
 with its Table 3 means.
@@ -32,6 +33,7 @@ from searchrl.world.state import allocate
 
 BOUND_DRAWS = 1000  # placements per map: a standard error of about 0.075 targets of 32 at n = 160
 BOUND_COLUMNS = ["bound", "bound_stderr", "bound_fraction"]
+MOVE_SETS = {"cardinal": 5, "diagonal": 9}  # action counts (staying included) of WorldConfig.diagonal off / on
 
 
 def map_prior(config: WorldConfig, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -56,15 +58,19 @@ def cell_bounds(
     detection: bool = False,
 ) -> pd.DataFrame:  # fmt: skip
     """One row per map seed: `bound` (expected targets at most), `bound_stderr`, `bound_fraction`, `reach`; with
-    `detection` also the detection bound (`detection_bound`, `detection_stderr`, `detection_fraction`). With
-    `cache`, rows computed before for the same map, reach and draws are read from it and new ones added."""
+    `detection` also the detection bound of the world's moves (`detection_bound`, `detection_stderr`,
+    `detection_fraction`). With `cache`, rows computed before for the same map, reach and draws are read from it
+    and new ones added."""
     config = cell_config(world, cell)
     reach = team_reach(cell.n_agents, config.max_steps, config.n_actions)
-    budget = detection_budget(cell.n_agents, config.max_steps, config.n_actions) if detection else None
+    budgets = [detection_budget(cell.n_agents, config.max_steps, a) for a in MOVE_SETS.values()] if detection else []
+    own = {actions: name for name, actions in MOVE_SETS.items()}[config.n_actions]
     path = Path(cache) / f"{cell.key}_draws{draws}.parquet" if cache is not None else None
     known = pd.read_parquet(path) if path is not None and path.exists() else None
     if known is not None and not {"map_seed", "digest", "team_reach"} <= set(known.columns):
         known = None  # a cache file of another layout: computed afresh and replaced
+    if known is not None:  # a detection bound without its move set (before MOVE_SETS): computed again if asked
+        known = known.drop(columns=["detection_bound", "detection_stderr"], errors="ignore")
     rows, new = [], []
     for seed in seeds:
         p, u, free = map_prior(config, seed)
@@ -73,14 +79,16 @@ def cell_bounds(
         if known is not None:
             match = known[(known.map_seed == seed) & (known.digest == digest) & (known.team_reach == reach)]
             hit = match.iloc[0].to_dict() if len(match) else None
-            if hit is not None and detection and pd.isna(hit.get("detection_bound", np.nan)):
+            if hit is not None and detection and pd.isna(hit.get(f"detection_bound_{own}", np.nan)):
                 known, hit = known.drop(index=match.index[0]), None  # computed without it: again, with it
         if hit is None:
             rng = np.random.default_rng([seed, 29])  # the same draws with or without the detection bound
-            bound = search_bound(p, u, free, cell.n_targets, reach, draws, rng, budget)
+            bound = search_bound(p, u, free, cell.n_targets, reach, draws, rng, budgets)
             hit = {"map_seed": seed, "digest": digest, "team_reach": reach, "reach": bound.reach,
-                   "bound": bound.expected, "bound_stderr": bound.stderr, "detection_bound": bound.detection,
-                   "detection_stderr": bound.detection_stderr}  # fmt: skip
+                   "bound": bound.expected, "bound_stderr": bound.stderr}  # fmt: skip
+            for name, value, stderr in zip(MOVE_SETS if detection else [], bound.detection, bound.detection_stderr,
+                                           strict=True):  # fmt: skip
+                hit |= {f"detection_bound_{name}": value, f"detection_stderr_{name}": stderr}
             new.append(hit)
         rows.append(hit)
     if path is not None and new:
@@ -91,6 +99,8 @@ def cell_bounds(
     frame["bound_fraction"] = frame["bound"] / cell.n_targets
     if not detection:
         return frame[["map_seed", *BOUND_COLUMNS, "reach"]]
+    frame["detection_bound"] = frame[f"detection_bound_{own}"]
+    frame["detection_stderr"] = frame[f"detection_stderr_{own}"]
     frame["detection_fraction"] = frame["detection_bound"] / cell.n_targets
     return frame[["map_seed", *BOUND_COLUMNS, "reach", "detection_bound", "detection_stderr", "detection_fraction"]]
 
@@ -100,7 +110,7 @@ def grid_bounds(
 ) -> pd.DataFrame:
     """Per cell of the grid: n, N, targets, maps, reach, the mean bound fraction over its maps, the Monte Carlo
     standard error of that mean, and the smallest and largest map's; then the detection bound's `budget`, mean
-    fraction and standard error."""
+    fraction and standard error, for the moves of `world`."""
     rows = []
     for index, cell in enumerate(cells):
         seeds = [map_seed(seed, index, m) for m in range(maps)]

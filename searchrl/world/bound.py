@@ -30,6 +30,7 @@ argument holds for adaptive teams as the cell bound does.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -43,8 +44,8 @@ class SearchBound(NamedTuple):
     stderr: float  # its Monte Carlo standard error over the draws
     reach: int  # K, the most cells the team's footprints can cover
     draws: int
-    detection: float = float("nan")  # the detection bound: the `budget` largest marginals, the last one in part
-    detection_stderr: float = float("nan")
+    detection: tuple[float, ...] = ()  # the detection bound per budget: its ⌊budget⌋ largest marginals, one in part
+    detection_stderr: tuple[float, ...] = ()
 
 
 def new_cells_per_move(support: Footprint = SUPPORT, moves: np.ndarray = MOVES) -> int:
@@ -119,10 +120,10 @@ def _top_mass(flat: np.ndarray, chosen: np.ndarray, amount: float) -> tuple[floa
 
 def search_bound(
     p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, reach: int, draws: int, rng: np.random.Generator,
-    budget: float | None = None,
+    budgets: Sequence[float] = (),
 ) -> SearchBound:  # fmt: skip
-    """The bound for one map: the expected targets on the `reach` cells of largest estimated marginal, and with
-    `budget` (`detection_budget`) the detection bound on the same draws.
+    """The bound for one map: the expected targets on the `reach` cells of largest estimated marginal, and for each
+    of `budgets` (`detection_budget`, one per move set say) the detection bound on the same draws.
 
     Choosing the cells and scoring them on the same draws biases the estimate up, never down (the best of noisy
     sums), so it stays an upper bound in expectation; `stderr` is the spread of the per-draw counts on those cells.
@@ -131,5 +132,5 @@ def search_bound(
     flat = np.where(free.ravel(), marginals.ravel(), 0.0)
     k = min(int(reach), int(free.sum()))
     expected, stderr = _top_mass(flat, chosen, k)
-    detection = _top_mass(flat, chosen, budget) if budget is not None else (float("nan"), float("nan"))
-    return SearchBound(expected, stderr, k, draws, *detection)
+    detection = [_top_mass(flat, chosen, budget) for budget in budgets]
+    return SearchBound(expected, stderr, k, draws, tuple(d[0] for d in detection), tuple(d[1] for d in detection))
