@@ -18,6 +18,7 @@ with its Table 3 means.
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -33,7 +34,7 @@ from searchrl.world.state import allocate
 
 BOUND_DRAWS = 1000  # placements per map: a standard error of about 0.075 targets of 32 at n = 160
 BOUND_COLUMNS = ["bound", "bound_stderr", "bound_fraction"]
-MOVE_SETS = {"cardinal": 5, "diagonal": 9}  # action counts (staying included) of WorldConfig.diagonal off / on
+MOVE_SETS = {"cardinal": False, "diagonal": True}  # WorldConfig.diagonal of each move set the cache holds
 
 
 def map_prior(config: WorldConfig, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -63,8 +64,9 @@ def cell_bounds(
     and new ones added."""
     config = cell_config(world, cell)
     reach = team_reach(cell.n_agents, config.max_steps, config.n_actions)
-    budgets = [detection_budget(cell.n_agents, config.max_steps, a) for a in MOVE_SETS.values()] if detection else []
-    own = {actions: name for name, actions in MOVE_SETS.items()}[config.n_actions]
+    budgets = [detection_budget(cell.n_agents, config.max_steps, replace(config, diagonal=d).n_actions)
+               for d in MOVE_SETS.values()] if detection else []  # fmt: skip
+    own = "diagonal" if config.diagonal else "cardinal"
     path = Path(cache) / f"{cell.key}_draws{draws}.parquet" if cache is not None else None
     known = pd.read_parquet(path) if path is not None and path.exists() else None
     if known is not None and not {"map_seed", "digest", "team_reach"} <= set(known.columns):
