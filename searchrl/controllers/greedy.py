@@ -42,6 +42,10 @@ in a corner, above 1 beside obstacles; `reach_weights`). A footprint on the edge
 off the edge and only brushes it with Γ's outer ring; with many agents most targets it misses lie on the edge
 (README, "Results: the reference policies"). Weighting those cells draws an agent onto the edge when it passes.
 
+With `far`, cells beyond the field of view count too, read from the agent's own belief of the whole world (what
+the whole-belief context shows a policy, there pooled), and the horizon may reach FAR_HORIZON steps: a move is
+scored by the lane of mass ahead of it, not only by what the view holds. It is then not a local controller.
+
 Why it is here: it is the quantity sensing actually removes (eq. 1 with λk = 1), where surfing follows a pooled
 gradient of the same information. On the paper's grid it finds more than surfing on 14 of the 30 cells and less
 on none (README, "Results: baselines"), so it is the stronger teacher for a warm start (`imitation.teacher=greedy`).
@@ -63,6 +67,8 @@ from searchrl.world.footprint import GAMMA, MOVES, SUPPORT, SUPPORT_DC, SUPPORT_
 from searchrl.world.seen import freshness, remember_sightings
 from searchrl.world.state import WorldState
 
+FAR_HORIZON = 64  # the most steps ahead greedy looks with `far` (its cost grows with the horizon)
+
 
 class GreedyParams(NamedTuple):
     """FootprintGreedy's settings as `greedy_actions` takes them."""
@@ -76,6 +82,7 @@ class GreedyParams(NamedTuple):
     w_u: float
     w_t: float
     fov_half: int  # half the field of view: what an agent sees lies within that many cells
+    look: int  # cells counted lie within this many rows and columns of the agent: fov_half, or more with `far`
     contested: float
 
 
@@ -97,9 +104,10 @@ def _moves_apart(dr, dc, diagonal):
 @njit(cache=True, inline="always")  # inlined: called per move and step ahead, so its arguments are not copied
 def _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_others):
     """Σ Γ(d)·x·reach·I(r + d, c + d) of agent i's belief in world k of w (`WorldState.arrays()`) over the cells
-    within `view` of its padded position (r0, c0); x = contested where one of the agents at others[:n_others]
+    within params.look rows and columns of its padded
+    position (r0, c0); x = contested where one of the agents at others[:n_others]
     (rows, cols) is fewer moves away than (r0, c0), else 1."""
-    belief, gamma, view, contested = w.belief, params.gamma, params.fov_half, params.contested
+    belief, gamma, view, contested = w.belief, params.gamma, params.look, params.contested
     sp, su, wp, wu, wt = w.obs_scale[k, 0], w.obs_scale[k, 1], params.w_p, params.w_u, params.w_t
     diagonal, reach, seen, known = params.n_actions > 5, memory.reach, memory.seen, memory.known
     use_seen, use_age = seen.shape[2] > 0, known.shape[2] > 0
@@ -206,6 +214,9 @@ class GreedyConfig(ControllerConfig):
     # Count what an agent believes of a cell exp(−age · ρ · steps since it last saw the cell's truth) times, ρ the
     # rate at which a team spread evenly senses a cell (for worlds without merging).
     age: float = 0.0
+    # Count cells beyond the field of view too, from the agent's own belief over the whole world (what the context
+    # shows a policy, at full resolution); horizon may then reach FAR_HORIZON. Not a local controller.
+    far: bool = False
 
 
 @dataclass
@@ -227,10 +238,13 @@ class FootprintGreedy(FallbackHeuristic):
 
     def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
                  w_u: float = 0.4, w_t: float = 0.0, contested: float = 1.0, reach: float = 0.0,
-                 seen: bool = False, age: float = 0.0, seed: int = 0) -> None:  # fmt: skip
+                 seen: bool = False, age: float = 0.0, far: bool = False, seed: int = 0) -> None:  # fmt: skip
         view = config.fov // 2
-        if not 1 <= horizon <= view:
-            raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the field of view)")
+        if not far and not 1 <= horizon <= view:
+            raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the field of view; "
+                             f"far=true looks further)")  # fmt: skip
+        if far and not 1 <= horizon <= FAR_HORIZON:
+            raise ValueError(f"horizon={horizon!r} is not allowed with far=true: 1 <= horizon <= {FAR_HORIZON}")
         if not 0 < discount <= 1:
             raise ValueError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
         if not all(0 <= w < math.inf for w in (w_p, w_u, w_t)) or w_p + w_u + w_t == 0:
@@ -253,8 +267,10 @@ class FootprintGreedy(FallbackHeuristic):
         self.reach = float(reach)
         self.seen = bool(seen)
         self.age = float(age)
+        self.far = bool(far)
+        look = config.world_size[1] if self.far else view  # with far, every cell of the largest world
         self._params = GreedyParams(MOVES, config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u,
-                                    self.w_t, config.fov // 2, self.contested)  # fmt: skip
+                                    self.w_t, view, look, self.contested)  # fmt: skip
         # GreedyMemory's arrays, sized on the first reset
         self._weights, self._seen = np.ones((0, 0, 0)), np.ones((0, 0, 0, 0), np.float32)
         self._known, self._rates = np.zeros((0, 0, 0, 0), np.int32), np.zeros(0)
