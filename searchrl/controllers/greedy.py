@@ -240,11 +240,9 @@ class FootprintGreedy(FallbackHeuristic):
                  w_u: float = 0.4, w_t: float = 0.0, contested: float = 1.0, reach: float = 0.0,
                  seen: bool = False, age: float = 0.0, far: bool = False, seed: int = 0) -> None:  # fmt: skip
         view = config.fov // 2
-        if not far and not 1 <= horizon <= view:
-            raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the field of view; "
-                             f"far=true looks further)")  # fmt: skip
-        if far and not 1 <= horizon <= FAR_HORIZON:
-            raise ValueError(f"horizon={horizon!r} is not allowed with far=true: 1 <= horizon <= {FAR_HORIZON}")
+        most, why = (FAR_HORIZON, "with far=true") if far else (view, "(half the view; far=true looks further)")
+        if not 1 <= horizon <= most:
+            raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {most} {why}")
         if not 0 < discount <= 1:
             raise ValueError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
         if not all(0 <= w < math.inf for w in (w_p, w_u, w_t)) or w_p + w_u + w_t == 0:
