@@ -21,7 +21,9 @@
 # folders as arguments, those of `SEARCHRL_EVAL_DIRS` (comma-separated; what a notebook reads); output folder
 # `--out`, else `SEARCHRL_ANALYSIS_OUT`, else `analysis/out`. With `--unsaturated-by NAME` (one of the folders'
 # names, a policy's teacher say) each tally is also split at the cells where NAME finds less than 0.95 of the
-# targets: margins mean something there, and near 1 a tie is all there is to report.
+# targets: margins mean something there, and near 1 a tie is all there is to report. With `--metric NAME` another
+# per-episode column is compared instead of the found fraction (F: neighbour pair-steps, how much of the episode
+# agents spend within reach of each other); "better" then means higher, and no cell is called saturated.
 
 # %%
 from pathlib import Path
@@ -39,6 +41,9 @@ parser = cli.parser("Two or more evaluations, cell by cell: the first against ea
                     "evaluation folders, two or more (default: $SEARCHRL_EVAL_DIRS, comma-separated)")  # fmt: skip
 parser.add_argument("--unsaturated-by", metavar="NAME", help=f"split each tally at the cells where the folder "
                     f"named NAME finds < {UNSATURATED} of the targets")  # fmt: skip
+METRICS = ("found_fraction", "R", "F", "M_bar")  # per-episode columns of an evaluation (docs/evaluation.md)
+parser.add_argument("--metric", default="found_fraction", choices=METRICS, help="the per-episode column compared "
+                    "(default found_fraction; with another, 'better' means higher)")  # fmt: skip
 EVAL_DIRS, OUT, args = cli.eval_args(parser, ROOT / "analysis" / "out", default_dirs=list, min_dirs=2)  # no default
 names = [d.name for d in EVAL_DIRS]
 if len(set(names)) < len(names):
@@ -53,7 +58,9 @@ episodes = pd.concat([load(d).assign(controller=d.name) for d in EVAL_DIRS], ign
 
 # %%
 mine = EVAL_DIRS[0].name
-margins = pd.concat([paired_margins(episodes, mine, other.name) for other in EVAL_DIRS[1:]], ignore_index=True)
+saturated = 0.995 if args.metric == "found_fraction" else float("inf")  # only a found fraction saturates
+margins = pd.concat([paired_margins(episodes, mine, other.name, args.metric, saturated=saturated)
+                     for other in EVAL_DIRS[1:]], ignore_index=True)  # fmt: skip
 if args.unsaturated_by is not None:  # the reference's mean over all the maps it ran in each cell
     reference = episodes[episodes.controller == args.unsaturated_by].groupby(["n", "N"]).found_fraction.mean()
     below = reference.rename("reference").reset_index().assign(unsaturated=lambda r: r.reference < UNSATURATED)
@@ -66,7 +73,8 @@ def tally(block: pd.DataFrame) -> str:
     return ", ".join(f"{v} {counts.get(v, 0)}" for v in ("better", "tie", "saturated", "worse", "too few maps"))
 
 
-lines = [f"# {mine} against {', '.join(d.name for d in EVAL_DIRS[1:])}\n"]
+metric = "" if args.metric == "found_fraction" else f", {args.metric} (better: higher)"
+lines = [f"# {mine} against {', '.join(d.name for d in EVAL_DIRS[1:])}{metric}\n"]
 for other, block in margins.groupby("baseline", sort=False):
     lines.append(f"## {mine} − {other}\n")
     lines.append(f"{tally(block)} of {len(block)} cells\n")

@@ -155,6 +155,12 @@ def test_notebooks_take_folders_and_out_as_arguments(fixture_dirs, tmp_path):
     assert "- where surfing finds >= 0.95: " in text and f"of {len(expected) - sum(expected)} cells" in text
     out = _script("compare.py", str(coverage), str(surfing), "--unsaturated-by", "teacher", "--out", str(tmp_path))
     assert out.returncode == 1 and "--unsaturated-by 'teacher' is not allowed: one of the folders' names" in out.stderr
+    out = _script("compare.py", str(coverage), str(surfing), "--metric", "F", "--out", str(tmp_path / "f"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    pairs = pd.read_csv(tmp_path / "f" / "compare.csv")
+    surfing_f = load(surfing).groupby(["n", "N", "map_seed"]).F.mean().groupby(["n", "N"]).mean()
+    np.testing.assert_allclose(pairs.base, [surfing_f[(n, a)] for n, a in zip(pairs.n, pairs.N, strict=True)])
+    assert "saturated" not in set(pairs.verdict) and "F (better: higher)" in (tmp_path / "f" / "compare.md").read_text()
     out = _script("training_curves.py", str(fixture_dirs / "run"), "--out", str(tmp_path / "tc"))
     assert out.returncode == 0 and (tmp_path / "tc" / "training_curves.png").exists(), out.stderr[-3000:]
     out = _script("missed_targets.py", "--cells", "n20_N1", "--label", "tiny", "--out", str(tmp_path / "mt"),

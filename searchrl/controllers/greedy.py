@@ -287,14 +287,17 @@ class FootprintGreedy(FallbackHeuristic):
         self._seen[mask], self._known[mask] = 1.0, 0
         self._rates = self.age * team_sensing_rate(state.blocked, state.n_agents) if self.age > 0 else np.zeros(0)
 
-    def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
+    def remember(self, state: WorldState) -> GreedyMemory:
+        """The memory brought to this step: what each agent saw (forgotten on Φ only with age, as always)."""
         if self._weights.shape != state.blocked.shape or self._seen.shape[:2] != (state.n_worlds, state.n_agents):
             self.reset(state, np.ones(state.n_worlds, bool))
-        w = state.arrays()
-        if self.seen or self.age > 0:  # what each agent saw this step (forgotten on Φ only with age, as always)
-            remember_sightings(w, SUPPORT, self._seen, self._known, self.config.fov // 2,
+        if self.seen or self.age > 0:
+            remember_sightings(state.arrays(), SUPPORT, self._seen, self._known, self.config.fov // 2,
                                self.config.explicit_area // 2, self.age > 0, 0, state.n_worlds)  # fmt: skip
-        memory = GreedyMemory(self._weights, self._seen, self._known, self._rates)
+        return GreedyMemory(self._weights, self._seen, self._known, self._rates)
+
+    def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
+        memory, w = self.remember(state), state.arrays()
         if self.scores.shape != out.shape:
             self.scores = np.zeros(out.shape)
         greedy_actions(w, self._params, memory, fallback, out, self.scores)

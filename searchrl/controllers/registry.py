@@ -22,6 +22,7 @@ from searchrl.controllers.base import Controller, ControllerConfig, RandomConfig
 from searchrl.controllers.context_greedy import ContextGreedy, GreedyContextConfig
 from searchrl.controllers.coverage import CoverageConfig, GeometricCoverage
 from searchrl.controllers.greedy import FootprintGreedy, GreedyConfig, GreedyTargetConfig
+from searchrl.controllers.rollout import GreedyRollout, GreedyRolloutConfig
 from searchrl.controllers.surfing import InformationSurfing, SurfingConfig
 from searchrl.world.config import ConfigError, WorldConfig
 
@@ -47,6 +48,7 @@ HEURISTICS: dict[str, Heuristic] = {
     "greedy": Heuristic(FootprintGreedy, GreedyConfig, "greedy"),
     "greedy_target": Heuristic(FootprintGreedy, GreedyTargetConfig, "greedy"),
     "greedy_context": Heuristic(ContextGreedy, GreedyContextConfig, "greedy_context"),
+    "greedy_rollout": Heuristic(GreedyRollout, GreedyRolloutConfig, "greedy_rollout"),
     "coverage": Heuristic(GeometricCoverage, CoverageConfig, "coverage"),
     "random": Heuristic(RandomWalk, RandomConfig, "random"),
 }
