@@ -61,7 +61,8 @@ try:
         cfg = compose("evaluate", overrides=OVERRIDES)
     world, name, model, factory, needs_obs = make_controller_factory(cfg)
 except (HydraException, OmegaConfBaseException, ValueError, FileNotFoundError) as err:  # ConfigError too
-    cli.stop(str(err).split("\nConfig search path")[0] or type(err).__name__)  # Hydra's lists a group's options
+    message = str(err).split("\nConfig search path")[0]  # Hydra's lists a group's options, but not their schemas
+    cli.stop("\n".join(line for line in message.splitlines() if not line.endswith("_schema")) or type(err).__name__)
 # The evaluation's folder name: runs/eval/<controller=…> (greedy_target, though its rows say greedy) or policy_<run>
 LABEL = LABEL or (name if cfg.checkpoint is not None else cfg.controller.name).replace(":", "_")
 grid = table2_cells(list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
