@@ -101,18 +101,32 @@ def _moves_apart(dr, dc, diagonal):
     return max(abs(dr), abs(dc)) if diagonal else abs(dr) + abs(dc)
 
 
+@njit(cache=True, inline="always")  # inlined: called per cell of every footprint scored
+def cell_information(params, belief, sp, su, seen, known, rate, now, k, i, r, c):
+    """I(r, c) = w_p·p̂ + w_u·û + w_t·p̂·(1 − û) of agent i's belief (`WorldState.belief`; p̂ = sp·p, û = su·u, the
+    observation's scaling) at padded cell (r, c) of world k at step `now`, p̂ and û scaled by the `seen` and `age`
+    factors where GreedyMemory keeps them (seen, known; rate: its rates[k]). The caller reads every array off the
+    world and the memory once: a kernel's read of a field per cell costs more than the cell."""
+    p_hat, u_hat = belief[k, i, 0, r, c] * sp, belief[k, i, 1, r, c] * su
+    if seen.shape[2] > 0:  # what the neighbours it saw there have sensed, as that sensing scales p and u
+        p_hat, u_hat = p_hat * seen[k, i, r, c], u_hat * seen[k, i, r, c]
+    if known.shape[2] > 0:  # what unseen agents have likely sensed since it last saw the cell's truth
+        fresh = freshness(rate, now, known[k, i, r, c])
+        p_hat, u_hat = p_hat * fresh, u_hat * fresh
+    return params.w_p * p_hat + params.w_u * u_hat + params.w_t * p_hat * max(0.0, 1.0 - u_hat)
+
+
 @njit(cache=True, inline="always")  # inlined: called per move and step ahead, so its arguments are not copied
 def _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_others):
     """Σ Γ(d)·x·reach·I(r + d, c + d) of agent i's belief in world k of w (`WorldState.arrays()`) over the cells
     within params.look rows and columns of its padded
     position (r0, c0); x = contested where one of the agents at others[:n_others]
     (rows, cols) is fewer moves away than (r0, c0), else 1."""
-    belief, gamma, view, contested = w.belief, params.gamma, params.look, params.contested
-    sp, su, wp, wu, wt = w.obs_scale[k, 0], w.obs_scale[k, 1], params.w_p, params.w_u, params.w_t
-    diagonal, reach, seen, known = params.n_actions > 5, memory.reach, memory.seen, memory.known
-    use_seen, use_age = seen.shape[2] > 0, known.shape[2] > 0
-    g = gamma.shape[0] // 2
-    side = belief.shape[3]
+    gamma, view, contested, diagonal = params.gamma, params.look, params.contested, params.n_actions > 5
+    belief, sp, su, now = w.belief, w.obs_scale[k, 0], w.obs_scale[k, 1], w.t[k]
+    reach, seen, known = memory.reach, memory.seen, memory.known
+    rate = memory.rates[k] if known.shape[2] > 0 else 0.0
+    g, side = gamma.shape[0] // 2, belief.shape[3]
     total = 0.0
     for dr in range(-g, g + 1):
         for dc in range(-g, g + 1):
@@ -126,13 +140,8 @@ def _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_othe
                     if _moves_apart(rr - others[j, 0], cc - others[j, 1], diagonal) < mine:
                         weight *= contested
                         break
-                p_hat, u_hat = belief[k, i, 0, rr, cc] * sp, belief[k, i, 1, rr, cc] * su
-                if use_seen:  # what the neighbours it saw there have sensed, as that sensing scales p and u
-                    p_hat, u_hat = p_hat * seen[k, i, rr, cc], u_hat * seen[k, i, rr, cc]
-                if use_age:  # what unseen agents have likely sensed since it last saw the cell's truth
-                    fresh = freshness(memory.rates[k], w.t[k], known[k, i, rr, cc])
-                    p_hat, u_hat = p_hat * fresh, u_hat * fresh
-                total += weight * reach[k, rr, cc] * (wp * p_hat + wu * u_hat + wt * p_hat * max(0.0, 1.0 - u_hat))
+                info = cell_information(params, belief, sp, su, seen, known, rate, now, k, i, rr, cc)
+                total += weight * reach[k, rr, cc] * info
     return total
 
 

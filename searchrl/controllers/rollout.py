@@ -33,10 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from searchrl.controllers.greedy import FootprintGreedy, GreedyParams, GreedyTargetConfig
+from searchrl.controllers.greedy import FootprintGreedy, GreedyTargetConfig, cell_information
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import GAMMA
-from searchrl.world.seen import freshness
 from searchrl.world.state import WorldState
 
 MAX_ROLLOUT = 256  # an episode's length: a rollout never needs more
@@ -59,20 +58,13 @@ class GreedyRolloutConfig(GreedyTargetConfig):
 
 @njit(cache=True)
 def _information_map(w, params, memory, k, i, m):
-    """m (S, S) <- reach · (w_p·p̂ + w_u·û + w_t·p̂·(1 − û)) of agent i's belief in world k, greedy's information,
-    p̂ and û scaled by greedy's `seen` and `age` factors where `memory` (GreedyMemory) keeps them."""
-    sp, su, seen, known = w.obs_scale[k, 0], w.obs_scale[k, 1], memory.seen, memory.known
-    use_seen, use_age = seen.shape[2] > 0, known.shape[2] > 0
+    """m (S, S) <- greedy's information reach·I of agent i's belief in world k, every cell (`cell_information`)."""
+    belief, sp, su, now = w.belief, w.obs_scale[k, 0], w.obs_scale[k, 1], w.t[k]
+    reach, seen, known = memory.reach, memory.seen, memory.known
+    rate = memory.rates[k] if known.shape[2] > 0 else 0.0
     for r in range(m.shape[0]):
         for c in range(m.shape[1]):
-            p_hat, u_hat = w.belief[k, i, 0, r, c] * sp, w.belief[k, i, 1, r, c] * su
-            if use_seen:
-                p_hat, u_hat = p_hat * seen[k, i, r, c], u_hat * seen[k, i, r, c]
-            if use_age:
-                fresh = freshness(memory.rates[k], w.t[k], known[k, i, r, c])
-                p_hat, u_hat = p_hat * fresh, u_hat * fresh
-            info = params.w_p * p_hat + params.w_u * u_hat + params.w_t * p_hat * max(0.0, 1.0 - u_hat)
-            m[r, c] = memory.reach[k, r, c] * info
+            m[r, c] = reach[k, r, c] * cell_information(params, belief, sp, su, seen, known, rate, now, k, i, r, c)
 
 
 @njit(cache=True)
@@ -168,21 +160,22 @@ def rollout_actions(w, params, memory, rollout, discount, n_mates, mate_range, m
     anything. Scratch: m (S, S) float64, mates (n_mates, 2) int64, log_cell (L, 2) int64 and log_value (L,)
     float64, L >= rollout · 25 · (1 + n_mates)."""
     pos, occupant, moves = w.pos, w.occupant, params.moves
-    in_view = np.empty((pos.shape[1], 3), np.int64)  # teammates within mate_range: Chebyshev distance, row, col
+    near = np.empty((pos.shape[1], 3), np.int64)  # teammates within mate_range: Chebyshev distance, padded row, col
+    no_one = np.zeros(0, np.int64)  # their order when none is imagined
     for k in range(pos.shape[0]):
         steps = min(rollout, max(1, max_steps - w.t[k]))
         for i in range(pos.shape[1]):
             _information_map(w, params, memory, k, i, m)
             r, c = pos[k, i, 0] + w.halo, pos[k, i, 1] + w.halo
-            n_view = 0
+            n_view, order = 0, no_one
             if n_mates > 0:  # the other agents within mate_range (the view: as channel 0 of the observation shows)
                 for j in range(pos.shape[1]):
                     apart = max(abs(pos[k, j, 0] - pos[k, i, 0]), abs(pos[k, j, 1] - pos[k, i, 1]))
                     if j != i and apart <= mate_range:
-                        in_view[n_view, 0], in_view[n_view, 1] = apart, pos[k, j, 0] + w.halo
-                        in_view[n_view, 2] = pos[k, j, 1] + w.halo
+                        near[n_view, 0], near[n_view, 1] = apart, pos[k, j, 0] + w.halo
+                        near[n_view, 2] = pos[k, j, 1] + w.halo
                         n_view += 1
-                order = np.argsort(in_view[:n_view, 0], kind="mergesort")  # nearest first, ties by index
+                order = np.argsort(near[:n_view, 0], kind="mergesort")  # nearest first, ties by index
                 n_view = min(n_view, n_mates)
             best, best_value = -1, 0.0
             for a in range(1, params.n_actions):
@@ -190,7 +183,7 @@ def rollout_actions(w, params, memory, rollout, discount, n_mates, mate_range, m
                 if w.blocked[k, r + mr, c + mc] or occupant[k, r + mr, c + mc] >= 0:
                     continue
                 for j in range(n_view):
-                    mates[j, 0], mates[j, 1] = in_view[order[j], 1], in_view[order[j], 2]
+                    mates[j, 0], mates[j, 1] = near[order[j], 1], near[order[j], 2]
                 value, n_log = _imagine(params, w.blocked[k], m, log_cell, log_value, r + mr, c + mc, mates, n_view,
                                         steps, discount)  # fmt: skip
                 for e in range(n_log - 1, -1, -1):  # undo, newest first, so a cell sensed twice ends as it began
@@ -218,9 +211,6 @@ class GreedyRollout(FootprintGreedy):
         super().__init__(config, **greedy)
         self.rollout, self.rollout_discount, self.mates = int(rollout), float(rollout_discount), int(mates)
         self.mates_anywhere = bool(mates_anywhere)
-        p = self._params
-        self._params = GreedyParams(p.moves, p.n_actions, p.gamma, p.horizon, p.discount, p.w_p, p.w_u, p.w_t,
-                                    p.fov_half, p.fov_half, 1.0)  # fmt: skip
         self._map = np.zeros((0, 0))
         entries = self.rollout * GAMMA.size * (1 + self.mates)  # every imagined footprint of one candidate move
         self._log_cell, self._log_value = np.zeros((entries, 2), np.int64), np.zeros(entries)
