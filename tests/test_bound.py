@@ -115,6 +115,19 @@ def test_the_detection_bound_is_the_cell_bound_with_a_fractional_budget():
     assert part.detection[1] == pytest.approx(part.expected)  # each budget on the same draws
 
 
+def test_the_bound_is_the_mean_count_on_the_top_cells_and_its_stderr_that_mean_s():
+    """expected = the mean over draws of the targets on the `reach` cells of largest marginal; stderr = their
+    sample standard deviation / √draws (the Monte Carlo error of that mean, not the spread of one draw)."""
+    p, u, free = _tiny_map(6)
+    bound = search_bound(p, u, free, 3, 4, 1600, np.random.default_rng(9))
+    marginals, chosen = target_marginals(placement_weights(p, u, free), 3, 1600, np.random.default_rng(9))
+    top = np.argsort(-marginals.ravel(), kind="stable")[:4]
+    per_draw = np.isin(chosen, top).sum(axis=1)
+    assert (bound.expected, bound.reach, bound.draws) == (pytest.approx(per_draw.mean()), 4, 1600)
+    assert bound.stderr == pytest.approx(per_draw.std(ddof=1) / 40.0)
+    assert 0 < bound.stderr < 0.05
+
+
 def test_the_bound_grows_with_reach_and_saturates_at_the_target_count():
     p, u, free = _tiny_map(4)
     bounds = [search_bound(p, u, free, 3, k, 2000, np.random.default_rng(5)).expected for k in range(1, 9)]
@@ -134,7 +147,7 @@ def test_no_controller_finds_more_than_the_bound(controller):
 
     world = WorldConfig(n_agents=1, explicit_area=5, communication=True)
     for index, cell in enumerate([Cell(40, 1, 8, 16), Cell(80, 1, 16, 32)]):
-        episodes = run_cell(lambda config: make_controller(controller, config, seed=0), world, cell, index,
+        episodes = run_cell(lambda config, seed: make_controller(controller, config, seed=seed), world, cell, index,
                             maps=6, repeats=1, seed=10**6, needs_observation=False)  # fmt: skip
         bounds = cell_bounds(world, cell, [map_seed(10**6, index, m) for m in range(6)], draws=400)
         assert (bounds.reach == 13 + 5 * (cell_config(world, cell).max_steps - 1)).all()
@@ -155,6 +168,11 @@ def test_the_cache_gives_the_same_bounds_and_only_for_the_same_map(tmp_path):
     assert sorted(cached.map_seed) == seeds
     cached.loc[:, "bound"] = -1.0  # a row is reused only for its own map: another digest is recomputed
     cached.loc[:, "digest"] = "another map"
+    cached.to_parquet(tmp_path / "n20_N2_draws200.parquet")
+    assert cell_bounds(world, cell, seeds, draws=200, cache=tmp_path).equals(fresh)
+    cached = pd.read_parquet(tmp_path / "n20_N2_draws200.parquet")  # the right maps, rows of another reach
+    cached.loc[:, "bound"] = -1.0
+    cached.loc[:, "team_reach"] += 5
     cached.to_parquet(tmp_path / "n20_N2_draws200.parquet")
     assert cell_bounds(world, cell, seeds, draws=200, cache=tmp_path).equals(fresh)
 
@@ -212,3 +230,27 @@ def test_no_controller_of_the_shipped_tables_exceeds_the_bound_on_any_cell():
     assert (joined["detection_bound"] <= joined["bound"] + 1e-9).all()
     diagonal, cardinal = joined[joined.model == "diagonal"], joined[joined.model != "diagonal"]
     assert diagonal.detection_bound.mean() > cardinal.detection_bound.mean()  # more detection per diagonal move
+
+
+def test_the_grids_table_summarises_each_cells_maps(tmp_path, capsys):
+    """grid_bounds (analysis/bounds.py's table): per cell the mean, extremes and Monte Carlo error of its maps'
+    bound fractions, the detection budget and the mean detection bound, from the same rows cell_bounds gives."""
+    from searchrl.evaluate.bound import cell_bounds, grid_bounds
+    from searchrl.evaluate.grid import Cell, map_seed
+    from searchrl.world.config import WorldConfig
+
+    world, cells = WorldConfig(), [Cell(80, 1, 16, 32), Cell(80, 2, 16, 32)]  # unsaturated: the bound binds
+    table = grid_bounds(world, cells, maps=3, seed=50, draws=150, cache=tmp_path)
+    assert list(table.columns) == ["n", "N", "targets", "maps", "reach", "bound", "mc_stderr", "min", "max", "budget",
+                                   "detection_bound", "detection_mc_stderr"]  # fmt: skip
+    for index, (cell, row) in enumerate(zip(cells, table.itertuples(), strict=True)):
+        maps = cell_bounds(world, cell, [map_seed(50, index, m) for m in range(3)], 150, tmp_path, detection=True)
+        assert (row.n, row.N, row.targets, row.maps, row.reach) == (80, cell.n_agents, 16, 3, maps.reach.iloc[0])
+        assert (row.bound, row.min, row.max) == pytest.approx(
+            (maps.bound_fraction.mean(), maps.bound_fraction.min(), maps.bound_fraction.max()))  # fmt: skip
+        assert row.mc_stderr == pytest.approx(np.sqrt((maps.bound_stderr**2).sum()) / 3 / 16)
+        assert row.budget == pytest.approx(detection_budget(cell.n_agents, 256, 5))
+        assert row.detection_bound == pytest.approx(maps.detection_fraction.mean())
+        assert row.detection_mc_stderr == pytest.approx(np.sqrt((maps.detection_stderr**2).sum()) / 3 / 16)
+        assert 0 <= row.mc_stderr < row.bound <= 1 and 0 < row.detection_mc_stderr < row.detection_bound < 1
+    assert capsys.readouterr().out.splitlines()[0].startswith("n80_N1: bound fraction 0.")

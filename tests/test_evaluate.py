@@ -46,8 +46,8 @@ def test_slice_rows_and_rerun_skips_done_cells(tmp_path, controller, capsys):
     assert set(zip(frame.n, frame.N, strict=True)) == {(20, 1), (20, 2), (40, 1)}
     assert frame.found_fraction.between(0, 1).all() and frame.L.between(1, 256).all()
     assert (frame.controller == controller).all() and (frame.model == "b").all()
-    # Repeats of a map share its seed; maps differ.
-    assert frame.groupby(["n", "N", "map_seed"]).size().eq(2).all()
+    # Repeats of a map share its seed and are numbered 0, 1; maps differ.
+    assert (frame.groupby(["n", "N", "map_seed"]).repeat.agg(lambda r: sorted(r) == [0, 1])).all()
     files = {p: p.stat().st_mtime_ns for p in (tmp_path / "cells").iterdir()}
     capsys.readouterr()
     _evaluate(tmp_path, f"controller={controller}")
@@ -86,6 +86,10 @@ def test_checkpoint_settings_come_from_its_run(tmp_path, capsys):
     assert len(frame) == 18
     again = _evaluate(tmp_path / "again", f"checkpoint={model}")  # sampled actions come from the eval seed
     pd.testing.assert_frame_equal(frame, again)
+    capsys.readouterr()
+    with pytest.raises(SystemExit):  # argmax actions are other episodes: not into the sampled ones' folder
+        _evaluate(tmp_path / "again", f"checkpoint={model}", "deterministic=true")
+    assert "deterministic: False there, True here" in capsys.readouterr().err
     from searchrl.controllers.policy import load_actor
     from searchrl.world.config import WorldConfig
 
@@ -106,7 +110,8 @@ def test_a_folder_refuses_results_of_other_settings(tmp_path, capsys):
     assert "horizon: 2" in record and "maps_per_cell: 3" in record
     changes = [("controller.horizon=1", "controller_args.horizon: 2 there, 1 here"),
                ("seed=5", "seed: 7000000 there, 5 here"), ("+model=c", "model: 'b' there, 'c' here"),
-               ("grid.maps_per_cell=4", "grid.maps_per_cell: 3 there, 4 here")]  # fmt: skip
+               ("grid.maps_per_cell=4", "grid.maps_per_cell: 3 there, 4 here"),
+               ("grid.repeats=3", "grid.repeats: 2 there, 3 here")]  # fmt: skip
     for override, difference in changes:
         capsys.readouterr()
         with pytest.raises(SystemExit) as exit_:
@@ -116,7 +121,26 @@ def test_a_folder_refuses_results_of_other_settings(tmp_path, capsys):
         assert difference in err, err
     assert len(load(tmp_path)) == len(first) and (tmp_path / "evaluation.yaml").read_text() == record
     both = _evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2", "threads=2", "batch_mb=64")
-    assert len(both) == 18  # the same settings resume; threads and batch size do not change an episode
+    assert len(both) == 18  # the same settings resume: threads and batch size are not recorded
+
+
+def _episodes(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame.sort_values(["n", "N", "map_seed", "repeat"]).reset_index(drop=True)
+
+
+@pytest.mark.parametrize("controller", ["controller=greedy", "controller=surfing", "controller=random",
+                                        f"checkpoint={ROOT / 'runs/reference/b/model.zip'}"])  # fmt: skip
+def test_batches_threads_and_shards_change_no_episode(tmp_path, controller):
+    """Each episode draws from its own streams: one world per batch on two threads in three shards plays the same
+    episodes, bit for bit, as the whole cell in one batch on one thread (a sampled policy included)."""
+    whole = _evaluate(tmp_path / "whole", controller, "batch_mb=1024")
+    for shard in range(3):
+        split = _evaluate(tmp_path / "split", controller, "batch_mb=0.01", "threads=2", f"shard={shard}",
+                          "num_shards=3")  # fmt: skip
+    pd.testing.assert_frame_equal(_episodes(whole), _episodes(split))
+    # The repeats of a map are distinct episodes (their own streams), not one episode written twice
+    first, second = (whole[whole.repeat == r].reset_index(drop=True) for r in (0, 1))
+    assert (first[["L", "R"]].to_numpy() != second[["L", "R"]].to_numpy()).any()
 
 
 def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
@@ -183,7 +207,7 @@ def test_run_cell_shows_each_episode_end_once():
         for w in np.flatnonzero(first):
             found[int(w)] = state.n_found[w] / state.n_targets[w]
 
-    frame = run_cell(lambda c: FootprintGreedy(c, seed=1), WorldConfig(), cell, 1, maps=3, repeats=2, seed=5,
+    frame = run_cell(lambda c, s: FootprintGreedy(c, seed=s), WorldConfig(), cell, 1, maps=3, repeats=2, seed=5,
                      needs_observation=False, on_done=on_done)  # fmt: skip
     assert sorted(seen) == list(range(6))
     assert np.allclose([found[w] for w in range(6)], frame.found_fraction)

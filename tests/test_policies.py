@@ -69,10 +69,12 @@ def test_actor_gives_the_policys_own_distribution(algo):
 
 def test_sample_actions_follows_the_probabilities_and_the_seed():
     logits = np.log(np.array([[0.1, 0.2, 0.3, 0.4, 1e-9]] * 40_000, np.float32))
-    actions = sample_actions(logits, np.random.default_rng(3))
+    actions = sample_actions(logits, np.random.default_rng(3).random(len(logits)))
     freq = np.bincount(actions, minlength=5) / len(actions)
     np.testing.assert_allclose(freq, [0.1, 0.2, 0.3, 0.4, 0.0], atol=0.01)
-    assert (sample_actions(logits[:100], np.random.default_rng(3)) == actions[:100]).all()
+    # the CDF inverted at each uniform: [0, 0.1) -> 0, [0.1, 0.3) -> 1, [0.3, 0.6) -> 2, [0.6, 1) -> 3
+    uniforms = np.array([0.0, 0.09, 0.11, 0.29, 0.31, 0.59, 0.61, 0.999999])
+    assert sample_actions(logits[: len(uniforms)], uniforms).tolist() == [0, 0, 1, 1, 2, 2, 3, 3]
     assert (sample_actions(logits[:3], None) == 3).all()
 
 

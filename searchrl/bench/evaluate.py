@@ -25,11 +25,11 @@ def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = No
         torch.set_num_threads(threads)
         world = WorldConfig.from_dict(checkpoint_config(checkpoint)[0])
         actor = load_actor(checkpoint, world)
-        factory = lambda config: PolicyController(actor, config, seed=0)  # noqa: E731
+        factory = lambda config, seed: PolicyController(actor, config, seed=seed)  # noqa: E731
         controller = f"policy:{checkpoint_label(checkpoint)}"
     else:
         name, world = controller, WorldConfig()
-        factory = lambda config: make_controller(name, config)  # noqa: E731
+        factory = lambda config, seed: make_controller(name, config, seed=seed)  # noqa: E731
     observed = checkpoint is not None
     run_cell(factory, world, cells[0], 0, 1, 1, 0, needs_observation=observed)  # warm-up: numba cache
     steps = [0]

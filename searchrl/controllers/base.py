@@ -10,6 +10,7 @@ from omegaconf import MISSING
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.state import WorldState
+from searchrl.world.streams import WorldStreams, random_source
 
 
 class Controller(Protocol):
@@ -50,9 +51,9 @@ class RandomConfig(ControllerConfig):
 class RandomWalk:
     """Uniformly random actions: the floor every controller should beat."""
 
-    def __init__(self, config: WorldConfig, seed: int = 0) -> None:
+    def __init__(self, config: WorldConfig, seed: int | WorldStreams = 0) -> None:
         self.config = config
-        self.rng = np.random.default_rng(seed)
+        self.rng = random_source(seed)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         pass
@@ -67,9 +68,9 @@ class FallbackHeuristic:
     """Shell of the compiled heuristics (surfing, greedy): a kernel fills the (K, N) actions from the state, and
     agents with nothing to follow take a uniformly random move (never stay) drawn here from a seeded generator."""
 
-    def __init__(self, config: WorldConfig, seed: int = 0) -> None:
+    def __init__(self, config: WorldConfig, seed: int | WorldStreams = 0) -> None:
         self.config = config
-        self.rng = np.random.default_rng(seed)
+        self.rng = random_source(seed)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         pass

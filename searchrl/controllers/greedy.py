@@ -66,6 +66,7 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import GAMMA, MOVES, SUPPORT, SUPPORT_DC, SUPPORT_DR, SUPPORT_G, team_sensing_rate
 from searchrl.world.seen import freshness, remember_sightings
 from searchrl.world.state import WorldState
+from searchrl.world.streams import WorldStreams
 
 FAR_HORIZON = 64  # the most steps ahead greedy looks with `far` (its cost grows with the horizon)
 
@@ -247,7 +248,8 @@ class FootprintGreedy(FallbackHeuristic):
 
     def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
                  w_u: float = 0.4, w_t: float = 0.0, contested: float = 1.0, reach: float = 0.0,
-                 seen: bool = False, age: float = 0.0, far: bool = False, seed: int = 0) -> None:  # fmt: skip
+                 seen: bool = False, age: float = 0.0, far: bool = False,
+                 seed: int | WorldStreams = 0) -> None:  # fmt: skip
         view = config.fov // 2
         most, why = (FAR_HORIZON, "with far=true") if far else (view, "(half the view; far=true looks further)")
         if not 1 <= horizon <= most:

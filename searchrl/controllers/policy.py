@@ -14,6 +14,7 @@ from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.world.config import WorldConfig
 from searchrl.world.context import context_buffer, observe_context
 from searchrl.world.state import WorldState
+from searchrl.world.streams import WorldStreams, random_source
 
 
 def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
@@ -87,15 +88,19 @@ def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> 
 
 
 class PolicyController:
-    """Acts with a trained actor: actions sampled from the policy with its own generator (`seed`), or argmax
-    when `deterministic`. The LSTM state of each of the K·N slots is carried across steps and zeroed where
-    `reset` marks a new episode. Rows of worlds outside `active` are skipped (their actions are 0)."""
+    """Acts with a trained actor: actions sampled from the policy with its own generator (`seed`; world streams
+    give each world its own), or argmax when `deterministic`. Each step draws one uniform per agent of every world,
+    active or not, so a world's draws do not depend on which others are still running. The LSTM state of each of
+    the K·N slots is carried across steps and zeroed where `reset` marks a new episode. Rows of worlds outside
+    `active` are skipped (their actions are 0)."""
 
-    def __init__(self, actor: Actor, config: WorldConfig, deterministic: bool = False, seed: int = 0) -> None:
+    def __init__(
+        self, actor: Actor, config: WorldConfig, deterministic: bool = False, seed: int | WorldStreams = 0
+    ) -> None:
         self.actor = actor
         self.config = config
         self._context: np.ndarray | None = None  # (K, N, 3, G, G) reused each step; None while the context is off
-        self.rng = None if deterministic else np.random.default_rng(seed)
+        self.rng = None if deterministic else random_source(seed)
         self._state: np.ndarray | None = None  # (2, layers, K·N, hidden)
         self._start = np.zeros(0, bool)  # (K·N,) slots whose next step begins an episode
 
@@ -135,6 +140,7 @@ class PolicyController:
         logits, lstm = self.actor.logits(maps, vector, lstm, context)
         if lstm is not None:
             self._state[:, :, rows] = lstm
-        actions[rows] = sample_actions(logits, self.rng)
+        uniforms = None if self.rng is None else self.rng.random((k, n)).reshape(-1)[rows]
+        actions[rows] = sample_actions(logits, uniforms)
         self._start[rows] = False
         return actions.reshape(k, n)

@@ -25,6 +25,7 @@ from searchrl.controllers.greedy import FootprintGreedy, GreedyConfig, GreedyTar
 from searchrl.controllers.rollout import GreedyRollout, GreedyRolloutConfig
 from searchrl.controllers.surfing import InformationSurfing, SurfingConfig
 from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world.streams import WorldStreams
 
 
 @dataclass(frozen=True)
@@ -66,8 +67,8 @@ def heuristic(name: object, key: str = "controller") -> Heuristic:
     return HEURISTICS[name]
 
 
-def make_controller(name: str, config: WorldConfig, seed: int = 0, settings: dict[str, Any] | None = None,
-                    key: str = "controller") -> Controller:  # fmt: skip
+def make_controller(name: str, config: WorldConfig, seed: int | WorldStreams = 0,
+                    settings: dict[str, Any] | None = None, key: str = "controller") -> Controller:  # fmt: skip
     """The controller `name` in the world `config`: its schema's defaults, overridden by `settings` (plain values
     without `name`), seeded with `seed` where it draws random moves. ConfigError for an unknown name (naming `key`)
     or setting; the class's own ValueError for a value it refuses."""

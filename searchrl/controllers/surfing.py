@@ -25,6 +25,7 @@ from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES
 from searchrl.world.state import WorldState
+from searchrl.world.streams import WorldStreams
 
 
 @njit(cache=True)
@@ -113,7 +114,7 @@ class InformationSurfing(FallbackHeuristic):
     """Batched information-surfing controller; parameters are config values of `controller=surfing`."""
 
     def __init__(self, config: WorldConfig, scales: tuple[int, ...] = (1, 3), w_p: float = 0.6,
-                 w_u: float = 0.4, repulsion: float = 0.4, seed: int = 0) -> None:  # fmt: skip
+                 w_u: float = 0.4, repulsion: float = 0.4, seed: int | WorldStreams = 0) -> None:  # fmt: skip
         if not scales or min(scales) < 1:
             raise ValueError(f"scales={list(scales)!r} is not allowed: one or more positive block sizes")
         if not (0 <= w_p < math.inf and 0 <= w_u < math.inf and 0 <= repulsion < math.inf) or w_p + w_u == 0:

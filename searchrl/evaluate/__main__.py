@@ -40,6 +40,7 @@ from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.train.schema import override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
+from searchrl.world.streams import WorldStreams
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 # Set per cell by the grid, or training-only: a heuristic's evaluation refuses them rather than drop them.
@@ -55,7 +56,8 @@ def fail(message: str) -> None:
 
 
 def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, object, bool]:
-    """(world settings, controller label, model name, factory(config) -> controller, needs observations). The label
+    """(world settings, controller label, model name, factory(config, seed) -> controller, needs observations); the
+    seed is an int or the episodes' WorldStreams (searchrl/evaluate/runner.py). The label
     is what results are recorded under: `policy:<run>`, or the registry's label of `controller=<name>` (greedy for
     greedy_target)."""
     if cfg.checkpoint is not None:
@@ -64,8 +66,8 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         run_name = checkpoint_label(cfg.checkpoint)
         actor = load_actor(cfg.checkpoint, world)  # loaded once, serves every cell
 
-        def policy_factory(config: WorldConfig) -> PolicyController:
-            return PolicyController(actor, config, deterministic=bool(cfg.deterministic), seed=int(cfg.seed))
+        def policy_factory(config: WorldConfig, seed: int | WorldStreams = 0) -> PolicyController:
+            return PolicyController(actor, config, deterministic=bool(cfg.deterministic), seed=seed)
 
         return world, f"policy:{run_name}", model_name, policy_factory, True
     world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
@@ -77,8 +79,8 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
     except ConfigError as err:
         raise ConfigError(f"{err}, or checkpoint=<model.zip>") from None
 
-    def factory(config: WorldConfig) -> object:
-        return make_controller(name, config, seed=int(cfg.seed), settings=settings)
+    def factory(config: WorldConfig, seed: int | WorldStreams = 0) -> object:
+        return make_controller(name, config, seed=seed, settings=settings)
 
     factory(world)  # validates the controller's parameters before any work
     return world, entry.label, model_name, factory, False

@@ -16,6 +16,7 @@ from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_world
 from searchrl.world.state import WorldState, allocate
 from searchrl.world.step import step
+from searchrl.world.streams import WorldStreams
 
 # `world` names the sensing the episodes ran under (WorldConfig.sensing_label: "bayes" λk = 1, "paper" k = n).
 # The evaluation app (__main__) adds the map's search bound, searchrl/evaluate/bound.py's BOUND_COLUMNS.
@@ -41,8 +42,15 @@ def worlds_per_batch(config: WorldConfig, budget_mb: float) -> int:
     return max(1, int(budget_mb * 2**20 // per_world))
 
 
+def episode_streams(seed: int, cell_index: int, episodes: list[tuple[int, int]]) -> tuple[WorldStreams, WorldStreams]:
+    """(the world's, the controller's) random streams of the episodes (map, repeat): each episode's own, keyed by
+    (seed, cell, map, repeat), so how a cell is split into batches, threads or shards changes no episode."""
+    keys = [(seed, cell_index, m, r) for m, r in episodes]
+    return WorldStreams([(*key, 0) for key in keys]), WorldStreams([(*key, 1) for key in keys])
+
+
 def run_cell(
-    controller_factory: Callable[[WorldConfig], Controller],
+    controller_factory: Callable[[WorldConfig, WorldStreams], Controller],
     world: WorldConfig,
     cell: Cell,
     cell_index: int,
@@ -55,9 +63,11 @@ def run_cell(
     on_done: Callable[[WorldState, np.ndarray], None] | None = None,
 ) -> pd.DataFrame:
     """One row per episode (COLUMNS minus controller, model and world). Every repeat of a map starts from the same world
-    (map, targets and start cells come from the map seed); repeats differ in the step draws and the
-    controller's own randomness, both seeded from `seed` and the cell. `on_done(state, first)` sees the batch's
-    state when the worlds in `first` (K,) bool end their episode (analysis/missed_targets.py reads it)."""
+    (map, targets and start cells come from the map seed); repeats differ in the step draws and the controller's
+    own randomness, each episode's from its own streams (`episode_streams`; `controller_factory(config, streams)`
+    builds a controller drawing from them), so `budget_mb` changes how many worlds step together and nothing else.
+    `on_done(state, first)` sees the batch's state when the worlds in `first` (K,) bool end their episode
+    (analysis/missed_targets.py reads it)."""
     config = cell_config(world, cell)
     episodes = [(m, r) for m in range(maps) for r in range(repeats)]
     batch = worlds_per_batch(config, budget_mb)
@@ -69,9 +79,9 @@ def run_cell(
         seeds = [map_seed(seed, cell_index, m) for m, _ in chunk]
         for w, s in enumerate(seeds):
             reset_world(config, state, w, np.random.default_rng(s))
-        controller = controller_factory(config)
+        rng, controller_rng = episode_streams(seed, cell_index, chunk)
+        controller = controller_factory(config, controller_rng)
         controller.reset(state, np.ones(k, bool))
-        rng = np.random.default_rng([seed, cell_index, start])
         buffers = observation_buffers(config, k)
         maps_obs, vector = observe(config, state, buffers) if needs_observation else (None, None)
         finished = np.zeros(k, bool)

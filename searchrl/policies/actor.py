@@ -5,7 +5,7 @@ evaluation we need only the actor, on large batches, with reproducible sampling,
 - traces and freezes the features extractor (TorchScript with the conv layers fused for inference: about 3x
   faster than eager on CPU for the paper network),
 - calls the actor LSTM (RecurrentPPO) and the action head directly, on any subset of rows, and
-- leaves sampling to the caller (`sample_actions`, an explicit `np.random.Generator`).
+- leaves sampling to the caller (`sample_actions`, from uniforms the caller draws).
 Its logits equal the policy's own distribution logits to float32 rounding (tested).
 """
 
@@ -82,11 +82,12 @@ class Actor:
         return self._head(self._mlp.forward_actor(features)).numpy(), state
 
 
-def sample_actions(logits: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
-    """(B, A) logits -> (B,) int64 actions: drawn from softmax(logits) with `rng`, or argmax when rng is None."""
-    if rng is None:
+def sample_actions(logits: np.ndarray, uniforms: np.ndarray | None) -> np.ndarray:
+    """(B, A) logits -> (B,) int64 actions: drawn from softmax(logits) by inverting its CDF at `uniforms` (B,) in
+    [0, 1), or argmax when uniforms is None."""
+    if uniforms is None:
         return logits.argmax(axis=1).astype(np.int64)
     z = logits.astype(np.float64) - logits.max(axis=1, keepdims=True)
     cdf = np.cumsum(np.exp(z), axis=1)
-    u = rng.random(len(logits)) * cdf[:, -1]
+    u = np.asarray(uniforms) * cdf[:, -1]
     return np.minimum((cdf < u[:, None]).sum(axis=1), logits.shape[1] - 1).astype(np.int64)

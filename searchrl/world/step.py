@@ -11,6 +11,7 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
+from searchrl.world.streams import WorldStreams
 
 
 @dataclass
@@ -47,8 +48,12 @@ def check_actions(config: WorldConfig, state: WorldState, actions: np.ndarray) -
     return actions.astype(np.int64, copy=False)
 
 
-def step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.random.Generator) -> StepResult:
-    """Advance every world one step in place. actions: (K, N) ints in [0, config.n_actions)."""
+def step(
+    config: WorldConfig, state: WorldState, actions: np.ndarray, rng: np.random.Generator | WorldStreams
+) -> StepResult:
+    """Advance every world one step in place. actions: (K, N) ints in [0, config.n_actions); `rng` draws the
+    contested-cell tie-breaks (K, N) and the detection uniforms (K, targets), world k's from its own stream when
+    given WorldStreams."""
     actions = check_actions(config, state, actions)
     k, n = actions.shape
     w = state.arrays()

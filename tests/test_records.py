@@ -1,0 +1,183 @@
+"""What an evaluation folder records and how a cell is laid out, in process and value by value: the record's
+settings, its check against a rerun's, the grid's cells and map seeds, the memory budget's batch size, and the
+per-world random streams (searchrl/evaluate/record.py, grid.py, runner.py; searchrl/world/streams.py)."""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from searchrl.evaluate.__main__ import CONF_DIR
+from searchrl.evaluate.grid import Cell, map_seed, table2_cells
+from searchrl.evaluate.record import (
+    RECORD,
+    _flatten,
+    claim_folder,
+    evaluation_settings,
+    file_sha256,
+    option_defaults,
+)
+from searchrl.evaluate.runner import cell_config, episode_streams, worlds_per_batch
+from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world.streams import WorldStreams, random_source
+
+
+def _cfg(*overrides: str):
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        return compose(config_name="evaluate", overrides=list(overrides))
+
+
+def test_file_sha256_reads_the_whole_file_in_blocks(tmp_path):
+    data = np.random.default_rng(0).bytes((1 << 20) + 12345)  # more than one 1 MiB block
+    (tmp_path / "model.zip").write_bytes(data)
+    assert file_sha256(tmp_path / "model.zip") == hashlib.sha256(data).hexdigest()
+    (tmp_path / "empty").write_bytes(b"")
+    assert file_sha256(tmp_path / "empty") == hashlib.sha256(b"").hexdigest()
+
+
+def test_a_heuristics_record_names_it_its_settings_its_world_and_the_whole_grid():
+    cfg = _cfg("controller=greedy_target", "+model=c", "seed=5", "grid.repeats=2")
+    settings = evaluation_settings(cfg, "greedy", "c")
+    assert list(settings) == ["controller", "model", "seed", "grid", "controller_args", "world"]
+    assert (settings["controller"], settings["model"], settings["seed"]) == ("greedy", "c", 5)
+    assert settings["grid"] == {"world_sizes": [20, 40, 80, 160], "n_targets": [4, 8, 16, 32],
+                                "n_distributions": [8, 16, 32, 64], "max_agents": [32, 64, 128, 256],
+                                "maps_per_cell": 100, "repeats": 2}  # fmt: skip
+    assert settings["controller_args"]["name"] == "greedy" and settings["controller_args"]["horizon"] == 3
+    assert settings["world"] == OmegaConf.to_container(cfg.env.world, resolve=True)
+
+
+def test_a_checkpoints_record_names_its_file_by_hash_and_how_it_acts(tmp_path):
+    model = tmp_path / "model.zip"
+    model.write_bytes(b"weights")
+    cfg = _cfg(f"checkpoint={model}", "deterministic=true")
+    settings = evaluation_settings(cfg, "policy:run", "b")
+    assert settings["checkpoint_sha256"] == hashlib.sha256(b"weights").hexdigest()
+    assert settings["deterministic"] is True and "world" not in settings and "controller_args" not in settings
+    assert option_defaults(cfg) == {}
+
+
+def test_option_defaults_are_the_worlds_and_the_controllers_schema_defaults_flattened():
+    defaults = option_defaults(_cfg("controller=greedy"))
+    assert defaults["world.world_size"] == list(WorldConfig().world_size)  # tuples as the YAML's lists
+    assert defaults["world.k"] == WorldConfig().k and defaults["controller_args.horizon"] == 2
+    assert defaults["controller_args.far"] is False and "controller_args.name" in defaults
+    assert not any(key.startswith("controller_args.") for key in option_defaults(_cfg("controller=random"))
+                   if key != "controller_args.name")  # fmt: skip
+
+
+def test_flatten_joins_nested_keys_with_dots():
+    assert _flatten({"a": {"b": 1, "c": {"d": [2]}}, "e": "x"}) == {"a.b": 1, "a.c.d": [2], "e": "x"}
+    assert _flatten(3, "top") == {"top": 3}
+
+
+def test_claim_records_then_accepts_the_same_settings_and_names_every_difference(tmp_path, capsys):
+    settings = {"controller": "greedy", "seed": 1, "grid": {"repeats": 5, "maps_per_cell": 100}}
+    claim_folder(tmp_path, settings)
+    assert OmegaConf.to_container(OmegaConf.load(tmp_path / RECORD)) == settings
+    claim_folder(tmp_path, settings)  # the same: accepted, the record untouched
+    other = {"controller": "greedy", "seed": 2, "grid": {"repeats": 5}, "new": 1}
+    with pytest.raises(ConfigError) as err:
+        claim_folder(tmp_path, other)
+    assert str(err.value) == (
+        f"out_dir={str(tmp_path)!r} holds results of other settings (grid.maps_per_cell: 100 there, '(absent)' here;"
+        " new: '(absent)' there, 1 here; seed: 1 there, 2 here): give this run another out_dir, or remove that "
+        "folder to start it afresh"
+    )
+    claim_folder(tmp_path, {**settings, "new": 1}, defaults={"new": 1})  # an option added since, at its default
+    with pytest.raises(ConfigError, match=r"new: '\(absent\)' there, 2 here"):
+        claim_folder(tmp_path, {**settings, "new": 2}, defaults={"new": 1})
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("record", ["", "[1, 2]\n", "seed: 1\n", "{{{ not yaml"])
+def test_an_unreadable_record_is_named_and_kept(tmp_path, record):
+    (tmp_path / RECORD).write_text(record)
+    with pytest.raises(ConfigError) as err:
+        claim_folder(tmp_path, {"controller": "greedy"})
+    assert str(err.value).startswith(f"out_dir={str(tmp_path)!r}: its {RECORD} cannot be read (")
+    assert str(err.value).endswith("); restore it, or remove that folder to start it afresh")
+    assert (tmp_path / RECORD).read_text() == record
+
+
+def test_a_folder_of_results_without_a_record_adopts_this_runs(tmp_path, capsys):
+    (tmp_path / "cells").mkdir()
+    claim_folder(tmp_path, {"controller": "surfing"})
+    assert capsys.readouterr().err == f"note: {tmp_path} has results but no {RECORD}; recording this run's settings\n"
+    assert (tmp_path / RECORD).read_text() == "controller: surfing\n"
+
+
+def test_the_grid_doubles_the_team_up_to_each_sizes_limit_and_refuses_bad_lists():
+    cells = table2_cells([20, 40], [4, 8], [8, 16], [4, 1])
+    assert cells == [Cell(20, 1, 4, 8), Cell(20, 2, 4, 8), Cell(20, 4, 4, 8), Cell(40, 1, 8, 16)]
+    assert [c.key for c in table2_cells([20], [4], [8], [3])] == ["n20_N1", "n20_N2"]
+    bad = [(([20, 40], [4], [8], [1]), "grid lists differ in length: world_sizes=[20, 40], n_targets=[4], "
+                                       "n_distributions=[8], max_agents=[1]; give one entry per world size"),
+           (([], [], [], []), "grid.world_sizes=[] is not allowed: one or more world sizes (with their other lists)"),
+           (([20, 20], [4, 4], [8, 8], [1, 1]), "grid.world_sizes=[20, 20] is not allowed: each size once (a cell is "
+                                                "named n<n>_N<N>)"),
+           (([20], [4], [8], [0]), "grid entry n=20, targets=4, m=8, max N=0: all must be >= 1"),
+           (([0], [4], [8], [1]), "grid entry n=0, targets=4, m=8, max N=1: all must be >= 1"),
+           (([20], [0], [8], [1]), "grid entry n=20, targets=0, m=8, max N=1: all must be >= 1"),
+           (([20], [4], [0], [1]), "grid entry n=20, targets=4, m=0, max N=1: all must be >= 1")]  # fmt: skip
+    for lists, message in bad:
+        with pytest.raises(ValueError) as err:
+            table2_cells(*lists)
+        assert str(err.value) == message
+    assert map_seed(7_000_000, 3, 42) == 7_300_042
+
+
+def test_a_cell_sets_the_worlds_size_team_targets_and_gaussians_and_nothing_else():
+    world = WorldConfig(diagonal=True, n_agents=3)
+    config = cell_config(world, Cell(80, 16, 16, 32))
+    assert (config.world_size, config.n_targets, config.n_distributions, config.n_agents) == (
+        (80, 80), (16, 16), (32, 32), 16)  # fmt: skip
+    assert replace(config, world_size=world.world_size, n_targets=world.n_targets,
+                   n_distributions=world.n_distributions, n_agents=3) == world  # fmt: skip
+
+
+def test_the_memory_budget_counts_each_worlds_beliefs_and_maps():
+    config = cell_config(WorldConfig(), Cell(40, 4, 8, 16))
+    side = 40 + 2 * config.halo
+    per_world = 4 * 2 * side * side * 4 + 6 * side * side * 4  # N beliefs of two maps, six more maps, float32
+    assert worlds_per_batch(config, per_world * 10 / 2**20) == 10
+    assert worlds_per_batch(config, per_world * 10.5 / 2**20) == 10  # whole worlds only
+    assert worlds_per_batch(config, (per_world * 10 - 1) / 2**20) == 9
+    assert worlds_per_batch(config, 1e-9) == 1  # at least one
+
+
+def test_each_episode_has_its_own_streams_for_the_world_and_the_controller():
+    world, controller = episode_streams(7, 3, [(0, 0), (0, 1), (5, 0)])
+    assert len(world) == len(controller) == 3
+    rows = world.random((3, 4))
+    assert np.array_equal(rows[2], np.random.default_rng([7, 3, 5, 0, 0]).random(4))
+    assert np.array_equal(controller.random((3, 4))[1], np.random.default_rng([7, 3, 0, 1, 1]).random(4))
+    alone, _ = episode_streams(7, 3, [(5, 0)])
+    assert np.array_equal(alone.random((1, 4))[0], rows[2])  # the same episode draws the same, whatever its batch
+
+
+def test_world_streams_draw_row_k_from_world_ks_generator_and_check_the_first_axis():
+    streams = WorldStreams([(1, 2), (3,)])
+    ints = streams.integers(1, 5, size=(2, 6))
+    assert ints.dtype == np.int64 and ints.shape == (2, 6)
+    assert np.array_equal(ints[1], np.random.default_rng([3]).integers(1, 5, size=6))
+    assert ints.min() >= 1 and ints.max() <= 4
+    again = WorldStreams([(1, 2), (3,)])
+    assert np.array_equal(
+        again.random(2), [np.random.default_rng([1, 2]).random(), np.random.default_rng([3]).random()]
+    )
+    with pytest.raises(ValueError, match=r"a draw of size \(3, 4\) from 2 world streams: its first axis must be the "
+                                         r"number of worlds, 2"):  # fmt: skip
+        streams.random((3, 4))
+    with pytest.raises(ValueError, match="first axis"):
+        streams.integers(0, 2, size=())
+    empty = WorldStreams([])
+    assert empty.random((0, 3)).shape == (0, 3) and empty.integers(0, 2, (0, 3)).shape == (0, 3)
+    assert empty.integers(0, 2, (0, 3)).dtype == np.int64
+    assert random_source(streams) is streams
+    assert np.array_equal(random_source(4).random(3), np.random.default_rng(4).random(3))
