@@ -77,24 +77,43 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
 def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
     eval_dirs = [fixture_dirs / "eval" / c for c in ("surfing", "coverage", "policy")]
     _run_notebook(notebook, eval_dirs, fixture_dirs / "run", tmp_path)
+    # Every output file, exactly: a CSV's (rows, columns), a PNG's pixel size (figsize x dpi), a Markdown file's
+    # first line and its number of table lines. efficiency.csv has a row per row of the shipped analysis/out/table3.csv.
+    shipped = len(pd.read_csv(ROOT / "analysis" / "out" / "table3.csv"))
     expected = {
-        "table3.py": ["table3.csv", "table3.md", "table3_vs_paper.md", "table3_efficiency.md"],
-        "bounds.py": ["bounds.csv", "bounds.md", "efficiency.csv", "efficiency.md"],
-        "figures.py": ["fig7_n160.png", "fig8_all_sizes.png"],
-        "training_curves.py": [
-            "training_curves.png",
-            "training_curves.csv",
-            "training_convergence.md",
-            "validation.md",
-        ],
-        "claims.py": ["margins.csv", "margins.md", "claims.md"],
-        "compare.py": ["compare.csv", "compare.md"],
-        "missed_targets.py": ["small.csv", "missed_targets.md"],
-        "calibration.py": ["calibration.csv", "calibration.md", "calibration.png"],
-        "sweep.py": ["sweep.csv", "sweep.md", "sweep_curves.png"],
-    }[notebook]
-    for name in expected:
-        assert (tmp_path / name).stat().st_size > 0, name
+        "table3.py": {"table3.csv": (12, 14), "table3.md": ("| controller | model | N | 20 | 160 |", 8),
+                      "table3_vs_paper.md": ("| model | N | 20 | 160 |", 4),
+                      "table3_efficiency.md": ("Efficiency, found / search bound:", 13)},
+        "bounds.py": {"bounds.csv": (30, 15), "bounds.md": ("Mean bound fraction per cell (1 maps, 100 placements per "
+                                                            "map; the largest Monte Carlo standard error", 33),
+                      "efficiency.csv": (shipped, 17), "efficiency.md": (f"Upper-bound check: 0 of {shipped} cells "
+                                                                         "have a mean above the bound", None)},
+        "figures.py": {"fig7_n160.png": (720, 480), "fig8_all_sizes.png": (768, 768)},
+        "training_curves.py": {"training_curves.png": (1980, 360), "training_curves.csv": (45, 5),
+                               "training_convergence.md": ("Validation found fraction:", 6),
+                               "validation.md": ("| step | run |", 5)},
+        "claims.py": {"margins.csv": (8, 11), "margins.md": ("### policy:run − surfing", 8),
+                      "claims.md": ("# Claims", 9)},
+        "compare.py": {"compare.csv": (8, 11), "compare.md": ("# surfing against coverage, policy", 8)},
+        "missed_targets.py": {"small.csv": (2, 11),
+                              "missed_targets.md": ("# Missed targets by distance to the edge", 4)},
+        "calibration.py": {"calibration.csv": (12, 15), "calibration.png": (880, 396),
+                           "calibration.md": ("# Which k: heuristics in four worlds beside the paper", 11)},
+        "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
+                     "sweep_curves.png": (780, 480)},
+    }[notebook]  # fmt: skip
+    assert sorted(p.name for p in tmp_path.glob("*.*")) == sorted(expected)
+    for name, want in expected.items():
+        path = tmp_path / name
+        if path.suffix == ".csv":
+            assert pd.read_csv(path).shape == want, name
+        elif path.suffix == ".png":
+            with Image.open(path) as image:
+                assert (image.format, image.size) == ("PNG", want), name
+        else:
+            lines = path.read_text().splitlines()
+            assert lines[0].startswith(want[0]), (name, lines[0])
+            assert want[1] is None or sum(line.startswith("|") for line in lines) == want[1], name
     if notebook == "missed_targets.py":  # every unfound target is counted once, in one distance bin
         rows = pd.read_csv(tmp_path / "small.csv")
         assert list(rows.cell) == ["n20_N1", "n20_N2"] and (rows.episodes == 6).all()
@@ -119,8 +138,12 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         pairs = set(zip(margins.controller, margins.baseline, strict=True))
         assert pairs == {("policy:run", "surfing"), ("policy:run", "coverage")}
         assert len(margins) == 2 * 4 and (margins.maps == 3).all()  # 4 cells, 3 maps each
-        assert "## 1. DRL beats information surfing" in (tmp_path / "claims.md").read_text()
-        assert "## Efficiency against the search bound" in (tmp_path / "claims.md").read_text()
+        claims = (tmp_path / "claims.md").read_text()  # the fixture has no cell with n >= 40 and N >= 4
+        assert ("## 1. DRL beats information surfing (cells with n ≥ 40 and N ≥ 4)\n\n- b: no evaluated cell in this "
+                "region\n\nCells of that region where a policy does not find more than surfing (tie, saturated or "
+                "worse):\n\n(none)\n\nAll cells:\n\n- b: better on 0 of 4 cells, tie 0, saturated 0, worse 0, too few "
+                "maps 4; smallest margin ") in claims  # fmt: skip
+        assert "## Efficiency against the search bound" in claims
     if notebook == "bounds.py":
         bounds = pd.read_csv(tmp_path / "bounds.csv")
         assert len(bounds) == 30 and (bounds.maps == 1).all() and bounds.bound.between(0, 1).all()

@@ -82,12 +82,37 @@ def test_loader_and_rerun_ignore_and_clear_what_a_killed_writer_left(tmp_path):
     clean = load(out)
     cells = out / "cells"
     (cells / "n20_N2.parquet").rename(tmp_path / "n20_N2.parquet")  # as if killed while writing this cell:
-    temporary_path(cells / "n20_N2.parquet").write_bytes(b"PAR1 half a file")  # a partial temporary
+    killed = cells / ".n20_N2.parquet.node7.4242.tmp"  # a partial temporary of a writer (another pid) now dead
+    killed.write_bytes(b"PAR1 half a file")
+    assert killed != temporary_path(cells / "n20_N2.parquet")  # not the rerun's own, which its write would replace
     shutil.copy(tmp_path / "n20_N2.parquet", cells / ".n20_N1.4242.tmp.parquet")  # a whole one, earlier naming
     assert len(load(out)) == len(clean) // 2  # no ArrowInvalid, nothing counted twice
     _evaluate(tmp_path / "eval")  # the rerun finishes the cell and clears its temporary
     pd.testing.assert_frame_equal(load(out), clean)
     assert sorted(p.name for p in cells.iterdir()) == [".n20_N1.4242.tmp.parquet", "n20_N1.parquet", "n20_N2.parquet"]
+
+
+def test_a_cell_finished_by_another_job_meanwhile_is_not_run_again(tmp_path, monkeypatch):
+    """The list of cells to run is made before their locks are taken: a cell another job finished in between is
+    kept as that job wrote it."""
+    from contextlib import contextmanager
+
+    import searchrl.evaluate.__main__ as app
+
+    theirs = load(_evaluate(tmp_path / "theirs"))
+    real_hold = app.hold
+
+    @contextmanager
+    def other_job_finishes_n20_N2_first(lock_file, what, wait_s=0.0):
+        if "n20_N2" in str(lock_file):
+            done = theirs[theirs.N == 2].assign(L=-1)  # marked, to tell it from a rerun's rows
+            done.to_parquet(tmp_path / "mine" / "cells" / "n20_N2.parquet")
+        with real_hold(lock_file, what, wait_s):
+            yield
+
+    monkeypatch.setattr(app, "hold", other_job_finishes_n20_N2_first)
+    mine = load(_evaluate(tmp_path / "mine"))
+    assert (mine[mine.N == 2].L == -1).all() and (mine[mine.N == 1].L > 0).all()
 
 
 def test_evaluation_killed_at_any_moment_resumes_to_the_same_results(tmp_path):

@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from PIL import Image
 
 from searchrl.analysis.sweep import load_jobs, mean_ci, score_table, setting_keys, validation_curves
 from searchrl.train.score import run_score
@@ -143,7 +144,8 @@ def test_the_sweep_notebook_writes_table_and_plot(tmp_path):
     table = (tmp_path / "out" / "sweep.md").read_text()
     assert "| 0.001 | 3 | 0.650 |" in table and "| 0.0003 | 3 | 0.520 |" in table
     assert pd.read_csv(tmp_path / "out" / "sweep.csv").shape[0] == 2
-    assert (tmp_path / "out" / "sweep_curves.png").stat().st_size > 0
+    with Image.open(tmp_path / "out" / "sweep_curves.png") as image:
+        assert (image.format, image.size) == ("PNG", (780, 480))
     missing = subprocess.run([sys.executable, "analysis/sweep.py", str(tmp_path / "nowhere")], cwd=ROOT,
                              capture_output=True, text=True, timeout=120)  # fmt: skip
     assert missing.returncode == 1 and missing.stderr.strip().count("\n") == 0 and "nowhere" in missing.stderr

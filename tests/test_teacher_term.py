@@ -11,6 +11,7 @@ import pytest
 import torch
 from sb3_contrib import RecurrentPPO
 from stable_baselines3 import PPO
+from stable_baselines3.common.utils import set_random_seed
 
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
@@ -35,7 +36,8 @@ def _model(cls, env, **kwargs):
     if recurrent:
         policy_kwargs["lstm_hidden_size"] = 16
     policy = "MultiInputLstmPolicy" if recurrent else "MultiInputPolicy"
-    return cls(policy, env, n_steps=8, batch_size=48, n_epochs=2, policy_kwargs=policy_kwargs, seed=0, **kwargs)
+    settings = {"n_steps": 8, "batch_size": 48, "n_epochs": 2, "seed": 0, **kwargs}  # 48: one rollout of 6 slots
+    return cls(policy, env, policy_kwargs=policy_kwargs, **settings)
 
 
 def _labelled(seed: int = 0) -> TeacherLabels:
@@ -51,6 +53,27 @@ def test_without_weight_or_warmup_the_update_is_sb3s(base, ours):
     model.configure_teacher(0.0, "constant", 0, model.get_env())
     model.learn(96)
     assert model.rollouts_trained == 2
+    ref, got = reference.policy.state_dict(), model.policy.state_dict()
+    for name in ref:
+        torch.testing.assert_close(got[name], ref[name], rtol=1e-5, atol=1e-6, msg=name)
+
+
+def _adam_steps(model) -> int:
+    return int(next(iter(model.policy.optimizer.state.values()))["step"])
+
+
+@pytest.mark.parametrize("base, ours", [(RecurrentPPO, TeacherRecurrentPPO), (PPO, TeacherPPO)])
+def test_with_entropy_and_a_kl_stop_the_update_is_still_sb3s(base, ours):
+    """Beyond SB3's defaults: with ent_coef > 0 the entropy term is in the loss, and with target_kl the epochs stop
+    at the same minibatch as SB3's own `train` (measured: 17 and 12 of 24 minibatch steps), parameters equal."""
+    settings = {"batch_size": 16, "n_epochs": 4, "learning_rate": 1e-3, "ent_coef": 0.05, "target_kl": 1e-4}
+    reference = _model(base, SearchVecEnv(WORLD, n_worlds=2, seed=0), **settings)
+    reference.learn(96)
+    model = _model(ours, _labelled(), **settings)
+    model.configure_teacher(0.0, "constant", 0, model.get_env())
+    model.learn(96)
+    steps = _adam_steps(reference)
+    assert _adam_steps(model) == steps and 2 < steps < 2 * 4 * 3  # 2 rollouts × 4 epochs × 3 minibatches: stopped
     ref, got = reference.policy.state_dict(), model.policy.state_dict()
     for name in ref:
         torch.testing.assert_close(got[name], ref[name], rtol=1e-5, atol=1e-6, msg=name)
@@ -149,3 +172,47 @@ def test_training_app_runs_the_term_after_a_clone_and_resumes(tmp_path):
     resumed = TeacherRecurrentPPO.load(tmp_path / "model.zip")
     assert resumed.rollouts_trained == 6 and resumed.teacher_weight == 0.5
     RecurrentPPO.load(final)  # evaluation reads it with the plain class
+
+
+class _FixedLabels:
+    """A label source that gives the same labels at every update."""
+
+    def __init__(self, labels: np.ndarray) -> None:
+        self.labels = labels
+
+    def rollout_labels(self, n_steps: int) -> np.ndarray:
+        return self.labels
+
+
+def test_the_weight_scales_the_terms_gradient_in_the_update():
+    """One rollout in one minibatch, one epoch, SGD at rate 1 and no gradient clipping: each update is minus the
+    loss's gradient, so the update with weight w less the one with 0 is -w times the gradient of the cross-entropy
+    toward the teacher's labels, and a linear schedule halfway through the run weighs it by w/2."""
+    model = _model(TeacherRecurrentPPO, _labelled(), n_epochs=1, learning_rate=1.0, max_grad_norm=float("inf"))
+    model.train = lambda: None  # collect one rollout without training on it
+    model.learn(48)
+    del model.train
+    labels = _FixedLabels(model.get_env().rollout_labels(8))
+    start = {name: value.clone() for name, value in model.policy.state_dict().items()}
+
+    def update(weight: float, schedule: str = "constant", progress: float = 1.0) -> dict[str, torch.Tensor]:
+        model.policy.load_state_dict(start)
+        model.policy.optimizer = torch.optim.SGD(model.policy.parameters(), lr=1.0)
+        model.configure_teacher(weight, schedule, 0, labels)
+        model._current_progress_remaining = progress
+        set_random_seed(0)  # SB3's global generators: where the rollout buffer splits its sequences
+        model.train()
+        return {name: value - start[name] for name, value in model.policy.state_dict().items()}
+
+    plain = update(0.0)
+    model.policy.load_state_dict(start)
+    model.policy.zero_grad(set_to_none=False)
+    set_random_seed(0)
+    data, batch_labels = next(model.rollout_buffer.get(48))
+    _, log_probs, _, mask = model._evaluate(data, batch_labels[None])
+    (-log_probs[0][mask].mean()).backward()
+    grad = {name: p.grad.clone() for name, p in model.policy.named_parameters()}
+    assert max(g.abs().max().item() for g in grad.values()) > 1e-3  # the term has something to move
+    for weight, moved in ((0.5, update(0.5)), (2.0, update(2.0)), (0.5, update(1.0, "linear", progress=0.5))):
+        for name, g in grad.items():
+            torch.testing.assert_close(moved[name] - plain[name], -weight * g, rtol=1e-4, atol=1e-6, msg=name)

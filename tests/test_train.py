@@ -172,7 +172,7 @@ def test_resume_of_an_initialised_run_needs_no_init_file(tmp_path):
     copy.unlink()
     overrides = [f"resume={run}", "total_timesteps=2304"]
     final = train(_compose(overrides), run / "resumed", overrides)
-    assert RecurrentPPO.load(final).num_timesteps >= 2304
+    assert RecurrentPPO.load(final).num_timesteps == 2304  # one rollout (256 agent-steps) past the 2048 trained
 
 
 @pytest.mark.parametrize("algo", ["a2c", "ppo"])
