@@ -93,15 +93,19 @@ def test_check_writable_names_the_path_and_what_is_wrong(tmp_path, monkeypatch):
     cases = [(file, True, f"out={str(file)!r} is not allowed: a folder (this is a file)"),
              (folder, False, f"out={str(folder)!r} is not allowed: a file path (this is a folder)"),
              (under, False, f"out={str(under)!r} is not allowed: {file} is a file, not a folder")]  # fmt: skip
-    for path, folder, message in cases:
+    for path, is_folder, message in cases:
         with pytest.raises(ValueError) as err:
-            check_writable(path, "out", folder=folder)
+            check_writable(path, "out", folder=is_folder)
         assert str(err.value) == message
     check_writable(tmp_path / "new" / "deeper", "out", folder=True)  # to be made: checked at its nearest parent
     check_writable(tmp_path / "folder" / "x.csv", "out")
+    check_writable(file, "out")  # an existing file is replaced: its folder is what must be writable
     asked = []
     monkeypatch.setattr(os, "access", lambda path, mode: asked.append((Path(path), mode)) or False)
     with pytest.raises(ValueError) as err:
         check_writable(tmp_path / "new" / "x.csv", "out")
     assert str(err.value) == f"out={str(tmp_path / 'new' / 'x.csv')!r} is not allowed: {tmp_path} is not writable"
     assert asked == [(tmp_path, os.W_OK | os.X_OK)]  # the nearest existing folder, to write into and enter
+    with pytest.raises(ValueError, match="is not writable"):
+        check_writable(folder, "out", folder=True)  # an existing folder: itself, not its parent
+    assert asked[-1] == (folder, os.W_OK | os.X_OK)

@@ -235,12 +235,15 @@ def test_no_controller_of_the_shipped_tables_exceeds_the_bound_on_any_cell():
 def test_the_grids_table_summarises_each_cells_maps(tmp_path, capsys):
     """grid_bounds (analysis/bounds.py's table): per cell the mean, extremes and Monte Carlo error of its maps'
     bound fractions, the detection budget and the mean detection bound, from the same rows cell_bounds gives."""
+    from dataclasses import replace
+
     from searchrl.evaluate.bound import cell_bounds, grid_bounds
     from searchrl.evaluate.grid import Cell, map_seed
     from searchrl.world.config import WorldConfig
 
     world, cells = WorldConfig(), [Cell(80, 1, 16, 32), Cell(80, 2, 16, 32)]  # unsaturated: the bound binds
     table = grid_bounds(world, cells, maps=3, seed=50, draws=150, cache=tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["n80_N1_draws150.parquet", "n80_N2_draws150.parquet"]
     assert list(table.columns) == ["n", "N", "targets", "maps", "reach", "bound", "mc_stderr", "min", "max", "budget",
                                    "detection_bound", "detection_mc_stderr"]  # fmt: skip
     for index, (cell, row) in enumerate(zip(cells, table.itertuples(), strict=True)):
@@ -254,3 +257,5 @@ def test_the_grids_table_summarises_each_cells_maps(tmp_path, capsys):
         assert row.detection_mc_stderr == pytest.approx(np.sqrt((maps.detection_stderr**2).sum()) / 3 / 16)
         assert 0 <= row.mc_stderr < row.bound <= 1 and 0 < row.detection_mc_stderr < row.detection_bound < 1
     assert capsys.readouterr().out.splitlines()[0].startswith("n80_N1: bound fraction 0.")
+    diagonal = grid_bounds(replace(world, diagonal=True), cells[:1], maps=1, seed=50, draws=150, cache=None)
+    assert diagonal.budget.item() == pytest.approx(detection_budget(1, 256, 9)) and diagonal.maps.item() == 1

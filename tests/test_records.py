@@ -92,15 +92,18 @@ def test_claim_records_then_accepts_the_same_settings_and_names_every_difference
     claim_folder(tmp_path, {**settings, "new": 1}, defaults={"new": 1})  # an option added since, at its default
     with pytest.raises(ConfigError, match=r"new: '\(absent\)' there, 2 here"):
         claim_folder(tmp_path, {**settings, "new": 2}, defaults={"new": 1})
+    with pytest.raises(ConfigError, match=r"new: '\(absent\)' there, None here"):  # null is a value too
+        claim_folder(tmp_path, {**settings, "new": None})
     assert capsys.readouterr().err == ""
 
 
-@pytest.mark.parametrize("record", ["", "[1, 2]\n", "seed: 1\n", "{{{ not yaml"])
-def test_an_unreadable_record_is_named_and_kept(tmp_path, record):
+@pytest.mark.parametrize("record, why", [("", "ValueError"), ("[1, 2]\n", "ValueError"), ("seed: 1\n", "ValueError"),
+                                         ("{{{ not yaml", "ParserError")])  # fmt: skip
+def test_an_unreadable_record_is_named_and_kept(tmp_path, record, why):
     (tmp_path / RECORD).write_text(record)
     with pytest.raises(ConfigError) as err:
         claim_folder(tmp_path, {"controller": "greedy"})
-    assert str(err.value).startswith(f"out_dir={str(tmp_path)!r}: its {RECORD} cannot be read (")
+    assert str(err.value).startswith(f"out_dir={str(tmp_path)!r}: its {RECORD} cannot be read ({why})")
     assert str(err.value).endswith("); restore it, or remove that folder to start it afresh")
     assert (tmp_path / RECORD).read_text() == record
 
@@ -181,3 +184,11 @@ def test_world_streams_draw_row_k_from_world_ks_generator_and_check_the_first_ax
     assert empty.integers(0, 2, (0, 3)).dtype == np.int64
     assert random_source(streams) is streams
     assert np.array_equal(random_source(4).random(3), np.random.default_rng(4).random(3))
+
+
+def test_a_record_holds_values_not_the_interpolations_that_gave_them():
+    cfg = _cfg("controller=greedy", "grid.repeats=3", "grid.maps_per_cell=${grid.repeats}",
+               "controller.horizon=${grid.repeats}", "env.world.max_steps=${grid.maps_per_cell}")  # fmt: skip
+    settings = evaluation_settings(cfg, "greedy", "b")
+    assert settings["grid"]["maps_per_cell"] == 3 and settings["controller_args"]["horizon"] == 3
+    assert settings["world"]["max_steps"] == 3

@@ -24,6 +24,8 @@ def test_a_new_log_starts_with_its_keys_and_widens_when_a_key_appears(tmp_path):
     assert path.read_text() == f"{STEP},train/loss\n256,0.5\n512,\n"
     log.write({STEP: 768, "team/found": 0.25, "team/F": 3}, {})  # new keys, sorted, at the end
     assert path.read_text() == f"{STEP},train/loss,team/F,team/found\n256,0.5,,\n512,,,\n768,,3,0.25\n"
+    log.write({STEP: 1024, "team/F": 4}, {})  # appended, the keys it lacks left empty
+    assert path.read_text().endswith("\n768,,3,0.25\n1024,,4,\n")
     log.close()
     assert list(tmp_path.iterdir()) == [path]
 
@@ -36,6 +38,14 @@ def test_a_resumed_log_keeps_the_rows_up_to_its_checkpoint_and_drops_a_torn_row(
     assert path.read_text() == f"{STEP},val\n256,0.1\n512,0.2\n,0.3\nstep?,0.4\n768,0.5\n"
     log.write({STEP: 1024, "val": 0.9}, {})
     assert path.read_text().endswith("768,0.5\n1024,0.9\n")
+    clone = tmp_path / "clone.csv"  # a resume from the clone's step-0 checkpoint keeps its step-0 and stepless rows
+    clone.write_text(f"{STEP},val\n0,0.1\n,0.2\nstep?,0.25\n256,0.3\n")
+    AppendingCSV(clone, resume_step=0)
+    assert clone.read_text() == f"{STEP},val\n0,0.1\n,0.2\nstep?,0.25\n"
+    torn = tmp_path / "torn.csv"  # killed while writing the row of step 512: "51" is not a step of this run
+    torn.write_text(f"{STEP},val\n256,0.1\n51")
+    AppendingCSV(torn, resume_step=768)
+    assert torn.read_text() == f"{STEP},val\n256,0.1\n"
     whole = tmp_path / "whole.csv"
     whole.write_text(f"{STEP},val\n256,0.1\n512,0.2\n")
     AppendingCSV(whole)  # no resume step: every whole row stays
@@ -56,6 +66,7 @@ def test_tensorboard_purges_past_the_resume_step_only_on_resume(tmp_path):
         board = ResumableTensorBoard(str(tmp_path / folder), purge_step=purge_step)
         board.write({"val": 0.5}, {"val": None}, step=1280)
         board.close()
+    assert len(list((tmp_path / "fresh").glob("events.*"))) == 1  # written where it was asked to write
     assert _session_starts(tmp_path / "fresh") == []
     assert _session_starts(tmp_path / "resumed") == [1025]
 

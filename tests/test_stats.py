@@ -14,6 +14,7 @@ from searchrl.analysis.stats import (
     beside_paper,
     bootstrap_mean_ci,
     markdown,
+    paired_margins,
     summarize,
     table3,
     training_curves,
@@ -115,8 +116,8 @@ def test_beside_paper_matches_models_regardless_of_case():
 
 
 def test_markdown_rounds_numbers_and_shows_nan_as_a_dash():
-    frame = pd.DataFrame({"a": [1, 2], "b": [0.12345, np.nan], "c": ["x", "y"]}).set_index("a")
-    assert markdown(frame) == "| a | b | c |\n|---|---|---|\n| 1 | 0.123 | x |\n| 2 | – | y |\n"
+    frame = pd.DataFrame({"cell": [1, 2], "mean": [0.12345, np.nan], "who": ["x", "y"]}).set_index("cell")
+    assert markdown(frame) == "| cell | mean | who |\n|---|---|---|\n| 1 | 0.123 | x |\n| 2 | – | y |\n"
     assert markdown(frame, digits=1).splitlines()[2] == "| 1 | 0.1 | x |"
     wide = pd.DataFrame([[1.0, 2.0]], columns=pd.MultiIndex.from_tuples([("mean", 20), ("mean", 40)]))
     assert markdown(wide).splitlines()[0] == "| index | mean 20 | mean 40 |"
@@ -139,6 +140,7 @@ def test_training_curves_are_tidy_per_run_with_the_model_from_its_config(tmp_pat
     (tmp_path / "nomodel" / "config.yaml").write_text("seed: 3\n")
     curves = training_curves([tmp_path / "b_run", tmp_path / "bare", str(tmp_path / "nomodel")])
     assert list(curves.columns) == ["step", "metric", "value", "run", "model"]
+    assert curves.index.tolist() == list(range(len(curves)))  # one plain index over the runs
     b_run = curves[curves.run == "b_run"]
     assert b_run[["step", "metric", "value"]].values.tolist() == [
         [0, "team/found_fraction", 0.5],
@@ -149,3 +151,78 @@ def test_training_curves_are_tidy_per_run_with_the_model_from_its_config(tmp_pat
     assert curves[curves.run == "nomodel"][["step", "value", "model"]].values.tolist() == [[5, 0.9, "unknown"]]
     with pytest.raises(FileNotFoundError, match=r"^no run directories given$"):
         training_curves([])
+
+
+def test_the_summary_bootstraps_with_the_draws_asked_for_and_keeps_a_damaged_repeat():
+    found = np.random.default_rng(4).random(12)
+    for n_boot in (2000, 300):
+        row = summarize(_episodes(list(found), None), n_boot=n_boot).iloc[0]
+        assert (row["mean"], row["low"], row["high"]) == bootstrap_mean_ci(found, n_boot)
+    default = summarize(_episodes(list(found), None)).iloc[0]
+    assert (default["low"], default["high"]) == bootstrap_mean_ci(found)[1:]
+    torn = pd.concat([_episodes([0.5, 1.0], None), _episodes([np.nan], None)])  # map 0: 0.5 and a NaN repeat
+    assert math.isnan(summarize(torn, n_boot=100)["mean"].item())
+
+
+def test_paired_margins_rows_name_their_cell_and_use_the_draws_asked_for():
+    rng = np.random.default_rng(8)
+    rows = []
+    for n, agents in ((40, 4), (80, 2)):
+        for seed in range(25):
+            a, b = rng.random(), rng.random()
+            cell = {"model": "b", "n": n, "N": agents, "map_seed": seed}
+            rows += [{**cell, "controller": "x", "found_fraction": a}, {**cell, "controller": "y", "found_fraction": b}]
+    episodes = pd.DataFrame(rows)
+    margins = paired_margins(episodes, "x", "y")
+    assert list(margins.columns) == ["controller", "baseline", "n", "N", "mine", "base", "diff", "low", "high", "maps",
+                                     "verdict"]  # fmt: skip
+    assert margins[["controller", "baseline", "n", "N", "maps"]].values.tolist() == [["x", "y", 40, 4, 25],
+                                                                                     ["x", "y", 80, 2, 25]]  # fmt: skip
+    for row, (_, cell) in zip(margins.itertuples(), episodes.groupby(["n", "N"]), strict=True):
+        diff = (cell[cell.controller == "x"].found_fraction.to_numpy() - cell[cell.controller == "y"].found_fraction
+                .to_numpy())  # fmt: skip
+        assert (row.diff, row.low, row.high) == pytest.approx(bootstrap_mean_ci(diff), rel=1e-12)
+        assert (row.low, row.high) != pytest.approx(bootstrap_mean_ci(diff, 2001)[1:], rel=1e-12)
+        few = paired_margins(episodes, "x", "y", n_boot=50)
+        assert (few.low.iloc[0], few.high.iloc[0]) != (margins.low.iloc[0], margins.high.iloc[0])
+    assert paired_margins(episodes, "x", "y", min_maps=26).verdict.tolist() == ["too few maps"] * 2
+    for other, message in (("z", "no episodes of controller 'z' to compare"),):
+        with pytest.raises(ValueError) as err:
+            paired_margins(episodes, "x", other)
+        assert str(err.value) == message
+    apart = episodes.assign(map_seed=episodes.map_seed + 100 * (episodes.controller == "y"))
+    with pytest.raises(ValueError) as err:
+        paired_margins(apart, "x", "y")
+    assert str(err.value) == "'x' and 'y' share no map: were they evaluated with the same seed and grid?"
+    mixed = pd.concat([episodes, episodes.iloc[:1].assign(model="c")])
+    with pytest.raises(ValueError) as err:
+        paired_margins(mixed, "x", "y")
+    assert str(err.value) == "controller 'x' was evaluated with several models ['b', 'c']: pass episodes of one"
+
+
+def test_the_papers_table_is_read_with_the_grids_column_names(tmp_path):
+    from searchrl.analysis.stats import paper_table3
+
+    (tmp_path / "t.csv").write_text("model,world_size,n_agents,found_fraction\nB,20,1,0.5\n")
+    assert paper_table3(tmp_path / "t.csv").to_dict("records") == [{"model": "B", "n": 20, "N": 1,
+                                                                     "found_fraction": 0.5}]  # fmt: skip
+
+
+def test_detection_budget_defaults_to_the_cardinal_moves():
+    from searchrl.world.bound import detection_budget, detection_per_move
+    from searchrl.world.footprint import GAMMA, MOVES
+
+    assert detection_budget(2, 3) == pytest.approx(2 * (GAMMA.sum() + 2 * detection_per_move(GAMMA, MOVES[:5])))
+    assert detection_budget(2, 3) < detection_budget(2, 3, n_actions=9)
+
+
+def test_outputs_keep_every_row_and_a_plain_index():
+    ours = pd.DataFrame({"controller": "x", "model": "b", "n": [20, 80], "N": 1, "mean": [0.5, 0.6]})
+    paper = pd.DataFrame({"model": ["B", "B"], "n": [20, 20], "N": [1, 2], "found_fraction": [0.4, 0.5]})
+    merged = beside_paper(ours, paper)  # a cell the paper lacks keeps its row, with NaN beside it
+    assert len(merged) == 2 and merged["paper"].iloc[0] == 0.4 and math.isnan(merged["paper"].iloc[1])
+    summary = pd.DataFrame({"controller": "x", "model": "b", "n": [40], "N": [1], "mean": [0.2], "low": [0.1],
+                            "high": [0.3]})  # fmt: skip
+    bounds = pd.DataFrame({"n": [40], "N": [1], "bound": [0.5], "mc_stderr": [0.01], "detection_bound": [0.4],
+                           "detection_mc_stderr": [0.02]})  # fmt: skip
+    assert with_bounds(summary, bounds)["detection_mc_stderr"].tolist() == [0.02]
