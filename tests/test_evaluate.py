@@ -168,13 +168,21 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
         ("controller.age=9", "age=9.0"),
     ],
 )
-def test_bad_input_fails_before_work(tmp_path, override, message):
-    cmd = [sys.executable, "-m", "searchrl.evaluate", *SLICE, f"out_dir={tmp_path}", override]
+def test_bad_input_fails_before_work(tmp_path, override, message, capsys):
+    overrides = [override]
     if override.startswith("controller."):  # the controller group goes before its own settings
-        cmd.remove(override)
-        cmd += ["controller=coverage" if "radius" in override else "controller=greedy", override]
+        overrides = ["controller=coverage" if "radius" in override else "controller=greedy", override]
+    with pytest.raises(SystemExit) as exit_:
+        _evaluate(tmp_path, *overrides)
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and message in err and "Traceback" not in err, err[-2000:]
+    assert not (tmp_path / "cells").exists() and not (tmp_path / "evaluation.yaml").exists()
+
+
+def test_the_command_line_names_a_bad_value_in_one_line(tmp_path):
+    cmd = [sys.executable, "-m", "searchrl.evaluate", *SLICE, f"out_dir={tmp_path}", "grid.repeats=0"]
     out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 2 and message in out.stderr, out.stderr[-2000:]
+    assert out.returncode == 2 and out.stderr.strip().splitlines()[-1].startswith("error: grid.repeats=0"), out.stderr
     assert not (tmp_path / "cells").exists()
 
 
