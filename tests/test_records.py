@@ -22,7 +22,7 @@ from searchrl.evaluate.record import (
     file_sha256,
     option_defaults,
 )
-from searchrl.evaluate.runner import cell_config, episode_streams, worlds_per_batch
+from searchrl.evaluate.runner import cell_config, episode_streams, run_cell, worlds_per_batch
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.streams import WorldStreams, random_source
 
@@ -192,3 +192,46 @@ def test_a_record_holds_values_not_the_interpolations_that_gave_them():
     settings = evaluation_settings(cfg, "greedy", "b")
     assert settings["grid"]["maps_per_cell"] == 3 and settings["controller_args"]["horizon"] == 3
     assert settings["world"]["max_steps"] == 3
+
+
+def test_run_cell_observes_for_the_controller_unless_told_it_needs_no_observation():
+    """A policy reads the agents' observations: they are made by default, and skipped (None) when a heuristic
+    says it needs none. The steps counted for the progress bar are each live world's agents."""
+    from searchrl.controllers.registry import make_controller
+
+    seen, steps = [], []
+
+    class Recording:
+        def __init__(self, config, seed):
+            self.inner = make_controller("greedy", config, seed=seed)
+            self.config = config
+
+        def reset(self, state, mask):
+            self.inner.reset(state, mask)
+
+        def act(self, state, maps, vector, active=None):
+            seen.append(None if maps is None else (maps.shape, vector.shape))
+            return self.inner.act(state, maps, vector, active)
+
+    cell = Cell(20, 2, 4, 8)
+    frame = run_cell(Recording, WorldConfig(), cell, 0, maps=2, repeats=1, seed=3, on_steps=steps.append)
+    assert seen[0] == ((2, 2, 5, 11, 11), (2, 2, 3)) and None not in seen
+    assert steps[0] == 4 and sum(steps) == 2 * frame.L.sum()  # N agents of each world, up to its episode's end
+    seen.clear()
+    run_cell(Recording, WorldConfig(), cell, 0, maps=2, repeats=1, seed=3, needs_observation=False)
+    assert set(seen) == {None}
+
+
+def test_run_cell_lets_a_policy_act_in_every_running_world_and_keeps_each_columns_type():
+    from pathlib import Path
+
+    from searchrl.controllers.policy import PolicyController, load_actor
+
+    world = WorldConfig()
+    actor = load_actor(Path(__file__).resolve().parents[1] / "runs" / "reference" / "b" / "model.zip", world)
+    frame = run_cell(lambda config, seed: PolicyController(actor, config, seed=seed), world, Cell(20, 2, 4, 8), 0,
+                     maps=3, repeats=1, seed=3)  # fmt: skip
+    assert frame.found_fraction.mean() > 0.8  # agents that never moved would find the few targets under them
+    assert frame.dtypes.astype(str).to_dict() == {"n": "int64", "N": "int64", "targets": "int64", "map_seed": "int64",
+                                                  "repeat": "int64", "found_fraction": "float64", "L": "int64",
+                                                  "R": "float64", "F": "int64", "M_bar": "float64"}  # fmt: skip
