@@ -259,3 +259,27 @@ def test_the_grids_table_summarises_each_cells_maps(tmp_path, capsys):
     assert capsys.readouterr().out.splitlines()[0].startswith("n80_N1: bound fraction 0.")
     diagonal = grid_bounds(replace(world, diagonal=True), cells[:1], maps=1, seed=50, draws=150, cache=None)
     assert diagonal.budget.item() == pytest.approx(detection_budget(1, 256, 9)) and diagonal.maps.item() == 1
+
+
+def test_a_maps_digest_names_its_prior_obstacles_and_count_in_16_hex_digits():
+    """Cached rows are reused by map seed and digest: the digest must change with anything the bound reads, and keep
+    its length, or the rows cached so far would never match again."""
+    from searchrl.evaluate.bound import map_digest
+
+    p, u, free = _tiny_map(1)
+    digest = map_digest(p, u, free, 3)
+    assert len(digest) == 16 and int(digest, 16) >= 0 and digest == map_digest(p.copy(), u, free, 3)
+    blocked = free.copy()
+    blocked[0, 0] = False
+    others = [map_digest(p[::-1].copy(), u, free, 3), map_digest(p, u[::-1].copy(), free, 3),
+              map_digest(p, u, blocked, 3), map_digest(p, u, free, 4)]  # fmt: skip
+    assert len({digest, *others}) == 5
+
+
+def test_cell_bounds_gives_the_detection_bound_only_when_asked(tmp_path):
+    from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds
+    from searchrl.evaluate.grid import Cell
+    from searchrl.world.config import WorldConfig
+
+    plain = cell_bounds(WorldConfig(), Cell(20, 1, 4, 8), [5], draws=100)
+    assert list(plain.columns) == ["map_seed", *BOUND_COLUMNS, "reach"]
