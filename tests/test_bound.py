@@ -283,3 +283,106 @@ def test_cell_bounds_gives_the_detection_bound_only_when_asked(tmp_path):
 
     plain = cell_bounds(WorldConfig(), Cell(20, 1, 4, 8), [5], draws=100)
     assert list(plain.columns) == ["map_seed", *BOUND_COLUMNS, "reach"]
+    assert plain.reach.tolist() == [min(team_reach(1, 256, 5), 20 * 20)]  # at most the world's cells
+
+
+def test_the_detection_bound_of_a_cell_is_its_budgets_share_of_the_same_draws():
+    from searchrl.evaluate.bound import cell_bounds, map_prior
+    from searchrl.evaluate.grid import Cell
+    from searchrl.evaluate.runner import cell_config
+    from searchrl.world.config import WorldConfig
+
+    world, cell = WorldConfig(), Cell(80, 2, 16, 32)
+    row = cell_bounds(world, cell, [7], draws=120, detection=True).iloc[0]
+    p, u, free = map_prior(cell_config(world, cell), 7)
+    direct = search_bound(p, u, free, 16, team_reach(2, 256, 5), 120, np.random.default_rng([7, 29]),
+                          budgets=(detection_budget(2, 256, 5),))  # fmt: skip
+    assert (row.bound, row.detection_bound) == pytest.approx((direct.expected, direct.detection[0]))
+    assert row.detection_fraction == pytest.approx(direct.detection[0] / 16)
+
+
+def test_a_cache_file_of_another_layout_is_computed_afresh_and_replaced(tmp_path):
+    from searchrl.evaluate.bound import cell_bounds
+    from searchrl.evaluate.grid import Cell
+    from searchrl.world.config import WorldConfig
+
+    world, cell = WorldConfig(), Cell(20, 2, 4, 8)
+    fresh = cell_bounds(world, cell, [11, 12], draws=100)
+    pd.DataFrame({"map_seed": [11, 12], "bound": [-1.0, -1.0]}).to_parquet(tmp_path / "n20_N2_draws100.parquet")
+    assert cell_bounds(world, cell, [11, 12], draws=100, cache=tmp_path).equals(fresh)
+    assert {"digest", "team_reach"} <= set(pd.read_parquet(tmp_path / "n20_N2_draws100.parquet").columns)
+
+
+@pytest.mark.parametrize("setting", ["prob_variance_scale", "unc_variance_scale"])
+def test_a_cached_row_is_not_reused_for_another_prior_of_the_same_seed(tmp_path, setting):
+    """Another world setting draws another p (or u) from the same map seed: the cache must compute that map's bound,
+    not reuse the row of the map it holds for the seed."""
+    from dataclasses import replace
+
+    from searchrl.evaluate.bound import cell_bounds, map_prior
+    from searchrl.evaluate.grid import Cell
+    from searchrl.evaluate.runner import cell_config
+    from searchrl.world.config import WorldConfig
+
+    world, cell = WorldConfig(), Cell(80, 1, 16, 32)
+    other = replace(world, **{setting: getattr(world, setting) / 4})
+    first, second = (map_prior(cell_config(w, cell), 5) for w in (world, other))
+    changed = [not np.array_equal(a, b) for a, b in zip(first, second, strict=True)]
+    assert changed == ([True, False, False] if setting == "prob_variance_scale" else [False, True, False])
+    cell_bounds(world, cell, [5], draws=100, cache=tmp_path)
+    assert cell_bounds(other, cell, [5], draws=100, cache=tmp_path).equals(cell_bounds(other, cell, [5], draws=100))
+
+
+def test_rows_cached_without_the_detection_bound_are_computed_again_when_it_is_asked(tmp_path):
+    from searchrl.evaluate.bound import cell_bounds
+    from searchrl.evaluate.grid import Cell
+    from searchrl.world.config import WorldConfig
+
+    world, cell, seeds = WorldConfig(), Cell(80, 1, 16, 32), [3, 4]
+    cell_bounds(world, cell, seeds[:1], draws=100, cache=tmp_path)  # seed 3 cached without the detection bound
+    both = cell_bounds(world, cell, seeds, draws=100, cache=tmp_path, detection=True)
+    assert both.equals(cell_bounds(world, cell, seeds, draws=100, detection=True))
+    cached = pd.read_parquet(tmp_path / "n80_N1_draws100.parquet")
+    assert sorted(cached.map_seed) == seeds and cached.detection_bound_cardinal.notna().all()  # one row per map
+
+
+def test_map_prior_is_the_worlds_n_by_n_maps_without_the_halo(tmp_path):
+    from searchrl.evaluate.bound import cell_bounds, map_prior
+    from searchrl.evaluate.grid import Cell
+    from searchrl.evaluate.runner import cell_config
+    from searchrl.world.config import WorldConfig
+
+    p, u, free = map_prior(cell_config(WorldConfig(), Cell(20, 2, 4, 8)), 9)
+    assert p.shape == u.shape == free.shape == (20, 20) and p.dtype == u.dtype == np.float64
+    assert free.all() and p.sum() == pytest.approx(1.0) and (p > 0).all()  # no obstacles: every cell is inside
+    nested = tmp_path / "a" / "b"  # a cache folder is made with its parents
+    cell_bounds(WorldConfig(), Cell(20, 2, 4, 8), [9], draws=100, cache=nested)
+    assert (nested / "n20_N2_draws100.parquet").exists()
+
+
+def test_a_reach_beyond_every_cell_bounds_all_the_targets():
+    p, u, _ = _tiny_map(2)
+    every = np.ones((3, 3), bool)  # no obstacle: all 9 cells hold targets with positive probability
+    bound = search_bound(p, u, every, 3, 50, 200, np.random.default_rng(1), budgets=(9.0, 40.0))
+    assert (bound.expected, bound.reach, bound.detection) == (pytest.approx(3.0), 9, pytest.approx((3.0, 3.0)))
+    assert bound.stderr == 0.0
+
+
+def test_exactly_as_many_cells_of_positive_weight_as_targets_place_them_all_there():
+    weights = np.zeros((2, 2))
+    weights[0, 0], weights[1, 1] = 0.2, 0.8
+    marginals, chosen = target_marginals(weights, 2, 10, np.random.default_rng(0))
+    assert marginals.tolist() == [[1.0, 0.0], [0.0, 1.0]] and (np.sort(chosen, axis=1) == [0, 3]).all()
+    with pytest.raises(ValueError) as err:
+        target_marginals(weights, 3, 10, np.random.default_rng(0))
+    assert str(err.value) == "count=3 targets need as many cells of positive weight (2)"
+
+
+def test_each_draw_places_its_targets_on_the_cells_of_largest_key():
+    """Successive sampling as Gumbel top-k: a draw's targets are exactly the `count` cells of largest log w + Gumbel
+    noise (one chunk of draws here, so the noise can be drawn again in the same order)."""
+    weights = np.random.default_rng(3).random((40, 40))
+    _, chosen = target_marginals(weights, 16, 40, np.random.default_rng(8))
+    keys = np.log(weights.ravel()) + np.random.default_rng(8).gumbel(size=(40, 1600))
+    top = np.argsort(-keys, axis=1)[:, :16]
+    assert all(set(a) == set(b) for a, b in zip(chosen.tolist(), top.tolist(), strict=True))
