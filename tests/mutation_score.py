@@ -59,7 +59,8 @@ def main() -> int:
         print(f"| {module} | {total} | {c['caught']} | {c['equivalent']} | {c['survived']} | {other} | {score:.1%} |")
     everything = sum(counts.values(), Counter())
     scored = sum(everything.values()) - everything["equivalent"]
-    print(f"\nAll: {everything['caught']} of {scored} non-equivalent mutants caught ({everything['caught'] / scored:.1%})")
+    caught = everything["caught"]
+    print(f"\nAll: {caught} of {scored} non-equivalent mutants caught ({caught / scored:.1%})")
     for name in stale:
         print(f"listed as equivalent but not reported by mutmut (check it again): {name}", file=sys.stderr)
     return 1 if low or everything["not checked"] else 0
