@@ -1,0 +1,74 @@
+"""Recorded outputs that every refactor must reproduce bit for bit: each shipped policy and each kept heuristic on a
+small slice of the grid, through `run_cell` (the evaluation's episode loop).
+
+`python -m tests.golden_slice --write` rewrites tests/golden/slice.parquet; do that only for a change that is meant
+to change episodes, and say which in docs/log.md. tests/test_golden.py compares a fresh run with the file.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pandas as pd
+from omegaconf import OmegaConf
+
+from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor
+from searchrl.controllers.registry import make_controller
+from searchrl.evaluate.grid import Cell
+from searchrl.evaluate.runner import run_cell
+from searchrl.world.config import WorldConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+GOLDEN = ROOT / "tests" / "golden" / "slice.parquet"
+REFERENCE = ROOT / "runs" / "reference"
+# Two cells of Table 2 (n=20 with 8 targets and 16 Gaussians; N=1 and N=4), two maps each, one repeat.
+CELLS = [(0, Cell(20, 1, 8, 16)), (2, Cell(20, 4, 8, 16))]
+MAPS, REPEATS, SEED = 2, 1, 7_000_000
+HEURISTICS = ("surfing", "greedy", "greedy_target", "coverage", "random")
+
+
+def shipped_policies() -> list[str]:
+    """Every runs/reference/**/model.zip, as its folder relative to runs/reference."""
+    return sorted(str(p.parent.relative_to(REFERENCE)) for p in REFERENCE.glob("**/model.zip"))
+
+
+def _rows(label: str, factory, world: WorldConfig, needs_observation: bool) -> list[pd.DataFrame]:
+    frames = []
+    for index, cell in CELLS:
+        frame = run_cell(factory, world, cell, index, MAPS, REPEATS, SEED, needs_observation=needs_observation)
+        frame.insert(0, "controller", label)
+        frames.append(frame)
+    return frames
+
+
+def golden_frame() -> pd.DataFrame:
+    """One row per (controller, cell, map, repeat): the run_cell columns with the controller's name."""
+    frames = []
+    for name in HEURISTICS:
+        world = WorldConfig()  # the Bayesian world of conf/world/bayes.yaml, model B's agent model
+        frames += _rows(name, lambda config, seed, name=name: make_controller(name, config, seed=seed), world, False)
+    # Model C's teacher: target-greedy remembering what it saw its neighbours sense (its world ages beliefs).
+    saved = OmegaConf.load(REFERENCE / "c" / "config.yaml")
+    world_c = WorldConfig.from_dict(OmegaConf.to_container(saved.env.world))
+    teacher = OmegaConf.to_container(saved.imitation.teacher_args)
+    frames += _rows("teacher:c", lambda config, seed: make_controller("greedy", config, seed, teacher), world_c, False)
+    for folder in shipped_policies():
+        path = REFERENCE / folder / "model.zip"
+        world = WorldConfig.from_dict(checkpoint_config(path)[0])
+        actor = load_actor(path, world)
+        frames += _rows(f"policy:{folder}", lambda config, seed, a=actor: PolicyController(a, config, seed=seed),
+                        world, True)  # fmt: skip
+    return pd.concat(frames, ignore_index=True)
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] != ["--write"]:
+        sys.exit("usage: python -m tests.golden_slice --write")
+    import torch
+
+    torch.set_num_threads(1)
+    GOLDEN.parent.mkdir(exist_ok=True)
+    frame = golden_frame()
+    frame.to_parquet(GOLDEN)
+    print(f"wrote {len(frame)} rows to {GOLDEN}")
