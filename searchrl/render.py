@@ -14,16 +14,19 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from omegaconf import OmegaConf
 from PIL import Image, ImageDraw
 
 from searchrl.atomic import check_writable, write_atomic
+from searchrl.controllers.episodes import episode_streams, play
 from searchrl.controllers.registry import HEURISTICS, make_controller
 from searchrl.world.config import ConfigError, WorldConfig
-from searchrl.world.observe import observe
+from searchrl.world.engine import SearchWorld
 from searchrl.world.render import world_frame
-from searchrl.world.reset import reset_world
-from searchrl.world.state import WorldState, allocate
-from searchrl.world.step import step
+from searchrl.world.scenario import Scenario
+from searchrl.world.state import WorldState
+
+SCENARIOS = Path(__file__).resolve().parents[1] / "conf" / "scenario"  # the Hydra group's files, by name
 
 MODELS = {
     "a": {"explicit_area": 11, "communication": False, "diagonal": False},
@@ -60,6 +63,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--agents", type=int, default=8)
     p.add_argument("--targets", type=int, default=8)
     p.add_argument("--distributions", type=int, default=16)
+    p.add_argument("--scenario", default="paper", choices=sorted(f.stem for f in SCENARIOS.glob("*.yaml")),
+                   help="what the reset draws besides the prior (conf/scenario/)")  # fmt: skip
     p.add_argument("--seed", type=int, default=0, help="the episode's seed (>= 0)")
     p.add_argument("--agent", type=int, default=0, help="whose belief is drawn")
     p.add_argument("--cell", type=int, default=6, help="pixels per cell (1 to 64)")
@@ -88,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(err))
     try:
         if args.checkpoint:
-            from searchrl.controllers.policy import PolicyController, checkpoint_config
+            from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor
 
             world = WorldConfig.from_dict(checkpoint_config(args.checkpoint)[0])
         else:
@@ -96,26 +101,29 @@ def main(argv: list[str] | None = None) -> int:
         config = replace(world, world_size=(args.n, args.n), n_agents=args.agents,
                          n_targets=(args.targets, args.targets),
                          n_distributions=(args.distributions, args.distributions))  # fmt: skip
+        scenario = Scenario.from_dict(OmegaConf.to_container(OmegaConf.load(SCENARIOS / f"{args.scenario}.yaml")))
+        scenario.check(config)
         if args.checkpoint:
-            controller = PolicyController.load(args.checkpoint, config, seed=args.seed)
+            actor = load_actor(args.checkpoint, config)
+
+            def factory(config: WorldConfig, streams: object) -> PolicyController:
+                return PolicyController(actor, config, seed=streams)
         else:
-            controller = make_controller(args.controller or "surfing", config)
+            make_controller(args.controller or "surfing", config)  # its settings checked before the episode
+
+            def factory(config: WorldConfig, streams: object) -> object:
+                return make_controller(args.controller or "surfing", config, seed=streams)
     except (ConfigError, FileNotFoundError, ValueError) as err:
         p.error(str(err))
-    state = allocate(config, 1)
-    reset_world(config, state, 0, np.random.default_rng(args.seed))
-    controller.reset(state, np.ones(1, bool))
-    rng = np.random.default_rng(args.seed + 1)
-    frames = [frame(state, args.agent, args.cell)]
-    while True:
-        maps, vector = observe(config, state)
-        result = step(config, state, controller.act(state, maps, vector), rng)
-        frames.append(frame(state, args.agent, args.cell))
-        if result.done[0]:
-            break
+    world_streams, controller_streams = episode_streams([(args.seed,)])  # an episode as evaluation plays one
+    world = SearchWorld.from_maps(config, [args.seed], world_streams, scenario)
+    frames = [frame(world.state, args.agent, args.cell)]
+    play(world, factory(config, controller_streams),
+         on_step=lambda world, _: frames.append(frame(world.state, args.agent, args.cell)))  # fmt: skip
     images = [Image.fromarray(f) for f in frames]
     write_atomic(Path(args.out), lambda tmp: images[0].save(tmp, format="GIF", save_all=True,
                  append_images=images[1:], duration=int(1000 / args.fps), loop=0))  # fmt: skip
+    state = world.state
     print(f"wrote {args.out}: {len(frames)} frames, found {int(state.n_found[0])}/{int(state.n_targets[0])}")
     return 0
 

@@ -28,7 +28,6 @@ class OracleResult(NamedTuple):
     info_collected: np.ndarray  # (K, N) float64, M_p + M_u
     comm_gain: np.ndarray  # (K, N) float64, ΔM_p + ΔM_u
     comm_pairs: np.ndarray  # (K,) int64
-    expected_targets: np.ndarray  # (K, N) float64, M_t (0 unless info_reward="targets")
 
 
 def _is_blocked_cell(state: WorldState, k: int, row: int, col: int) -> bool:
@@ -92,10 +91,10 @@ def _detect(state: WorldState, k: int, detect: np.ndarray) -> list[int]:
     return credited
 
 
-def _sense(config: WorldConfig, state: WorldState, k: int) -> tuple[list[float], list[float], list[float]]:
+def _sense(config: WorldConfig, state: WorldState, k: int) -> tuple[list[float], list[float]]:
     """SPEC step 3, eq. 1-2 of the paper: Δp = λkΓp per footprint, several footprints on one cell combined as
     a product of survivals, and what the cell lost split among the agents in proportion to their c·Γ.
-    Returns (M_p, M_u) per agent, eq. 3-4, and M_t: the same shares of the p removed times target_weight."""
+    Returns (M_p, M_u) per agent, eq. 3-4."""
     c = config.lam * (config.k + config.k_per_n * int(state.size[k]))  # k related to the world's side n
     h = state.halo
     covers: dict[tuple[int, int], list[tuple[int, float]]] = {}  # padded cell -> [(agent, f_i)] by index
@@ -108,8 +107,6 @@ def _sense(config: WorldConfig, state: WorldState, k: int) -> tuple[list[float],
                     covers.setdefault((row + dr + h, col + dc + h), []).append((i, c * g))
     m_p = [0.0] * state.n_agents
     m_u = [0.0] * state.n_agents
-    m_t = [0.0] * state.n_agents
-    targets_on = config.info_reward == "targets"
     for (pr, pc), agents in covers.items():
         survive = 1.0
         for _, f in agents:
@@ -122,9 +119,7 @@ def _sense(config: WorldConfig, state: WorldState, k: int) -> tuple[list[float],
             true_map[k, pr, pc] = new
             for i, f in agents:
                 credit[i] += removed * f / f_total
-                if targets_on and true_map is state.p:
-                    m_t[i] += removed * float(state.target_weight[k, pr, pc]) * f / f_total
-    return m_p, m_u, m_t
+    return m_p, m_u
 
 
 def _refresh_beliefs(config: WorldConfig, state: WorldState, k: int) -> None:
@@ -206,13 +201,11 @@ def oracle_step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng
         info_collected=np.zeros((n_worlds, n_agents), np.float64),
         comm_gain=np.zeros((n_worlds, n_agents), np.float64),
         comm_pairs=np.zeros(n_worlds, np.int64),
-        expected_targets=np.zeros((n_worlds, n_agents), np.float64),
     )
-    targets = config.info_reward == "targets"  # what eq. 5 pays for
     for k in range(n_worlds):
         blocked = _move(state, k, actions, priority)
         credited = _detect(state, k, detect)
-        m_p, m_u, m_t = _sense(config, state, k)
+        m_p, m_u = _sense(config, state, k)
         _refresh_beliefs(config, state, k)
         if config.belief_seen:
             _see_neighbours(config, state, k)
@@ -223,7 +216,7 @@ def oracle_step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng
                 config.step_reward
                 + config.collision_reward * blocked[i]
                 + config.target_reward * credited[i]
-                + (config.xi / config.lam) * (m_p[i] + m_u[i] if not targets else 2.0 * m_t[i])
+                + (config.xi / config.lam) * (m_p[i] + m_u[i])
                 + (config.tau / config.lam) * (gain_p[i] + gain_u[i])
             )
             team_return += r
@@ -231,7 +224,6 @@ def oracle_step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng
             res.collided[k, i] = blocked[i]
             res.targets_found[k, i] = credited[i]
             res.info_collected[k, i] = m_p[i] + m_u[i]
-            res.expected_targets[k, i] = m_t[i]
             res.comm_gain[k, i] = gain_p[i] + gain_u[i]
         res.comm_pairs[k] = pairs
         state.t[k] += 1

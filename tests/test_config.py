@@ -31,7 +31,6 @@ from searchrl.world.config import ConfigError, WorldConfig
         ({"n_agents": -3}, "n_agents"),
         ({"world_size": (5, 10), "n_agents": 26, "n_targets": (1, 1)}, "n_agents"),  # 25 cells for 26 agents
         ({"world_size": (5, 10), "n_agents": 20, "n_targets": (1, 6)}, "n_targets"),  # 26 > 25 start cells
-        ({"obstacle_density": 1.0}, "obstacle_density"),
         ({"max_steps": 0}, "max_steps"),
         ({"xi": -0.1}, "xi"),
         ({"tau": -0.1}, "tau"),
@@ -48,13 +47,6 @@ from searchrl.world.config import ConfigError, WorldConfig
 def test_bad_values_raise_config_error_naming_the_field(kwargs: dict, field: str) -> None:
     with pytest.raises(ConfigError, match=rf"^{field}="):
         WorldConfig(**kwargs)
-
-
-def test_density_counts_against_room_for_agents() -> None:
-    # 5×5 at 50 % obstacles leaves int(12.5) = 12 free cells: 10 agents + 3 targets do not fit.
-    with pytest.raises(ConfigError, match=r"^n_targets="):
-        WorldConfig(world_size=(5, 5), obstacle_density=0.5, n_agents=10, n_targets=(1, 3))
-    WorldConfig(world_size=(5, 5), obstacle_density=0.5, n_agents=10, n_targets=(1, 2))
 
 
 def test_config_error_is_a_value_error_and_config_is_frozen() -> None:

@@ -216,35 +216,3 @@ def test_the_kernels_view_of_the_state_follows_a_rebound_field():
     assert state.copy().arrays() is not state.arrays()
     twin = pickle.loads(pickle.dumps(copy.deepcopy(state)))  # the view is left behind and rebuilt
     np.testing.assert_array_equal(observe(config, twin)[1], vector)
-
-
-@pytest.mark.parametrize("k, k_per_n", [(1000.0, 0.0), (0.0, 1.0)])
-def test_target_reward_pays_the_expected_targets_of_the_p_removed(k, k_per_n):
-    """info_reward="targets": p·target_weight sums to 1 over a world at reset, so a world is worth 2ξ/λ as under
-    eq. 5; what the agents are paid over an episode is exactly the weighted p they removed, and it differs from
-    the paper's M_p + M_u."""
-    config = WorldConfig(world_size=(20, 30), n_agents=4, info_reward="targets", k=k, k_per_n=k_per_n,
-                         obstacle_density=0.1)  # fmt: skip
-    world = SearchWorld(config, n_worlds=3, seed=5)
-    world.reset()
-    state = world.state
-    weighted = (state.p * state.target_weight).sum(axis=(1, 2))
-    np.testing.assert_allclose(weighted, 1.0, rtol=1e-5)
-    assert (state.target_weight[state.blocked] == 0).all()
-    p0, paid, info = state.p.astype(np.float64).copy(), np.zeros(3), np.zeros(3)
-    rng = np.random.default_rng(0)
-    for _ in range(40):
-        tr = world.step(rng.integers(0, 5, size=(3, 4)))
-        assert not tr.result.done.any()
-        extra = tr.result.reward - config.step_reward - config.collision_reward * tr.result.collided
-        extra -= config.target_reward * tr.result.targets_found + (config.tau / config.lam) * tr.result.comm_gain
-        paid += extra.sum(axis=1) / (2 * config.xi / config.lam)
-        info += tr.result.info_collected.sum(axis=1)
-    removed = ((p0 - state.p) * state.target_weight).sum(axis=(1, 2))
-    np.testing.assert_allclose(paid, removed, rtol=1e-3)
-    assert (paid > 0).all() and not np.allclose(paid, info / 2, rtol=1e-2)
-
-
-def test_info_reward_is_checked():
-    with pytest.raises(ValueError, match="info_reward='target' is not allowed: one of information, targets"):
-        WorldConfig(info_reward="target")

@@ -103,6 +103,33 @@ def test_checkpoint_settings_come_from_its_run(tmp_path, capsys):
     assert "checkpoint_sha256" in capsys.readouterr().err
 
 
+def test_one_override_chooses_the_scenario_for_a_heuristic_and_a_checkpoint(tmp_path, capsys):
+    """`scenario=walls` and `scenario=off_prior`: the rows name the scenario, the maps keep their priors (a map seed
+    gives the same prior in every scenario) and the walls block cells; a checkpoint is evaluated under any scenario,
+    and a folder of one scenario refuses another's results."""
+    paper = _evaluate(tmp_path / "paper", "controller=greedy")
+    walls = _evaluate(tmp_path / "walls", "controller=greedy", "scenario=walls")
+    off = _evaluate(tmp_path / "off", "controller=greedy", "scenario=off_prior")
+    assert (
+        (paper.scenario == "paper").all()
+        and (walls.scenario == "iid0.2").all()
+        and (off.scenario == "off_prior1").all()
+    )
+    assert (
+        paper.bound.notna().all() and walls.bound.notna().all() and off.bound.isna().all()
+    )  # bound needs the prior's law
+    assert (paper.map_seed.to_numpy() == off.map_seed.to_numpy()).all()
+    assert not paper.found_fraction.equals(off.found_fraction) and not paper.found_fraction.equals(walls.found_fraction)
+    with pytest.raises(SystemExit):
+        _evaluate(tmp_path / "walls", "controller=greedy", "scenario=off_prior")
+    assert "scenario.targets.kind: 'prior' there, 'off_prior' here" in capsys.readouterr().err
+    from tests.test_train import TINY, _run
+
+    model = _run(tmp_path / "run", ["+model=b", *TINY, "total_timesteps=256", "validation.every=0"])
+    policy = _evaluate(tmp_path / "policy_walls", f"checkpoint={model}", "scenario=walls")
+    assert (policy.scenario == "iid0.2").all() and len(policy) == 18
+
+
 def test_a_folder_refuses_results_of_other_settings(tmp_path, capsys):
     """Cells are skipped when their file exists, so a run with other settings must not resume another's folder."""
     first = _evaluate(tmp_path, "controller=greedy", "shard=0", "num_shards=2")
@@ -166,10 +193,13 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
         ("controller.w_t=-1", "w_t=-1.0"),
         ("controller.reach=-1", "reach=-1.0"),
         ("controller.age=9", "age=9.0"),
+        ("scenario=walls scenario.obstacles.density=1.5", "scenario.obstacles.density=1.5 is not allowed"),
+        ("scenario=off_prior scenario.targets.severity=-1", "scenario.targets.severity=-1 is not allowed"),
+        ("scenario.targets.kind=truth", "scenario.targets.kind='truth' is not allowed: one of prior, off_prior"),
     ],
 )
 def test_bad_input_fails_before_work(tmp_path, override, message, capsys):
-    overrides = [override]
+    overrides = override.split()
     if override.startswith("controller."):  # the controller group goes before its own settings
         overrides = ["controller=coverage" if "radius" in override else "controller=greedy", override]
     with pytest.raises(SystemExit) as exit_:

@@ -7,7 +7,8 @@ import pytest
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
-from searchrl.world.reset import place_targets, reset_worlds
+from searchrl.world.reset import reset_worlds
+from searchrl.world.scenario import IidObstacles, Scenario, place_targets
 from searchrl.world.state import allocate
 
 
@@ -77,9 +78,9 @@ def test_uncertainty_rejects_targets():
 
 
 def test_obstacles_are_blocked_and_free_of_agents_and_targets():
-    config = WorldConfig(world_size=(30, 30), obstacle_density=0.2, n_agents=16)
+    config = WorldConfig(world_size=(30, 30), n_agents=16)
     state = allocate(config, 2)
-    reset_worlds(config, state, np.ones(2, bool), np.random.default_rng(4))
+    reset_worlds(config, state, np.ones(2, bool), np.random.default_rng(4), Scenario(IidObstacles(0.2)))
     h = state.halo
     for k in range(2):
         inner_blocked = state.blocked[_inner(state, k)]

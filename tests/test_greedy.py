@@ -49,17 +49,6 @@ def test_greedy_ignores_information_outside_the_field_of_view():
     assert _act(FootprintGreedy(config), state)[0] == W
 
 
-def test_far_reads_the_belief_beyond_the_field_of_view():
-    """The same map as above: with `far` and a horizon that reaches 6 cells east, the mass there outweighs the
-    little information in view; beyond the horizon it still does not count."""
-    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
-    state = _world(config, [(15, 15)])
-    _put(state, 0, 15, 21, 100.0)
-    _put(state, 0, 15, 12, 0.01)
-    assert _act(FootprintGreedy(config, far=True, horizon=8), state)[0] == E
-    assert _act(FootprintGreedy(config, far=True, horizon=2), state)[0] == W  # 21 − 2 − 2 > 15: out of reach
-
-
 def test_horizon_sets_how_far_ahead_a_move_is_scored():
     config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
     state = _world(config, [(15, 15)])
@@ -209,7 +198,7 @@ def test_the_worlds_belief_seen_shows_what_greedy_with_age_and_seen_scores():
 BAD = [({"horizon": 0}, "horizon"), ({"horizon": 6}, "horizon"), ({"discount": 0.0}, "discount"),
        ({"w_p": 0.0, "w_u": 0.0}, "w_p"), ({"w_t": -1.0}, "w_t"), ({"contested": 1.5}, "contested"),
        ({"contested": -0.1}, "contested"), ({"reach": -1.0}, "reach"), ({"reach": 5.0}, "reach"),
-       ({"age": -0.5}, "age"), ({"age": 5.0}, "age"), ({"far": True, "horizon": 65}, "horizon")]  # fmt: skip
+       ({"age": -0.5}, "age"), ({"age": 5.0}, "age")]  # fmt: skip
 
 
 @pytest.mark.parametrize("kwargs, name", BAD)

@@ -10,7 +10,6 @@ import torch
 from sb3_contrib import RecurrentPPO
 from stable_baselines3 import PPO
 
-from searchrl.controllers.base import RandomWalk
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.extractor import SearchCNN
@@ -45,33 +44,6 @@ def test_demonstrations_are_the_teachers_and_the_same_per_seed():
     teacher = InformationSurfing(WORLD, seed=3)
     np.testing.assert_array_equal(teacher.act(world.state, maps, vector).reshape(-1), demos.actions[:6, 0])
     np.testing.assert_array_equal(maps.reshape(6, 5, 11, 11).astype(np.float16), demos.maps[:6, 0])
-
-
-def test_a_player_moves_the_agents_and_the_teacher_labels_its_states():
-    """DAgger's collection: with the teacher itself as player, nothing changes; with a random walk, the states
-    (and the found fraction) are the walk's, and each recorded action is the teacher's on that state."""
-    own = collect([(WORLD, 2)], "greedy", episodes=1, gamma=0.9, seed=3)
-    same = collect([(WORLD, 2)], "greedy", episodes=1, gamma=0.9, seed=3,
-                   player=lambda config, seed: make_teacher("greedy", config, seed))  # fmt: skip
-    for name in ("maps", "actions", "returns"):
-        np.testing.assert_array_equal(getattr(own, name), getattr(same, name))
-    walked = collect([(WORLD, 2)], "greedy", episodes=1, gamma=0.9, seed=3,
-                     player=lambda config, seed: RandomWalk(config, seed=seed))  # fmt: skip
-    np.testing.assert_array_equal(walked.maps[:, 0], own.maps[:, 0])  # the same scenario, then other moves
-    assert not np.array_equal(walked.maps[:, 1:], own.maps[:, 1:])
-    # Replay the walk: the world follows the walker's moves, the labels are a fresh teacher's on those states.
-    world, walker = SearchWorld(WORLD, 2), RandomWalk(WORLD, seed=3)
-    teacher = make_teacher("greedy", WORLD, 3)
-    maps, vector = world.reset(seed=int(np.random.SeedSequence([3, 0, 0]).generate_state(1)[0]))
-    walker.reset(world.state, np.ones(2, bool))
-    for t in range(3):
-        np.testing.assert_array_equal(teacher.act(world.state, maps, vector).reshape(-1), walked.actions[:, t])
-        tr = world.step(walker.act(world.state, maps, vector))
-        maps, vector = tr.maps, tr.vector
-    other_round = collect([(WORLD, 2)], "greedy", episodes=1, gamma=0.9, seed=3, dagger_round=1)
-    assert not np.array_equal(other_round.maps[:, 0], own.maps[:, 0])  # a DAgger round draws new scenarios
-    joined = own.join(walked)
-    assert len(joined) == 2 * len(own) and joined.found_fraction == own.found_fraction
 
 
 def test_unknown_teacher_is_named():

@@ -12,6 +12,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+from searchrl.controllers.episodes import episode_streams
 from searchrl.evaluate.__main__ import CONF_DIR
 from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import (
@@ -22,7 +23,7 @@ from searchrl.evaluate.record import (
     file_sha256,
     option_defaults,
 )
-from searchrl.evaluate.runner import cell_config, episode_streams, run_cell, worlds_per_batch
+from searchrl.evaluate.runner import cell_config, episode_keys, run_cell, worlds_per_batch
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.streams import WorldStreams, random_source
 
@@ -43,7 +44,8 @@ def test_file_sha256_reads_the_whole_file_in_blocks(tmp_path):
 def test_a_heuristics_record_names_it_its_settings_its_world_and_the_whole_grid():
     cfg = _cfg("controller=greedy_target", "+model=c", "seed=5", "grid.repeats=2")
     settings = evaluation_settings(cfg, "greedy", "c")
-    assert list(settings) == ["controller", "model", "seed", "grid", "controller_args", "world"]
+    assert list(settings) == ["controller", "model", "seed", "grid", "scenario", "controller_args", "world"]
+    assert settings["scenario"] == {"obstacles": {"kind": "iid", "density": 0.0}, "targets": {"kind": "prior"}}
     assert (settings["controller"], settings["model"], settings["seed"]) == ("greedy", "c", 5)
     assert settings["grid"] == {"world_sizes": [20, 40, 80, 160], "n_targets": [4, 8, 16, 32],
                                 "n_distributions": [8, 16, 32, 64], "max_agents": [32, 64, 128, 256],
@@ -59,14 +61,37 @@ def test_a_checkpoints_record_names_its_file_by_hash_and_how_it_acts(tmp_path):
     settings = evaluation_settings(cfg, "policy:run", "b")
     assert settings["checkpoint_sha256"] == hashlib.sha256(b"weights").hexdigest()
     assert settings["deterministic"] is True and "world" not in settings and "controller_args" not in settings
-    assert option_defaults(cfg) == {}
+    assert option_defaults(cfg) == {"scenario.obstacles.kind": "iid", "scenario.obstacles.density": 0.0,
+                                    "scenario.targets.kind": "prior"}  # fmt: skip
+    walls = evaluation_settings(_cfg(f"checkpoint={model}", "scenario=walls"), "policy:run", "b")
+    assert walls["scenario"]["obstacles"] == {"kind": "iid", "density": 0.2}
+
+
+def test_a_record_made_before_scenarios_and_removed_options_still_matches_the_paper(tmp_path):
+    """A record without `scenario` ran the paper's and takes a rerun of it, not of another scenario; one holding a
+    removed option at the value whose behaviour stayed (greedy's far=false, the world's context 0) matches, one at
+    another value is refused, naming it."""
+    cfg = _cfg("controller=greedy")
+    settings = evaluation_settings(cfg, "greedy", "b")
+    old = {key: value for key, value in settings.items() if key != "scenario"}
+    old["controller_args"] = {**old["controller_args"], "far": False}
+    old["world"] = {**old["world"], "context": 0, "info_reward": "information", "obstacle_density": 0.0}
+    (tmp_path / RECORD).write_text(OmegaConf.to_yaml(OmegaConf.create(old)))
+    claim_folder(tmp_path, settings, option_defaults(cfg))
+    walls = _cfg("controller=greedy", "scenario=walls")
+    with pytest.raises(ConfigError, match=r"scenario.obstacles.density: '\(absent\)' there, 0.2 here"):
+        claim_folder(tmp_path, evaluation_settings(walls, "greedy", "b"), option_defaults(walls))
+    old["controller_args"]["far"] = True
+    (tmp_path / RECORD).write_text(OmegaConf.to_yaml(OmegaConf.create(old)))
+    with pytest.raises(ConfigError, match=r"of a removed setting: controller_args.far=True is not allowed"):
+        claim_folder(tmp_path, settings, option_defaults(cfg))
 
 
 def test_option_defaults_are_the_worlds_and_the_controllers_schema_defaults_flattened():
     defaults = option_defaults(_cfg("controller=greedy"))
     assert defaults["world.world_size"] == list(WorldConfig().world_size)  # tuples as the YAML's lists
     assert defaults["world.k"] == WorldConfig().k and defaults["controller_args.horizon"] == 2
-    assert defaults["controller_args.far"] is False and "controller_args.name" in defaults
+    assert defaults["controller_args.seen"] is False and "controller_args.name" in defaults
     assert not any(key.startswith("controller_args.") for key in option_defaults(_cfg("controller=random"))
                    if key != "controller_args.name")  # fmt: skip
 
@@ -155,12 +180,12 @@ def test_the_memory_budget_counts_each_worlds_beliefs_and_maps():
 
 
 def test_each_episode_has_its_own_streams_for_the_world_and_the_controller():
-    world, controller = episode_streams(7, 3, [(0, 0), (0, 1), (5, 0)])
+    world, controller = episode_streams(episode_keys(7, 3, [(0, 0), (0, 1), (5, 0)]))
     assert len(world) == len(controller) == 3
     rows = world.random((3, 4))
     assert np.array_equal(rows[2], np.random.default_rng([7, 3, 5, 0, 0]).random(4))
     assert np.array_equal(controller.random((3, 4))[1], np.random.default_rng([7, 3, 0, 1, 1]).random(4))
-    alone, _ = episode_streams(7, 3, [(5, 0)])
+    alone, _ = episode_streams(episode_keys(7, 3, [(5, 0)]))
     assert np.array_equal(alone.random((1, 4))[0], rows[2])  # the same episode draws the same, whatever its batch
 
 

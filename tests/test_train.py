@@ -128,19 +128,6 @@ def test_clone_only_run_saves_the_clone_as_its_model(tmp_path):
         assert torch.equal(value, model.policy.state_dict()[name]), name
 
 
-def test_dagger_rounds_refit_the_clone_on_states_it_reaches(tmp_path):
-    """imitation.dagger_rounds=1: a second fit after the clone played; imitation.csv tells the rounds apart and
-    records the clone's found fraction while it played."""
-    overrides = ["+model=b", *TINY, "total_timesteps=0", "validation.every=0", "imitation.teacher=greedy",
-                 "imitation.episodes=1", "imitation.epochs=1", "imitation.value_epochs=1",
-                 "imitation.dagger_rounds=1"]  # fmt: skip
-    _run(tmp_path, overrides)
-    rows = list(csv.DictReader(open(tmp_path / "imitation.csv")))
-    expected = [("1", "policy", "0"), ("2", "value", "0"), ("3", "policy", "1"), ("4", "value", "1")]
-    assert [(r["epoch"], r["phase"], r["dagger_round"]) for r in rows] == expected
-    assert rows[0]["clone_found_fraction"] == "" and 0.0 <= float(rows[-1]["clone_found_fraction"]) <= 1.0
-
-
 def test_init_copies_policy_weights_only(tmp_path, capsys):
     """init=<zip> starts a fresh run (step 0, fresh optimiser) from another run's weights; a zip of another
     network is refused with the reason."""
@@ -283,7 +270,6 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("total_timesteps=0", "total_timesteps=0 is not allowed"),
         ("total_timesteps=-5 imitation.teacher=greedy", "total_timesteps=-5 is not allowed"),
         ("imitation.teacher=surfing imitation.epochs=-1", "imitation.epochs=-1"),
-        ("imitation.teacher=surfing imitation.epochs=0 imitation.dagger_rounds=1", "imitation.dagger_rounds=1"),
         ("imitation.teacher=greedy imitation.rl_weight=-1", "imitation.rl_weight=-1"),
         ("imitation.rl_weight=1", "imitation.rl_weight=1.0 is not allowed: 0 without imitation.teacher"),
         ("imitation.teacher=greedy imitation.rl_weight=1 imitation.rl_schedule=cosine", "imitation.rl_schedule"),
@@ -292,7 +278,7 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("imitation.teacher=greedy +imitation.teacher_args.sweep=2", r"imitation.teacher_args=\{'sweep': 2\}"),
         ("imitation.teacher=greedy +imitation.teacher_args.contested=2", "contested=2"),
         ("imitation.teacher=surfing imitation.learning_rate=0", "imitation.learning_rate=0"),
-        ("imitation.teacher=greedy imitation.dagger_rounds=-1", "imitation.dagger_rounds=-1"),
+        ("imitation.teacher=greedy imitation.value_epochs=-1", "imitation.value_epochs=-1"),
         ("imitation.teacher=greedy imitation.lr_schedule=cosine", "imitation.lr_schedule='cosine'.*constant, linear"),
     ],
 )
@@ -307,3 +293,18 @@ def test_slurm_launcher_config_composes():
     cmd = [sys.executable, "-m", "searchrl.train", "hydra/launcher=slurm", "+model=a", "--cfg", "hydra"]
     out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and "SlurmLauncher" in out.stdout and "cpus_per_task: 8" in out.stdout
+
+
+def test_a_run_trains_validates_and_records_its_scenario(tmp_path, monkeypatch):
+    """`scenario=walls`: the rollout's, the teacher's and the validation's worlds all draw walls, and config.yaml
+    records the scenario."""
+    from searchrl.world import reset
+
+    seen = []
+    original = reset.reset_world
+    monkeypatch.setattr(reset, "reset_world", lambda *a, **k: seen.append(a[4].label) or original(*a, **k))
+    _run(tmp_path, ["+model=b", *TINY, "total_timesteps=256", "scenario=walls", "scenario.obstacles.density=0.1",
+                    "imitation.teacher=greedy_target", "imitation.episodes=1", "imitation.epochs=1"])  # fmt: skip
+    assert set(seen) == {"iid0.1"} and len(seen) > 2 * 8  # rollout, teacher and validation worlds
+    saved = OmegaConf.load(tmp_path / "config.yaml")
+    assert saved.scenario == {"obstacles": {"kind": "iid", "density": 0.1}, "targets": {"kind": "prior"}}

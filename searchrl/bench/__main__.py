@@ -41,9 +41,6 @@ def _parser() -> argparse.ArgumentParser:
             p.add_argument("--seconds", type=float, default=3.0, help="time budget per engine or case (0, 3600]")
         if name in ("train", "eval", "policy"):
             p.add_argument("--threads", type=int, default=2, help="torch threads (1 to 256)")
-    for name in ("world", "memory"):
-        text = "also (world) or only (memory) with a G x G whole-belief context, 2 to 64"
-        sub[name].add_argument("--context", type=int, default=0, help=text)
     sub["train"].add_argument("--updates", type=int, default=4, help="timed rollouts + updates (1 to 1000)")
     sub["train"].add_argument("--network", choices=["paper", "small"], default="paper", help="network config")
     sub["train"].add_argument("--experiment", help="a recipe of conf/experiment/ instead of model B with --network")
@@ -63,7 +60,6 @@ def main(argv: list[str] | None = None) -> int:
         ("--threads", "threads", lambda v: 1 <= v <= 256, "1 <= threads <= 256"),
         ("--updates", "updates", lambda v: 1 <= v <= 1000, "1 <= updates <= 1000"),
         ("--maps", "maps", lambda v: 1 <= v <= 1000, "1 <= maps <= 1000"),
-        ("--context", "context", lambda v: v == 0 or 2 <= v <= 64, "0 (off) or 2 <= G <= 64"),
     ]
     for flag, attr, ok, allowed in checks:
         value = getattr(args, attr, None)
@@ -87,11 +83,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.suite == "world":
         from searchrl.bench import world
 
-        rows = world.run(seconds=args.seconds, log=log, context=args.context)
+        rows = world.run(seconds=args.seconds, log=log)
     elif args.suite == "memory":
         from searchrl.bench import memory
 
-        rows = memory.run(log=log, context=args.context)
+        rows = memory.run(log=log)
     elif args.suite == "eval":
         from searchrl.bench import evaluate
 

@@ -1,6 +1,5 @@
 """World throughput: agent-steps/s of the batched engine and of the plain reference oracle (tests/oracle.py),
-on the issue's two cases, measured in one run so their ratio is meaningful on this machine. With `--context G`
-also the engine with the whole-belief context observed every step (searchrl/world/context.py), in the same run."""
+on two cases, measured in one run so their ratio is meaningful on this machine."""
 
 from __future__ import annotations
 
@@ -13,7 +12,6 @@ from typing import TextIO
 import numpy as np
 
 from searchrl.world.config import WorldConfig
-from searchrl.world.context import context_buffer, observe_context
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_worlds
 from searchrl.world.state import allocate
@@ -35,11 +33,11 @@ def _load_oracle() -> tuple[Callable, Callable] | None:
     return module.oracle_step, module.oracle_observe
 
 
-def case_config(n: int, n_agents: int, context: int = 0) -> WorldConfig:
-    """Model B settings on a Table 2 cell (communication on, Φ = 5), with a G × G context if `context` > 0."""
+def case_config(n: int, n_agents: int) -> WorldConfig:
+    """Model B settings on a Table 2 cell (communication on, Φ = 5)."""
     targets, dists = _TABLE2[n]
     return WorldConfig(world_size=(n, n), n_targets=(targets, targets), n_distributions=(dists, dists),
-                       n_agents=n_agents, context=context)  # fmt: skip
+                       n_agents=n_agents)  # fmt: skip
 
 
 def measure(config: WorldConfig, n_worlds: int, step_fn: Callable, observe_fn: Callable, seconds: float,
@@ -69,17 +67,8 @@ def measure(config: WorldConfig, n_worlds: int, step_fn: Callable, observe_fn: C
     return best
 
 
-def _observe_with_context(buffers: tuple, context: np.ndarray) -> Callable:
-    def observe_all(config: WorldConfig, state) -> None:
-        observe(config, state, buffers)
-        observe_context(config, state, context)
-
-    return observe_all
-
-
-def run(seconds: float = 3.0, log: TextIO | None = None, context: int = 0) -> list[dict]:
-    """Measure every case with the engine and the oracle, and with the context on where `context` > 0; returns
-    one row per (case, engine)."""
+def run(seconds: float = 3.0, log: TextIO | None = None) -> list[dict]:
+    """Measure every case with the engine and the oracle; returns one row per (case, engine)."""
     oracle = _load_oracle()
     rows = []
     for name, n, n_agents, n_worlds in CASES:
@@ -88,13 +77,6 @@ def run(seconds: float = 3.0, log: TextIO | None = None, context: int = 0) -> li
         engine = measure(config, n_worlds, step, lambda c, s, b=buffers: observe(c, s, b), seconds, min_steps=20)
         rows.append({"case": name, "engine": "batched", "agent_steps_per_s": round(engine, 1)})
         line = f"{name:>14}: batched {engine:>12,.0f} agent-steps/s"
-        if context:
-            on = case_config(n, n_agents, context)
-            observe_all = _observe_with_context(observation_buffers(on, n_worlds), context_buffer(on, n_worlds))
-            with_context = measure(on, n_worlds, step, observe_all, seconds, min_steps=20)
-            rows.append({"case": name, "engine": f"batched+context{context}",
-                         "agent_steps_per_s": round(with_context, 1)})  # fmt: skip
-            line += f" | context G={context} {with_context:>12,.0f} ({with_context / engine:.2f} of off)"
         if oracle is not None:
             slow = measure(config, n_worlds, oracle[0], oracle[1], seconds, min_steps=1, repeats=1)
             rows.append({"case": name, "engine": "oracle", "agent_steps_per_s": round(slow, 1)})

@@ -42,10 +42,6 @@ in a corner, above 1 beside obstacles; `reach_weights`). A footprint on the edge
 off the edge and only brushes it with Γ's outer ring; with many agents most targets it misses lie on the edge
 (README, "Results: the reference policies"). Weighting those cells draws an agent onto the edge when it passes.
 
-With `far`, cells beyond the field of view count too, read from the agent's own belief of the whole world (what
-the whole-belief context shows a policy, there pooled), and the horizon may reach FAR_HORIZON steps: a move is
-scored by the lane of mass ahead of it, not only by what the view holds. It is then not a local controller.
-
 Why it is here: it is the quantity sensing actually removes (eq. 1 with λk = 1), where surfing follows a pooled
 gradient of the same information. On the paper's grid it finds more than surfing on 14 of the 30 cells and less
 on none (README, "Results: baselines"), so it is the stronger teacher for a warm start (`imitation.teacher=greedy`).
@@ -68,8 +64,6 @@ from searchrl.world.seen import freshness, remember_sightings
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
 
-FAR_HORIZON = 64  # the most steps ahead greedy looks with `far` (its cost grows with the horizon)
-
 
 class GreedyParams(NamedTuple):
     """FootprintGreedy's settings as `greedy_actions` takes them."""
@@ -83,7 +77,6 @@ class GreedyParams(NamedTuple):
     w_u: float
     w_t: float
     fov_half: int  # half the field of view: what an agent sees lies within that many cells
-    look: int  # cells counted lie within this many rows and columns of the agent: fov_half, or more with `far`
     contested: float
 
 
@@ -120,10 +113,9 @@ def cell_information(params, belief, sp, su, seen, known, rate, now, k, i, r, c)
 @njit(cache=True, inline="always")  # inlined: called per move and step ahead, so its arguments are not copied
 def _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_others):
     """Σ Γ(d)·x·reach·I(r + d, c + d) of agent i's belief in world k of w (`WorldState.arrays()`) over the cells
-    within params.look rows and columns of its padded
-    position (r0, c0); x = contested where one of the agents at others[:n_others]
-    (rows, cols) is fewer moves away than (r0, c0), else 1."""
-    gamma, view, contested, diagonal = params.gamma, params.look, params.contested, params.n_actions > 5
+    within params.fov_half rows and columns of its padded position (r0, c0), what the agent sees; x = contested
+    where one of the agents at others[:n_others] (rows, cols) is fewer moves away than (r0, c0), else 1."""
+    gamma, view, contested, diagonal = params.gamma, params.fov_half, params.contested, params.n_actions > 5
     belief, sp, su, now = w.belief, w.obs_scale[k, 0], w.obs_scale[k, 1], w.t[k]
     reach, seen, known = memory.reach, memory.seen, memory.known
     rate = memory.rates[k] if known.shape[2] > 0 else 0.0
@@ -224,9 +216,6 @@ class GreedyConfig(ControllerConfig):
     # Count what an agent believes of a cell exp(−age · ρ · steps since it last saw the cell's truth) times, ρ the
     # rate at which a team spread evenly senses a cell (for worlds without merging).
     age: float = 0.0
-    # Count cells beyond the field of view too, from the agent's own belief over the whole world (what the context
-    # shows a policy, at full resolution); horizon may then reach FAR_HORIZON. Not a local controller.
-    far: bool = False
 
 
 @dataclass
@@ -248,12 +237,11 @@ class FootprintGreedy(FallbackHeuristic):
 
     def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
                  w_u: float = 0.4, w_t: float = 0.0, contested: float = 1.0, reach: float = 0.0,
-                 seen: bool = False, age: float = 0.0, far: bool = False,
+                 seen: bool = False, age: float = 0.0,
                  seed: int | WorldStreams = 0) -> None:  # fmt: skip
         view = config.fov // 2
-        most, why = (FAR_HORIZON, "with far=true") if far else (view, "(half the view; far=true looks further)")
-        if not 1 <= horizon <= most:
-            raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {most} {why}")
+        if not 1 <= horizon <= view:
+            raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the view)")
         if not 0 < discount <= 1:
             raise ValueError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
         if not all(0 <= w < math.inf for w in (w_p, w_u, w_t)) or w_p + w_u + w_t == 0:
@@ -276,10 +264,8 @@ class FootprintGreedy(FallbackHeuristic):
         self.reach = float(reach)
         self.seen = bool(seen)
         self.age = float(age)
-        self.far = bool(far)
-        look = config.world_size[1] if self.far else view  # with far, every cell of the largest world
         self._params = GreedyParams(MOVES, config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u,
-                                    self.w_t, view, look, self.contested)  # fmt: skip
+                                    self.w_t, view, self.contested)  # fmt: skip
         # GreedyMemory's arrays, sized on the first reset
         self._weights, self._seen = np.ones((0, 0, 0)), np.ones((0, 0, 0, 0), np.float32)
         self._known, self._rates = np.zeros((0, 0, 0, 0), np.int32), np.zeros(0)

@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.save_util import load_from_zip_file
 
 from searchrl.envs.spaces import observation_space
 from searchrl.policies.actor import Actor, sample_actions
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.world.config import WorldConfig
-from searchrl.world.context import context_buffer, observe_context
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams, random_source
 
@@ -53,12 +53,29 @@ def load_checkpoint(path: str | Path, algo: str, cls: type[BaseAlgorithm] | None
     if algo not in ALGORITHMS:
         raise ValueError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
     try:
-        return (cls or ALGORITHMS[algo][0]).load(str(path), **kwargs)
+        return (cls or ALGORITHMS[algo][0]).load(str(path), custom_objects=retired_kwargs_dropped(path), **kwargs)
     except Exception as err:  # BadZipFile, EOFError, KeyError, RuntimeError of torch.load, ...
         raise ValueError(
             f"checkpoint={str(path)!r} cannot be read as a {algo} model ({type(err).__name__}: "
             f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a searchrl model"
         ) from None
+
+
+# Keyword arguments of the features extractor removed since some checkpoints were saved (the whole-belief context
+# stream's widths, inert without a context observation): a checkpoint holding them loads without them.
+RETIRED_EXTRACTOR_KWARGS = ("context_channels", "context_size")
+
+
+def retired_kwargs_dropped(path: str | Path) -> dict | None:
+    """SB3 `custom_objects` replacing a checkpoint's policy_kwargs by the same without RETIRED_EXTRACTOR_KWARGS, or
+    None when it has none of them."""
+    data, _, _ = load_from_zip_file(str(path), load_data=True, device="cpu")
+    kwargs = dict((data or {}).get("policy_kwargs") or {})
+    extractor = dict(kwargs.get("features_extractor_kwargs") or {})
+    if not any(name in extractor for name in RETIRED_EXTRACTOR_KWARGS):
+        return None
+    kwargs["features_extractor_kwargs"] = {k: v for k, v in extractor.items() if k not in RETIRED_EXTRACTOR_KWARGS}
+    return {"policy_kwargs": kwargs}
 
 
 def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> Actor:
@@ -68,12 +85,6 @@ def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> 
     model = load_checkpoint(path, algo, device="cpu")
     space = observation_space(config)
     seen, shown = model.observation_space["map"].shape, space["map"].shape
-    context = (model.observation_space.spaces.get("context"), space.spaces.get("context"))
-    if context[0] != context[1]:
-        raise ValueError(
-            f"checkpoint={str(path)!r} observes the whole-belief context {context[0]} but the world shows "
-            f"{context[1]} (env.world.context must be the checkpoint's)"
-        )
     if seen != shown:
         raise ValueError(
             f"checkpoint={str(path)!r} sees a {seen} field of view but the world shows {shown}"
@@ -99,7 +110,6 @@ class PolicyController:
     ) -> None:
         self.actor = actor
         self.config = config
-        self._context: np.ndarray | None = None  # (K, N, 3, G, G) reused each step; None while the context is off
         self.rng = None if deterministic else random_source(seed)
         self._state: np.ndarray | None = None  # (2, layers, K·N, hidden)
         self._start = np.zeros(0, bool)  # (K·N,) slots whose next step begins an episode
@@ -123,21 +133,16 @@ class PolicyController:
     ) -> np.ndarray:
         k, n = state.n_worlds, state.n_agents
         maps, vector = maps.reshape(k * n, *maps.shape[2:]), vector.reshape(k * n, -1)
-        if self._context is None or self._context.shape[:2] != (k, n):
-            self._context = context_buffer(self.config, k)
-        context = observe_context(self.config, state, self._context)  # the whole-belief context, None when off
-        context = None if context is None else context.reshape(k * n, *context.shape[2:])
         actions = np.zeros(k * n, np.int64)
         if active is None or active.all():
             rows = slice(None)
         else:
             rows = np.flatnonzero(np.repeat(active, n))
             maps, vector = maps[rows], vector[rows]
-            context = None if context is None else context[rows]
         lstm = None
         if self._state is not None:
             lstm = self._state[:, :, rows] * ~self._start[rows][None, None, :, None]
-        logits, lstm = self.actor.logits(maps, vector, lstm, context)
+        logits, lstm = self.actor.logits(maps, vector, lstm)
         if lstm is not None:
             self._state[:, :, rows] = lstm
         uniforms = None if self.rng is None else self.rng.random((k, n)).reshape(-1)[rows]

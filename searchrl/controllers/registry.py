@@ -19,10 +19,8 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from searchrl.controllers.base import Controller, ControllerConfig, RandomConfig, RandomWalk
-from searchrl.controllers.context_greedy import ContextGreedy, GreedyContextConfig
 from searchrl.controllers.coverage import CoverageConfig, GeometricCoverage
 from searchrl.controllers.greedy import FootprintGreedy, GreedyConfig, GreedyTargetConfig
-from searchrl.controllers.rollout import GreedyRollout, GreedyRolloutConfig
 from searchrl.controllers.surfing import InformationSurfing, SurfingConfig
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.streams import WorldStreams
@@ -48,8 +46,6 @@ HEURISTICS: dict[str, Heuristic] = {
     "surfing": Heuristic(InformationSurfing, SurfingConfig, "surfing"),
     "greedy": Heuristic(FootprintGreedy, GreedyConfig, "greedy"),
     "greedy_target": Heuristic(FootprintGreedy, GreedyTargetConfig, "greedy"),
-    "greedy_context": Heuristic(ContextGreedy, GreedyContextConfig, "greedy_context"),
-    "greedy_rollout": Heuristic(GreedyRollout, GreedyRolloutConfig, "greedy_rollout"),
     "coverage": Heuristic(GeometricCoverage, CoverageConfig, "coverage"),
     "random": Heuristic(RandomWalk, RandomConfig, "random"),
 }

@@ -1,7 +1,7 @@
 """`SearchParallelEnv`: one search world as a PettingZoo ParallelEnv, for RLlib, TorchRL, BenchMARL users.
 
-Same dynamics and observations as the batched engine (it is the engine with K = 1). All agents act at once and
-the episode ends for all of them together; then `agents` is empty until the next `reset`.
+It wraps the batched engine's `SearchWorld` with K = 1 (same step, observations and metrics; no auto-reset). All
+agents act at once and the episode ends for all of them together; then `agents` is empty until the next `reset`.
 """
 
 from __future__ import annotations
@@ -14,13 +14,10 @@ from pettingzoo import ParallelEnv
 
 from searchrl.envs.spaces import action_space, observation_space
 from searchrl.world.config import WorldConfig, check_seed, is_int
-from searchrl.world.context import observe_context
-from searchrl.world.metrics import episode_metrics
-from searchrl.world.observe import observation_buffers, observe
+from searchrl.world.engine import SearchWorld
 from searchrl.world.render import world_frame
-from searchrl.world.reset import reset_worlds
-from searchrl.world.state import allocate
-from searchrl.world.step import step
+from searchrl.world.scenario import PAPER, Scenario
+from searchrl.world.state import WorldState
 
 AgentID = str
 
@@ -30,20 +27,24 @@ class SearchParallelEnv(ParallelEnv):
 
     metadata = {"name": "searchrl_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}  # noqa: RUF012
 
-    def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None) -> None:
+    def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None, scenario: Scenario = PAPER
+                 ) -> None:  # fmt: skip
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
         if config is not None and not isinstance(config, WorldConfig):
             raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
         self.config = config if config is not None else WorldConfig()
+        self.world = SearchWorld(self.config, 1, scenario=scenario, auto_reset=False)
         self.render_mode = render_mode
         self.possible_agents: list[AgentID] = [f"agent_{i}" for i in range(self.config.n_agents)]
         self.agents: list[AgentID] = []
         self._observation_space = observation_space(self.config)
         self._action_space = action_space(self.config)
-        self.world_state = allocate(self.config, 1)
-        self._buffers = observation_buffers(self.config, 1)
-        self._rng = np.random.default_rng()
+
+    @property
+    def world_state(self) -> WorldState:
+        """The state of the one world (`SearchWorld.state`, K = 1)."""
+        return self.world.state
 
     def observation_space(self, agent: AgentID) -> spaces.Dict:
         self._check_agent(agent)
@@ -60,11 +61,9 @@ class SearchParallelEnv(ParallelEnv):
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         check_seed(seed)  # ConfigError, a ValueError
-        if seed is not None:
-            self._rng = np.random.default_rng(seed)
-        reset_worlds(self.config, self.world_state, np.ones(1, bool), self._rng)
+        maps, vector = self.world.reset(seed=seed)
         self.agents = list(self.possible_agents)
-        return self._observations(), {agent: {} for agent in self.agents}
+        return self._observations(maps, vector), {agent: {} for agent in self.agents}
 
     def step(self, actions: dict[AgentID, Any]) -> tuple[dict, dict, dict, dict, dict]:
         if not self.agents:
@@ -83,13 +82,14 @@ class SearchParallelEnv(ParallelEnv):
             if not (is_int(a) or (isinstance(a, np.ndarray) and a.shape == () and is_int(a[()]))) or not 0 <= a < n:
                 raise ValueError(f"actions[{agent!r}]={a!r} is not allowed: an integer in [0, {n})")
         joint = np.array([[int(actions[agent]) for agent in self.possible_agents]], np.int64)
-        result = step(self.config, self.world_state, joint, self._rng)
-        obs = self._observations()
+        transition = self.world.step(joint)
+        result = transition.result
+        obs = self._observations(transition.maps, transition.vector)
         terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
         rewards = {agent: float(result.reward[0, i]) for i, agent in enumerate(self.agents)}
         infos: dict[AgentID, dict] = {agent: {} for agent in self.agents}
         if terminated or truncated:
-            metrics = {name: float(v[0]) for name, v in episode_metrics(self.world_state).items()}
+            metrics = {name: float(v[0]) for name, v in transition.metrics.items()}
             for agent in self.agents:
                 infos[agent]["team_metrics"] = metrics
         terminations = {agent: terminated for agent in self.agents}
@@ -98,15 +98,9 @@ class SearchParallelEnv(ParallelEnv):
             self.agents = []
         return obs, rewards, terminations, truncations, infos
 
-    def _observations(self) -> dict[AgentID, dict[str, np.ndarray]]:
-        maps, vector = observe(self.config, self.world_state, self._buffers)
-        context = observe_context(self.config, self.world_state)  # None unless config.context
-        obs = {agent: {"map": maps[0, i].copy(), "vector": vector[0, i].copy()}
-               for i, agent in enumerate(self.possible_agents)}  # fmt: skip
-        if context is not None:
-            for i, agent in enumerate(self.possible_agents):
-                obs[agent]["context"] = context[0, i].copy()
-        return obs
+    def _observations(self, maps: np.ndarray, vector: np.ndarray) -> dict[AgentID, dict[str, np.ndarray]]:
+        return {agent: {"map": maps[0, i].copy(), "vector": vector[0, i].copy()}
+                for i, agent in enumerate(self.possible_agents)}  # fmt: skip
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":

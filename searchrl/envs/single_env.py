@@ -10,6 +10,7 @@ import numpy as np
 
 from searchrl.envs.parallel_env import SearchParallelEnv
 from searchrl.world.config import WorldConfig, check_seed
+from searchrl.world.scenario import PAPER, Scenario
 
 
 class SearchEnv(gym.Env):
@@ -17,11 +18,12 @@ class SearchEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012
 
-    def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None) -> None:
+    def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None, scenario: Scenario = PAPER
+                 ) -> None:  # fmt: skip
         if config is not None and not isinstance(config, WorldConfig):
             raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
         config = replace(config if config is not None else WorldConfig(), n_agents=1)
-        self._env = SearchParallelEnv(config, render_mode=render_mode)
+        self._env = SearchParallelEnv(config, render_mode=render_mode, scenario=scenario)
         self._agent = self._env.possible_agents[0]
         self.render_mode = render_mode
         self.observation_space = self._env.observation_space(self._agent)

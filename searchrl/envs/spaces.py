@@ -6,21 +6,19 @@ import numpy as np
 from gymnasium import spaces
 
 from searchrl.world.config import WorldConfig
-from searchrl.world.context import CONTEXT_CHANNELS
 from searchrl.world.observe import VECTOR_SIZE, n_channels
 
 
 def observation_space(config: WorldConfig) -> spaces.Dict:
     """{"map": (C, fov, fov), "vector": (3,)} float32 in [0, 1], C = 5 or 6 (`n_channels`): beliefs never exceed
     the prior, whose peak is scaled to 1; freshness is a factor in (0, 1]; positions are divided by n; remaining
-    targets by their count. With `config.context` = G > 0 also {"context": (3, G, G)}."""
-    parts = {
-        "map": spaces.Box(0.0, 1.0, (n_channels(config), config.fov, config.fov), np.float32),
-        "vector": spaces.Box(0.0, 1.0, (VECTOR_SIZE,), np.float32),
-    }
-    if config.context:  # the whole-belief context, (3, G, G) (searchrl/world/context.py)
-        parts["context"] = spaces.Box(0.0, 1.0, (CONTEXT_CHANNELS, config.context, config.context), np.float32)
-    return spaces.Dict(parts)
+    targets by their count."""
+    return spaces.Dict(
+        {
+            "map": spaces.Box(0.0, 1.0, (n_channels(config), config.fov, config.fov), np.float32),
+            "vector": spaces.Box(0.0, 1.0, (VECTOR_SIZE,), np.float32),
+        }
+    )
 
 
 def action_space(config: WorldConfig) -> spaces.Discrete:

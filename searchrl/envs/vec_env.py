@@ -21,6 +21,7 @@ from searchrl.envs.spaces import action_space, observation_space
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.render import world_frames
+from searchrl.world.scenario import PAPER, Scenario
 
 
 class SearchVecEnv(VecEnv):
@@ -29,14 +30,15 @@ class SearchVecEnv(VecEnv):
 
     metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012 (gymnasium convention)
 
-    def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None, render_mode: str | None = None):
+    def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None, render_mode: str | None = None,
+                 scenario: Scenario = PAPER) -> None:  # fmt: skip
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
         if not isinstance(config, WorldConfig):
             raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig")
         self.config = config
         self.render_mode = render_mode
-        self.world = SearchWorld(config, n_worlds, seed=seed)
+        self.world = SearchWorld(config, n_worlds, seed=seed, scenario=scenario)
         self.n_agents = config.n_agents
         self._actions: np.ndarray | None = None
         self._t_start = time.time()
@@ -49,7 +51,7 @@ class SearchVecEnv(VecEnv):
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = [{} for _ in range(self.num_envs)]
-        return self._flat_obs(maps, vector, self.world.context)
+        return self._flat_obs(maps, vector)
 
     def step_async(self, actions: np.ndarray) -> None:
         actions = np.asarray(actions)
@@ -75,8 +77,6 @@ class SearchVecEnv(VecEnv):
                     "map": tr.final_maps[k, i].copy(),
                     "vector": tr.final_vector[k, i].copy(),
                 }
-                if tr.final_context is not None:
-                    infos[base + i]["terminal_observation"]["context"] = tr.final_context[k, i].copy()
                 infos[base + i]["TimeLimit.truncated"] = bootstrap
             metrics = {name: float(values[k]) for name, values in tr.metrics.items()}
             infos[base]["team_metrics"] = metrics
@@ -85,18 +85,15 @@ class SearchVecEnv(VecEnv):
                 "l": int(metrics["L"]),
                 "t": now,
             }
-        obs = self._flat_obs(tr.maps, tr.vector, tr.context)
+        obs = self._flat_obs(tr.maps, tr.vector)
         return obs, result.reward.reshape(-1).copy(), dones, infos
 
-    def _flat_obs(self, maps: np.ndarray, vector: np.ndarray, context: np.ndarray | None) -> dict[str, np.ndarray]:
+    def _flat_obs(self, maps: np.ndarray, vector: np.ndarray) -> dict[str, np.ndarray]:
         # Copies: the world reuses its buffers, and SB3 keeps the previous observation while stepping.
-        obs = {
+        return {
             "map": maps.reshape(self.num_envs, *maps.shape[2:]).copy(),
             "vector": vector.reshape(self.num_envs, -1).copy(),
         }
-        if context is not None:
-            obs["context"] = context.reshape(self.num_envs, *context.shape[2:]).copy()
-        return obs
 
     def close(self) -> None:
         pass

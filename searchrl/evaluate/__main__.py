@@ -40,6 +40,7 @@ from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.train.schema import override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
+from searchrl.world.scenario import Scenario
 from searchrl.world.streams import WorldStreams
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -90,8 +91,14 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
 FIXED_BY_CHECKPOINT = ("env", "world", "model", "controller")
 
 
-def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path]:
-    """Every check of an evaluation's settings, before any work or file: (grid cells, output folder). Raises
+def scenario_of(cfg: DictConfig) -> Scenario:
+    """The evaluation's scenario (`scenario=`, conf/scenario/), ConfigError naming a bad part."""
+    node = cfg.get("scenario")
+    return Scenario.from_dict(None if node is None else OmegaConf.to_container(node, resolve=True))
+
+
+def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path, Scenario]:
+    """Every check of an evaluation's settings, before any work or file: (grid cells, output folder, scenario). Raises
     ConfigError naming the bad value and what is allowed."""
     if cfg.checkpoint is not None:
         fixed = [o for o, k in zip(overrides, override_keys(overrides), strict=True)
@@ -129,12 +136,13 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path]
     need(0 <= int(cfg.shard) < int(cfg.num_shards), "shard", cfg.shard, f"0 <= shard < num_shards={cfg.num_shards}")
     for name in ("maps_per_cell", "repeats"):
         need(int(cfg.grid[name]) >= 1, f"grid.{name}", cfg.grid[name], "must be >= 1")
+    scenario = scenario_of(cfg)
     cells = table2_cells(
         list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
         list(cfg.grid.max_agents),
     )  # fmt: skip
     out_dir = Path(cfg.out_dir) if cfg.out_dir else None
-    return cells, out_dir
+    return cells, out_dir, scenario
 
 
 def check_out_dir(out_dir: Path) -> None:
@@ -151,10 +159,11 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
     """Evaluate every cell of this shard that has no result yet; returns the output directory. `overrides` are the
     command line's (Hydra's task overrides), to refuse those a checkpoint cannot apply."""
     try:
-        cells, out_dir = check_evaluation(cfg, overrides or [])
+        cells, out_dir, scenario = check_evaluation(cfg, overrides or [])
         world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
         for index, cell in enumerate(cells):  # a cell impossible for its n or N fails now, not when reached
             try:
+                scenario.check(cell_config(world, cell))
                 factory(cell_config(world, cell))
             except ConfigError as err:
                 raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
@@ -184,10 +193,12 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
                         continue
                     remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
                     frame = run_cell(factory, world, cell, index, maps, repeats, int(cfg.seed), float(cfg.batch_mb),
-                                     needs_obs, on_steps=bar.update)  # fmt: skip
+                                     needs_obs, on_steps=bar.update, scenario=scenario)  # fmt: skip
                     seeds = frame["map_seed"].unique().tolist()
-                    bounds = cell_bounds(world, cell, seeds, int(cfg.bound_draws), cfg.bound_cache)
+                    bounds = cell_bounds(world, cell, seeds, int(cfg.bound_draws), cfg.bound_cache,
+                                         scenario=scenario)  # fmt: skip
                     frame = frame.merge(bounds[["map_seed", *BOUND_COLUMNS]], on="map_seed", validate="many_to_one")
+                    frame.insert(0, "scenario", scenario.label)
                     frame.insert(0, "world", world.sensing_label)
                     frame.insert(0, "model", model_name)
                     frame.insert(0, "controller", controller_name)

@@ -30,6 +30,7 @@ from searchrl.evaluate.runner import cell_config
 from searchrl.world.bound import detection_budget, search_bound, team_reach
 from searchrl.world.config import WorldConfig
 from searchrl.world.reset import reset_world
+from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.state import allocate
 
 BOUND_DRAWS = 1000  # placements per map: a standard error of about 0.075 targets of 32 at n = 160
@@ -37,10 +38,10 @@ BOUND_COLUMNS = ["bound", "bound_stderr", "bound_fraction"]
 MOVE_SETS = {"cardinal": False, "diagonal": True}  # WorldConfig.diagonal of each move set the cache holds
 
 
-def map_prior(config: WorldConfig, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(p, u, free) (n, n) of the map an evaluation draws from `seed` for a cell's config."""
+def map_prior(config: WorldConfig, seed: int, scenario: Scenario = PAPER) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(p, u, free) (n, n) of the map an evaluation draws from `seed` for a cell's config under `scenario`."""
     state = allocate(config, 1)
-    reset_world(config, state, 0, np.random.default_rng(seed))
+    reset_world(config, state, 0, np.random.default_rng(seed), scenario)
     n, h = int(state.size[0]), state.halo
     inner = (0, slice(h, h + n), slice(h, h + n))
     return state.p[inner].astype(np.float64), state.u[inner].astype(np.float64), ~state.blocked[inner]
@@ -56,12 +57,18 @@ def map_digest(p: np.ndarray, u: np.ndarray, free: np.ndarray, targets: int) -> 
 
 def cell_bounds(
     world: WorldConfig, cell: Cell, seeds: list[int], draws: int = BOUND_DRAWS, cache: str | Path | None = None,
-    detection: bool = False,
+    detection: bool = False, scenario: Scenario = PAPER,
 ) -> pd.DataFrame:  # fmt: skip
     """One row per map seed: `bound` (expected targets at most), `bound_stderr`, `bound_fraction`, `reach`; with
     `detection` also the detection bound of the world's moves (`detection_bound`, `detection_stderr`,
     `detection_fraction`). With `cache`, rows computed before for the same map, reach and draws are read from it
-    and new ones added."""
+    and new ones added. The bound assumes §4.1.4's placement from the prior: under a scenario whose targets do not
+    follow the prior (`Scenario.targets_follow_prior`) its columns are NaN, as nothing bounds them from the prior."""
+    if not scenario.targets_follow_prior:
+        columns = ["bound", "bound_stderr", "bound_fraction", "reach"]
+        columns += ["detection_bound", "detection_stderr", "detection_fraction"] if detection else []
+        frame = pd.DataFrame({"map_seed": np.asarray(seeds, np.int64)} | {c: np.nan for c in columns})
+        return frame.astype({c: np.float64 for c in columns})
     config = cell_config(world, cell)
     reach = team_reach(cell.n_agents, config.max_steps, config.n_actions)
     budgets = [detection_budget(cell.n_agents, config.max_steps, replace(config, diagonal=d).n_actions)
@@ -75,7 +82,7 @@ def cell_bounds(
         known = known.drop(columns=["detection_bound", "detection_stderr"], errors="ignore")
     rows, new = [], []
     for seed in seeds:
-        p, u, free = map_prior(config, seed)
+        p, u, free = map_prior(config, seed, scenario)
         digest = map_digest(p, u, free, cell.n_targets)
         hit = None
         if known is not None:

@@ -18,10 +18,17 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from searchrl.atomic import write_text_atomic
-from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world.config import RETIRED_FIELDS, ConfigError, WorldConfig, drop_retired
+from searchrl.world.scenario import PAPER, Scenario
 
 RECORD = "evaluation.yaml"
 GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents", "maps_per_cell", "repeats")
+# Settings removed since records were written, with the one value a record may hold (what the code does now): a
+# record holding them at that value describes the same episodes. docs/log.md names the last commit with each.
+RETIRED_SETTINGS: dict[str, object] = {
+    **{f"world.{name}": value for name, value in RETIRED_FIELDS.items()},
+    "controller_args.far": False,  # footprint-greedy reading the belief beyond its view
+}
 
 
 def file_sha256(path: str | Path) -> str:
@@ -41,6 +48,7 @@ def evaluation_settings(cfg: DictConfig, label: str, model_name: str) -> dict[st
         "model": model_name,
         "seed": int(cfg.seed),
         "grid": {key: OmegaConf.to_container(cfg.grid, resolve=True)[key] for key in GRID_KEYS},
+        "scenario": Scenario.from_dict(OmegaConf.to_container(cfg.scenario, resolve=True)).to_dict(),
     }
     if cfg.checkpoint is not None:
         settings["checkpoint_sha256"] = file_sha256(cfg.checkpoint)
@@ -56,11 +64,12 @@ def evaluation_settings(cfg: DictConfig, label: str, model_name: str) -> dict[st
 def option_defaults(cfg: DictConfig) -> dict[str, Any]:
     """Flattened defaults of the heuristic's own schema (`controller_args.<name>`) and of the world (`world.<name>`):
     an option added to a controller or the world after a folder was recorded is absent there, and at its default
-    it plays the episodes the record describes."""
+    it plays the episodes the record describes. A record made before scenarios existed ran the paper's."""
+    defaults = _flatten({"scenario": PAPER.to_dict()})
     if cfg.checkpoint is not None:
-        return {}
+        return defaults
     world = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default for f in fields(WorldConfig)}
-    defaults = _flatten({"world": world})
+    defaults |= _flatten({"world": world})
     schema = OmegaConf.get_type(cfg.controller)
     if schema is not None and schema is not dict:
         defaults.update(_flatten({"controller_args": OmegaConf.to_container(OmegaConf.structured(schema))}))
@@ -89,13 +98,15 @@ def claim_folder(out_dir: str | Path, settings: dict[str, Any], defaults: dict[s
             record = OmegaConf.to_container(OmegaConf.load(path))
             if not isinstance(record, dict) or "controller" not in record:
                 raise ValueError("no controller recorded")
-            theirs = _flatten(record)
+            record = drop_retired(record, RETIRED_SETTINGS)
+        except ConfigError as err:
+            raise ConfigError(f"out_dir={str(out_dir)!r} holds results of a removed setting: {err}") from None
         except Exception as err:  # empty, not YAML, not a mapping: the record cannot say what the cells hold
             raise ConfigError(
                 f"out_dir={str(out_dir)!r}: its {RECORD} cannot be read ({type(err).__name__}); restore it, or "
                 "remove that folder to start it afresh"
             ) from None
-        ours = _flatten(mine)
+        theirs, ours = _flatten(record), _flatten(mine)
         differ = [f"{key}: {theirs.get(key, '(absent)')!r} there, {ours.get(key, '(absent)')!r} here"
                   for key in sorted(theirs.keys() | ours.keys())
                   if theirs.get(key, defaults.get(key, "(absent)")) != ours.get(key)]  # fmt: skip

@@ -9,6 +9,7 @@ from omegaconf import OmegaConf
 
 from searchrl.evaluate.grid import CELL_FILE_RE
 from searchrl.world.config import WorldConfig
+from searchrl.world.scenario import PAPER
 
 
 def cell_files(out_dir: str | Path) -> list[Path]:
@@ -39,6 +40,8 @@ def load(*out_dirs: str | Path) -> pd.DataFrame:
             frame = pd.read_parquet(f)
             if "world" not in frame:
                 frame.insert(2, "world", world_of(d))
+            if "scenario" not in frame:  # cells made before scenarios existed ran the paper's
+                frame.insert(3, "scenario", PAPER.label)
             frames.append(frame)
     if not frames:
         raise FileNotFoundError(f"no cells/*.parquet under {[str(d) for d in out_dirs]}")

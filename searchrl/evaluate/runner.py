@@ -8,20 +8,18 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from searchrl.controllers.base import Controller
+from searchrl.controllers.episodes import ControllerFactory, play_episodes
 from searchrl.evaluate.grid import Cell, map_seed
 from searchrl.world.config import WorldConfig
-from searchrl.world.metrics import episode_metrics
-from searchrl.world.observe import observation_buffers, observe
-from searchrl.world.reset import reset_world
-from searchrl.world.state import WorldState, allocate
-from searchrl.world.step import step
-from searchrl.world.streams import WorldStreams
+from searchrl.world.engine import SearchWorld
+from searchrl.world.scenario import PAPER, Scenario
+from searchrl.world.state import WorldState
 
-# `world` names the sensing the episodes ran under (WorldConfig.sensing_label: "bayes" λk = 1, "paper" k = n).
+# `world` names the sensing the episodes ran under (WorldConfig.sensing_label: "bayes" λk = 1, "paper" k = n),
+# `scenario` what their resets drew (Scenario.label: "paper", "iid0.2", "off_prior1", …).
 # The evaluation app (__main__) adds the map's search bound, searchrl/evaluate/bound.py's BOUND_COLUMNS.
-COLUMNS = ["controller", "model", "world", "n", "N", "targets", "map_seed", "repeat", "found_fraction", "L", "R",
-           "F", "M_bar"]  # fmt: skip
+COLUMNS = ["controller", "model", "world", "scenario", "n", "N", "targets", "map_seed", "repeat", "found_fraction",
+           "L", "R", "F", "M_bar"]  # fmt: skip
 
 
 def cell_config(world: WorldConfig, cell: Cell) -> WorldConfig:
@@ -42,15 +40,15 @@ def worlds_per_batch(config: WorldConfig, budget_mb: float) -> int:
     return max(1, int(budget_mb * 2**20 // per_world))
 
 
-def episode_streams(seed: int, cell_index: int, episodes: list[tuple[int, int]]) -> tuple[WorldStreams, WorldStreams]:
-    """(the world's, the controller's) random streams of the episodes (map, repeat): each episode's own, keyed by
-    (seed, cell, map, repeat), so how a cell is split into batches, threads or shards changes no episode."""
-    keys = [(seed, cell_index, m, r) for m, r in episodes]
-    return WorldStreams([(*key, 0) for key in keys]), WorldStreams([(*key, 1) for key in keys])
+def episode_keys(seed: int, cell_index: int, episodes: list[tuple[int, int]]) -> list[tuple[int, int, int, int]]:
+    """The keys of the episodes (map, repeat) of a cell: (seed, cell, map, repeat), from which each episode's own
+    streams are seeded (searchrl/controllers/episodes.py), so how a cell is split into batches, threads or shards
+    changes no episode."""
+    return [(seed, cell_index, m, r) for m, r in episodes]
 
 
 def run_cell(
-    controller_factory: Callable[[WorldConfig, WorldStreams], Controller],
+    controller_factory: ControllerFactory,
     world: WorldConfig,
     cell: Cell,
     cell_index: int,
@@ -61,45 +59,29 @@ def run_cell(
     needs_observation: bool = True,
     on_steps: Callable[[int], None] | None = None,
     on_done: Callable[[WorldState, np.ndarray], None] | None = None,
+    scenario: Scenario = PAPER,
 ) -> pd.DataFrame:
-    """One row per episode (COLUMNS minus controller, model and world). Every repeat of a map starts from the same world
-    (map, targets and start cells come from the map seed); repeats differ in the step draws and the controller's
-    own randomness, each episode's from its own streams (`episode_streams`; `controller_factory(config, streams)`
-    builds a controller drawing from them), so `budget_mb` changes how many worlds step together and nothing else.
+    """One row per episode (COLUMNS minus controller, model, world and scenario). Every repeat of a map starts from
+    the same world (map, targets and start cells come from the map seed); repeats differ in the step draws and the
+    controller's own randomness, each episode's from its own streams (`episode_keys`; `controller_factory(config,
+    streams)` builds a controller drawing from them), so `budget_mb` changes how many worlds step together and
+    nothing else. `on_steps(agent_steps)` counts the agent-steps of running episodes after each step;
     `on_done(state, first)` sees the batch's state when the worlds in `first` (K,) bool end their episode
-    (analysis/missed_targets.py reads it)."""
+    (analysis/missed_targets.py reads it). `scenario` draws each map's obstacles and targets (the paper's by
+    default): a map seed gives the same prior under every scenario."""
     config = cell_config(world, cell)
     episodes = [(m, r) for m in range(maps) for r in range(repeats)]
     batch = worlds_per_batch(config, budget_mb)
+
+    def count(_: SearchWorld, counted: np.ndarray) -> None:
+        on_steps(int(counted.sum()) * config.n_agents)
+
     rows = []
     for start in range(0, len(episodes), batch):
         chunk = episodes[start : start + batch]
-        k = len(chunk)
-        state = allocate(config, k)
         seeds = [map_seed(seed, cell_index, m) for m, _ in chunk]
-        for w, s in enumerate(seeds):
-            reset_world(config, state, w, np.random.default_rng(s))
-        rng, controller_rng = episode_streams(seed, cell_index, chunk)
-        controller = controller_factory(config, controller_rng)
-        controller.reset(state, np.ones(k, bool))
-        buffers = observation_buffers(config, k)
-        maps_obs, vector = observe(config, state, buffers) if needs_observation else (None, None)
-        finished = np.zeros(k, bool)
-        final: dict[str, np.ndarray] = {}
-        while not finished.all():
-            result = step(config, state, controller.act(state, maps_obs, vector, active=~finished), rng)
-            if needs_observation:
-                maps_obs, vector = observe(config, state, buffers)
-            first = result.done & ~finished
-            if first.any():  # finished worlds keep stepping with the batch; only their first episode counts
-                metrics = episode_metrics(state)
-                for name, values in metrics.items():
-                    final.setdefault(name, np.zeros(k, values.dtype))[first] = values[first]
-                finished |= result.done
-                if on_done:
-                    on_done(state, first)
-            if on_steps:
-                on_steps(int((~finished | first).sum()) * config.n_agents)
+        final = play_episodes(controller_factory, config, seeds, episode_keys(seed, cell_index, chunk), scenario,
+                              needs_observation, count if on_steps else None, on_done)  # fmt: skip
         for w, (_, r) in enumerate(chunk):
             rows.append(
                 {"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "map_seed": seeds[w], "repeat": r,

@@ -13,6 +13,7 @@ from omegaconf import MISSING
 from searchrl.controllers.registry import HEURISTICS
 from searchrl.train.schema import EnvConfig, ModelConfig
 from searchrl.train.schema import register_configs as register_train_configs
+from searchrl.world.scenario import PAPER
 
 
 @dataclass
@@ -32,6 +33,8 @@ class EvaluateConfig:
     controller: Any = MISSING
     checkpoint: str | None = None  # a trained model.zip: evaluated instead of the controller, with its own settings
     deterministic: bool = False  # policies: argmax instead of sampled actions
+    # What a reset draws besides the sizes and the prior (conf/scenario/); any scenario applies to a checkpoint too.
+    scenario: dict[str, Any] = field(default_factory=lambda: PAPER.to_dict())
     grid: GridConfig = field(default_factory=GridConfig)
     seed: int = 7_000_000  # evaluation map seeds: base + 100000·cell + map, disjoint from training and validation
     shard: int = 0  # this job evaluates cells shard, shard + num_shards, …

@@ -50,7 +50,7 @@ class Actor:
         self._head = policy.action_net
         self._lstm: nn.LSTM | None = policy.lstm_actor if self.recurrent else None
         space = policy.observation_space
-        self.keys = tuple(space.spaces)  # "map", "vector" and, with the whole-belief context, "context"
+        self.keys = tuple(space.spaces)  # "map", "vector"
         example = {k: torch.as_tensor(np.stack([space[k].sample() for _ in range(4)])) for k in self.keys}
         extractor = policy.pi_features_extractor
         self._extract = _optimized(extractor, example) if optimize else extractor
@@ -63,14 +63,11 @@ class Actor:
 
     @torch.inference_mode()
     def logits(
-        self, maps: np.ndarray, vector: np.ndarray, state: np.ndarray | None = None, context: np.ndarray | None = None
+        self, maps: np.ndarray, vector: np.ndarray, state: np.ndarray | None = None
     ) -> tuple[np.ndarray, np.ndarray | None]:
-        """maps (B, C, F, F), vector (B, V), state (2, layers, B, hidden) or None, context (B, 3, G, G) for a
-        policy trained with the whole-belief context -> (logits (B, n_actions) float32, next state). A slot
-        whose episode starts now gets a zero state (`initial_state`)."""
-        parts = {"map": maps, "vector": vector, "context": context}
-        if ("context" in self.keys) != (context is not None):
-            raise ValueError(f"this policy observes {list(self.keys)}: pass context exactly when it has one")
+        """maps (B, C, F, F), vector (B, V), state (2, layers, B, hidden) or None -> (logits (B, n_actions) float32,
+        next state). A slot whose episode starts now gets a zero state (`initial_state`)."""
+        parts = {"map": maps, "vector": vector}
         obs = {k: torch.from_numpy(np.ascontiguousarray(parts[k], np.float32)) for k in self.keys}
         features = self._extract(obs)
         if self._lstm is not None:

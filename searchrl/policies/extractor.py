@@ -5,10 +5,6 @@ vector (3,)   -> FC
 concat        -> FC -> FC  = features (the LSTM of RecurrentPPO and the policy/value heads follow in SB3)
 
 C = 5 channels, or 6 with belief_age_channel (searchrl/world/observe.py); F = fov, 11 by default.
-
-With the whole-belief context on (`env.world.context` = G; searchrl/world/context.py) a second image stream joins:
-context (3, G, G) -> [conv3x3, conv3x3, maxpool] -> flatten -> FC  (widths `context_channels`, `context_size`)
-and its features are concatenated with the others before the FC layers.
 """
 
 from __future__ import annotations
@@ -47,14 +43,9 @@ class SearchCNN(BaseFeaturesExtractor):
         conv_channels: Sequence[int] = (32, 64, 128),
         vector_size: int = 32,
         fc_sizes: Sequence[int] = (256, 256),
-        context_channels: Sequence[int] = (16, 32),
-        context_size: int = 64,
     ) -> None:
         c_in, fov, _ = observation_space["map"].shape
         self.check_sizes(conv_channels, vector_size, fc_sizes, fov)
-        if len(context_channels) != 2 or min(context_channels) < 1 or context_size < 1:
-            raise ValueError(f"network.context_channels={list(context_channels)!r}, context_size={context_size!r} "
-                             "are not allowed: two positive channel counts and a positive width")  # fmt: skip
         super().__init__(observation_space, features_dim=int(fc_sizes[-1]))
         c1, c2, c3 = conv_channels
         self.conv = nn.Sequential(
@@ -67,16 +58,6 @@ class SearchCNN(BaseFeaturesExtractor):
             n_conv = self.conv(torch.zeros(1, c_in, fov, fov)).shape[1]
         self.vector = nn.Sequential(nn.Linear(observation_space["vector"].shape[0], vector_size), nn.ReLU())
         width = n_conv + vector_size
-        self.context: nn.Module | None = None
-        if "context" in observation_space.spaces:
-            c_ctx, grid, _ = observation_space["context"].shape
-            k1, k2 = context_channels
-            convs = nn.Sequential(nn.Conv2d(c_ctx, k1, 3, padding=1), nn.ReLU(), nn.Conv2d(k1, k2, 3, padding=1),
-                                  nn.ReLU(), nn.MaxPool2d(2), nn.Flatten())  # fmt: skip
-            with torch.no_grad():
-                n_ctx = convs(torch.zeros(1, c_ctx, grid, grid)).shape[1]
-            self.context = nn.Sequential(convs, nn.Linear(n_ctx, context_size), nn.ReLU())
-            width += context_size
         layers: list[nn.Module] = []
         for size in fc_sizes:
             layers += [nn.Linear(width, size), nn.ReLU()]
@@ -96,8 +77,6 @@ class SearchCNN(BaseFeaturesExtractor):
             raise ValueError(f"network.fc_sizes={list(fc_sizes)!r} is not allowed: one or more positive widths")
 
     def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
-        """observations: {"map": (B, C, F, F), "vector": (B, V)[, "context": (B, 3, G, G)]} -> (B, features_dim)."""
+        """observations: {"map": (B, C, F, F), "vector": (B, V)} -> (B, features_dim)."""
         parts = [self.conv(observations["map"]), self.vector(observations["vector"])]
-        if self.context is not None:
-            parts.append(self.context(observations["context"]))
         return self.head(torch.cat(parts, dim=1))

@@ -32,8 +32,7 @@ from stable_baselines3.common.utils import get_device
 from stable_baselines3.common.vec_env import VecEnv
 
 from searchrl.atomic import FolderBusy, hold, remove_temporaries, write_atomic, write_text_atomic
-from searchrl.controllers.policy import PolicyController
-from searchrl.policies.actor import Actor
+from searchrl.controllers.policy import retired_kwargs_dropped
 from searchrl.train.build import (
     TRAINABLE_MODELS,
     attach_teacher,
@@ -43,6 +42,7 @@ from searchrl.train.build import (
     make_algorithm,
     make_vec_env,
     rollout_size,
+    scenario_of,
     teacher_args,
     team_groups,
     unused_settings,
@@ -57,9 +57,9 @@ from searchrl.train.callbacks import (
 from searchrl.train.command_line import check_resume_argument, fail, recipe_arguments
 from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
 from searchrl.train.imitation import clone, collect
-from searchrl.train.schema import TrainConfig, override_keys, register_configs
+from searchrl.train.schema import TrainConfig, override_keys, register_configs, saved_config
 from searchrl.train.score import read_score, write_score
-from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world.config import ConfigError
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 register_configs()
@@ -97,8 +97,8 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
         fail(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
     # Merged into the schema: a run saved by an older version gains new fields' defaults, and types are checked.
     try:
-        loaded = OmegaConf.load(run_dir / "config.yaml")
-        if not isinstance(loaded, DictConfig) or loaded.get("model") is None or loaded.get("algo") is None:
+        loaded = saved_config(run_dir / "config.yaml")
+        if loaded.get("model") is None or loaded.get("algo") is None:
             raise ValueError("it names no model or algo")
         saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), loaded)
     except Exception as err:  # empty, not YAML, wrong types, unreadable: the run's record is damaged
@@ -131,7 +131,7 @@ def load_newest_checkpoint(cfg: DictConfig, run_dir: Path, env: VecEnv) -> tuple
 def init_weights(model: BaseAlgorithm, path: str) -> None:
     """Copy the policy weights of checkpoint `path` into the fresh `model` (its optimiser state is not taken)."""
     try:
-        params = type(model).load(path, device="cpu").get_parameters()
+        params = type(model).load(path, device="cpu", custom_objects=retired_kwargs_dropped(path)).get_parameters()
         model.set_parameters({"policy": params["policy"]}, exact_match=False, device=model.device)
     except Exception as err:  # a zip of another algorithm, a corrupt file, other shapes: all end here
         lines = str(err).strip().splitlines() or [type(err).__name__]
@@ -142,39 +142,24 @@ def init_weights(model: BaseAlgorithm, path: str) -> None:
 
 
 def warm_start(cfg: DictConfig, model: BaseAlgorithm, run_dir: Path) -> None:
-    """Clone the teacher into the fresh policy (imitation.py), then refit it over `imitation.dagger_rounds` DAgger
-    rounds; imitation.csv records each epoch and imitation.zip the clone before RL."""
+    """Clone the teacher into the fresh policy (imitation.py); imitation.csv records each epoch and imitation.zip the
+    clone before RL."""
     im, groups, gamma, seed = cfg.imitation, team_groups(cfg), float(cfg.algo.gamma), int(cfg.seed)
-    demos = collect(groups, im.teacher, int(im.episodes), gamma, seed, teacher_args(cfg))
+    demos = collect(groups, im.teacher, int(im.episodes), gamma, seed, teacher_args(cfg), scenario_of(cfg))
     print(f"imitation: {len(demos)} sequences of {im.teacher}, found fraction {demos.found_fraction:.3f}",
           file=sys.stderr)  # fmt: skip
     rows: list[dict[str, float]] = []
-    dagger_round, clone_found = 0, float("nan")  # the clone's found fraction while it played that round's episodes
 
     def record(row: dict[str, float]) -> None:
-        rows.append({**row, "teacher_found_fraction": demos.found_fraction, "dagger_round": dagger_round,
-                     "clone_found_fraction": clone_found})  # fmt: skip
+        rows.append({**row, "teacher_found_fraction": demos.found_fraction})
         rows[-1]["epoch"] = len(rows)
-        print(f"imitation epoch {len(rows)} ({row['phase']}, round {dagger_round}): accuracy {row['accuracy']:.3f}, "
+        print(f"imitation epoch {len(rows)} ({row['phase']}): accuracy {row['accuracy']:.3f}, "
               f"value loss {row['value_loss']:.2f}", file=sys.stderr)  # fmt: skip
         write_text_atomic(run_dir / "imitation.csv", pd.DataFrame(rows).to_csv(index=False))
 
     fit = (int(im.epochs), int(im.value_epochs), int(im.batch_sequences), float(im.learning_rate))
     schedule = str(im.get("lr_schedule", "constant"))
     clone(model.policy, demos, *fit, seed, on_epoch=record, lr_schedule=schedule)
-    for dagger_round in range(1, int(im.get("dagger_rounds", 0)) + 1):
-        device = model.policy.device
-        actor = Actor(model.policy.to("cpu"))  # the clone as it is now; Actor runs on CPU
-
-        def player(config: WorldConfig, player_seed: int, actor: Actor = actor) -> PolicyController:
-            return PolicyController(actor, config, seed=player_seed)
-
-        played = collect(groups, im.teacher, int(im.episodes), gamma, seed, teacher_args(cfg), player, dagger_round)
-        model.policy.to(device)
-        clone_found = played.found_fraction
-        print(f"imitation round {dagger_round}: the clone found {clone_found:.3f}", file=sys.stderr)
-        demos = demos.join(played)
-        clone(model.policy, demos, *fit, seed + dagger_round, on_epoch=record, fresh_head=False, lr_schedule=schedule)
     write_atomic(run_dir / "imitation.zip", lambda tmp: model.save(tmp))  # the clone before RL, to evaluate
 
 
@@ -259,8 +244,15 @@ def _train_locked(cfg: DictConfig, run_dir: Path, resuming: bool) -> Path:
         AtomicCheckpointCallback(run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints)),
     ]
     v = cfg.validation
-    validation = ValidationCallback(world_config(cfg), int(v.every), int(v.n_worlds), int(v.seed), v.deterministic,
-                                    at_start=(clones or cfg.init is not None) and not resuming)  # fmt: skip
+    validation = ValidationCallback(
+        world_config(cfg),
+        scenario_of(cfg),
+        int(v.every),
+        int(v.n_worlds),
+        int(v.seed),
+        v.deterministic,
+        at_start=(clones or cfg.init is not None) and not resuming,
+    )
     callbacks.append(validation)
 
     remaining = int(cfg.total_timesteps) - model.num_timesteps

@@ -23,6 +23,7 @@ from searchrl.train.imitation import lr_factor, make_teacher
 from searchrl.train.schema import A2CConfig, PPOConfig, RecurrentPPOConfig, override_keys
 from searchrl.train.teacher_labels import TeacherLabels
 from searchrl.world.config import ConfigError, WorldConfig, need
+from searchrl.world.scenario import Scenario
 
 ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "ppo": PPOConfig, "a2c": A2CConfig}
 TRAINABLE_MODELS = ("a", "b", "c", "diagonal")
@@ -31,6 +32,12 @@ TRAINABLE_MODELS = ("a", "b", "c", "diagonal")
 def world_config(cfg: DictConfig) -> WorldConfig:
     """The validated engine config of `env.world` (model presets have already written Φ, comm, actions)."""
     return WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
+
+
+def scenario_of(cfg: DictConfig) -> Scenario:
+    """The run's scenario (`scenario`, conf/scenario/); the paper's for a config without one."""
+    node = cfg.get("scenario")
+    return Scenario.from_dict(None if node is None else OmegaConf.to_container(node, resolve=True))
 
 
 def team_groups(cfg: DictConfig) -> list[tuple[WorldConfig, int]]:
@@ -51,7 +58,8 @@ def team_groups(cfg: DictConfig) -> list[tuple[WorldConfig, int]]:
 
 def make_vec_env(cfg: DictConfig, seed: int | None = None) -> VecEnv:
     """One SearchVecEnv, or a TeamMixVecEnv when env.extra_teams adds groups (group j seeded with seed + j)."""
-    envs = [SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j)
+    scenario = scenario_of(cfg)
+    envs = [SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=scenario)
             for j, (world, k) in enumerate(team_groups(cfg))]  # fmt: skip
     return envs[0] if len(envs) == 1 else TeamMixVecEnv(envs)
 
@@ -70,8 +78,6 @@ def policy_kwargs(cfg: DictConfig) -> dict[str, Any]:
             "conv_channels": list(net.conv_channels),
             "vector_size": int(net.vector_size),
             "fc_sizes": list(net.fc_sizes),
-            "context_channels": list(net.context_channels),
-            "context_size": int(net.context_size),
         },
         "net_arch": [],  # policy and value heads are linear on the features (or the LSTM output), as in PRIMAL
     }
@@ -91,6 +97,9 @@ def check_config(cfg: DictConfig) -> None:
             f"choose the algorithm with algo={cfg.algo.name}, not algo.name="
         )
     world = world_config(cfg)  # raises ConfigError naming the field
+    scenario = scenario_of(cfg)
+    for group, _ in team_groups(cfg):
+        scenario.check(group)
     check_device(str(cfg.device))
     algo = cfg.algo
     numbers = [  # (name, value, ok, allowed); NaN fails every comparison
@@ -145,12 +154,9 @@ def check_config(cfg: DictConfig) -> None:
         for name in ("episodes", "batch_sequences"):
             if int(imitation[name]) < 1:
                 raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 1")
-        for name in ("epochs", "value_epochs", "dagger_rounds"):
-            if int(imitation.get(name, 0)) < 0:
+        for name in ("epochs", "value_epochs"):
+            if int(imitation[name]) < 0:
                 raise ConfigError(f"imitation.{name}={imitation[name]!r} is not allowed: must be >= 0")
-        if int(imitation.epochs) == 0 and int(imitation.get("dagger_rounds", 0)) > 0:
-            raise ConfigError(f"imitation.dagger_rounds={imitation.dagger_rounds!r} is not allowed with "
-                              "imitation.epochs=0 (no clone to refit): 0, or epochs >= 1")  # fmt: skip
         lr = float(imitation.learning_rate)
         need(0 < lr < math.inf, "imitation.learning_rate", imitation.learning_rate, "must be > 0")
         lr_factor(str(imitation.get("lr_schedule", "constant")), 0, 1)  # an unknown schedule, named

@@ -12,6 +12,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from searchrl.atomic import write_atomic
 from searchrl.train.validation import run_episodes
 from searchrl.world.config import WorldConfig
+from searchrl.world.scenario import Scenario
 
 CHECKPOINT_RE = re.compile(r"^step_(\d+)\.zip$")
 
@@ -84,17 +85,18 @@ class ValidationCallback(BaseCallback):
     random-walk level on the same worlds is logged with each as `val/random_<metric>` for reference. The final
     validation's row also holds the last update's losses, which SB3 records after its last log row."""
 
-    def __init__(self, world_config: WorldConfig, every: int, n_worlds: int, seed: int, deterministic: bool,
-                 at_start: bool = False) -> None:  # fmt: skip
+    def __init__(self, world_config: WorldConfig, scenario: Scenario, every: int, n_worlds: int, seed: int,
+                 deterministic: bool, at_start: bool = False) -> None:  # fmt: skip
         super().__init__()
-        self.world_config, self.every, self.n_worlds, self.seed = world_config, every, n_worlds, seed
+        self.world_config, self.scenario = world_config, scenario
+        self.every, self.n_worlds, self.seed = every, n_worlds, seed
         self.deterministic, self.at_start = deterministic, at_start
         self._next = 0
         self.random_level: dict[str, float] = {}
 
     def _init_callback(self) -> None:
         self._next = (self.model.num_timesteps // self.every + 1) * self.every if self.every > 0 else 0
-        self.random_level = run_episodes(self.world_config, self.n_worlds, self.seed, None)
+        self.random_level = run_episodes(self.world_config, self.n_worlds, self.seed, None, scenario=self.scenario)
 
     def _on_training_start(self) -> None:
         """With `at_start` (a run that starts from a clone or init weights), the starting policy's row at step 0,
@@ -116,7 +118,9 @@ class ValidationCallback(BaseCallback):
         self.logger.dump(self.num_timesteps)
 
     def validate(self) -> dict[str, float]:
-        metrics = run_episodes(self.world_config, self.n_worlds, self.seed, self.model, self.deterministic)
+        metrics = run_episodes(
+            self.world_config, self.n_worlds, self.seed, self.model, self.deterministic, self.scenario
+        )
         for name, value in metrics.items():
             self.logger.record(f"val/{name}", value)
         self.logger.record("val/random_found_fraction", self.random_level["found_fraction"])

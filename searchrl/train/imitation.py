@@ -16,10 +16,6 @@ Two steps, both before `model.learn`:
    zeros as at every episode start; then fit the value-only parameters to the returns. The fitted critic means
    PPO's first advantages come from a value that already knows the teacher's returns, so the first updates do not
    undo the clone.
-3. `imitation.dagger_rounds` > 0 (DAgger, Ross et al. 2011): the clone plays `episodes` more rounds while the
-   teacher labels every state it reaches, those sequences join the demonstrations, and the clone is fitted again
-   (from where it is). Cloning alone only shows states the teacher visits; one wrong move of the clone leads to
-   states no demonstration covers, and errors compound (the clones trailed their teacher on a few cells).
 """
 
 from __future__ import annotations
@@ -39,6 +35,7 @@ from searchrl.controllers.registry import HEURISTICS, make_controller
 from searchrl.policies.teacher_term import value_parameters
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
+from searchrl.world.scenario import PAPER, Scenario
 
 # The registry's controllers but the random walk (nothing to clone); without teacher_args a teacher has the settings
 # of controller=<name>.
@@ -69,16 +66,9 @@ class Demonstrations:
     starts: np.ndarray  # (S, T) float32, 1 where an episode starts inside the sequence (not at t = 0)
     returns: np.ndarray  # (S, T) float32, discounted return-to-go within the episode
     found_fraction: float  # mean found fraction of the teacher's episodes that ended
-    context: np.ndarray | None = None  # (S, T, 3, G, G) float16 with the whole-belief context (env.world.context)
 
     def __len__(self) -> int:
         return self.actions.shape[0]
-
-    def join(self, other: Demonstrations) -> Demonstrations:
-        """Both sets of sequences (DAgger's aggregate); found_fraction stays this one's (the teacher's)."""
-        fields = ("maps", "vector", "actions", "starts", "returns") + (("context",) if self.context is not None else ())
-        joined = {f: np.concatenate([getattr(self, f), getattr(other, f)]) for f in fields}
-        return Demonstrations(**joined, found_fraction=self.found_fraction)
 
 
 def discounted_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.ndarray:
@@ -92,24 +82,17 @@ def discounted_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> 
 
 
 def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, gamma: float, seed: int,
-            teacher_args: dict | None = None, player: Callable[[WorldConfig, int], Controller] | None = None,
-            dagger_round: int = 0) -> Demonstrations:  # fmt: skip
+            teacher_args: dict | None = None, scenario: Scenario = PAPER) -> Demonstrations:  # fmt: skip
     """Let `teacher` (built with `teacher_args`) play `episodes` rounds in each (world config, K) group; round e
-    of group j is seeded (seed, j, e), so the same seed gives the same demonstrations. With `player(config, seed)`
-    (a DAgger round) that controller moves the agents and the teacher only labels the states; `dagger_round` > 0
-    draws other scenarios, seeded (seed, j, e, dagger_round). `found_fraction` is then the player's."""
+    of group j is seeded (seed, j, e), so the same seed gives the same demonstrations."""
     parts, found = [], []
     for j, (config, n_worlds) in enumerate(groups):
-        world = SearchWorld(config, n_worlds)
+        world = SearchWorld(config, n_worlds, scenario=scenario)
         controller = make_teacher(teacher, config, seed + j, teacher_args)
-        mover = controller if player is None else player(config, seed + j)
         steps, slots = config.max_steps, n_worlds * config.n_agents
         for e in range(episodes):
-            entropy = [seed, j, e] + ([dagger_round] if dagger_round else [])
-            maps, vector = world.reset(seed=int(np.random.SeedSequence(entropy).generate_state(1)[0]))
+            maps, vector = world.reset(seed=int(np.random.SeedSequence([seed, j, e]).generate_state(1)[0]))
             controller.reset(world.state, np.ones(n_worlds, bool))
-            if mover is not controller:
-                mover.reset(world.state, np.ones(n_worlds, bool))
             rec = {
                 "maps": np.empty((steps, slots, *maps.shape[2:]), np.float16),
                 "vector": np.empty((steps, slots, vector.shape[2]), np.float32),
@@ -118,15 +101,11 @@ def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, 
                 "rewards": np.empty((steps, slots), np.float32),
                 "dones": np.empty((steps, slots), np.float32),
             }
-            if world.context is not None:
-                rec["context"] = np.empty((steps, slots, *world.context.shape[2:]), np.float16)
             for t in range(steps):
                 actions = controller.act(world.state, maps, vector)
                 rec["maps"][t], rec["vector"][t] = maps.reshape(slots, *maps.shape[2:]), vector.reshape(slots, -1)
-                if world.context is not None:
-                    rec["context"][t] = world.context.reshape(slots, *world.context.shape[2:])
                 rec["actions"][t] = actions.reshape(-1)
-                tr = world.step(actions if mover is controller else mover.act(world.state, maps, vector))
+                tr = world.step(actions)
                 done = tr.result.done
                 rec["rewards"][t] = tr.result.reward.reshape(-1)
                 rec["dones"][t] = np.repeat(done, config.n_agents)
@@ -134,8 +113,6 @@ def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, 
                     rec["starts"][t + 1] = rec["dones"][t]
                 if done.any():
                     controller.reset(world.state, done)
-                    if mover is not controller:
-                        mover.reset(world.state, done)
                     found.extend(tr.metrics["found_fraction"][done].tolist())
                 maps, vector = tr.maps, tr.vector
             parts.append({key: np.swapaxes(value, 0, 1) for key, value in rec.items()})  # (slots, T, ...)
@@ -147,7 +124,6 @@ def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, 
         starts=cat["starts"],
         returns=discounted_returns(cat["rewards"], cat["dones"], gamma),
         found_fraction=float(np.mean(found)) if found else float("nan"),
-        context=cat.get("context"),
     )
 
 
@@ -158,9 +134,6 @@ def _evaluate(policy: ActorCriticPolicy, demos: Demonstrations, idx: np.ndarray)
         "map": torch.as_tensor(demos.maps[idx].reshape(-1, *demos.maps.shape[2:]), device=device).float(),
         "vector": torch.as_tensor(demos.vector[idx].reshape(-1, demos.vector.shape[2]), device=device),
     }
-    if demos.context is not None:
-        context = demos.context[idx].reshape(-1, *demos.context.shape[2:])
-        obs["context"] = torch.as_tensor(context, device=device).float()
     actions = torch.as_tensor(demos.actions[idx].reshape(-1), device=device)
     if isinstance(policy, RecurrentActorCriticPolicy):
         # The batch is read as len(idx) sequences laid end to end, each from zero LSTM states.
@@ -186,7 +159,7 @@ def lr_factor(schedule: str, step: int, steps: int) -> float:
 
 def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_epochs: int, batch_sequences: int,
           learning_rate: float, seed: int, on_epoch: Callable[[dict[str, float]], None] | None = None,
-          fresh_head: bool = True, lr_schedule: str = "constant") -> list[dict[str, float]]:  # fmt: skip
+          lr_schedule: str = "constant") -> list[dict[str, float]]:  # fmt: skip
     """Fit `policy` in place: `epochs` of cross-entropy on the teacher's actions through the whole network, then
     `value_epochs` of (V − return)² on the value-only parameters. One row of metrics per epoch (phase, imitation
     loss, value loss, accuracy = argmax action is the teacher's, averaged over the epoch's minibatches; learning
@@ -197,12 +170,10 @@ def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_e
     Why two phases: the returns' squared error is ~20× the imitation loss at the start, and through the shared
     extractor it drowned the imitation gradient (accuracy stayed at the majority action). Why a unit-gain action
     head: SB3 initialises it with gain 0.01 so PPO starts near uniform, which also starves the extractor of
-    gradient; the clone's head is re-drawn orthogonally with gain 1 and fitting then starts at once
-    (`fresh_head=False` keeps it: a DAgger round refits a clone).
+    gradient; the clone's head is re-drawn orthogonally with gain 1 and fitting then starts at once.
     """
-    if fresh_head:
-        torch.nn.init.orthogonal_(policy.action_net.weight, gain=1.0)
-        torch.nn.init.zeros_(policy.action_net.bias)
+    torch.nn.init.orthogonal_(policy.action_net.weight, gain=1.0)
+    torch.nn.init.zeros_(policy.action_net.bias)
     rng = np.random.default_rng(seed)
     returns = torch.as_tensor(demos.returns)
     policy.set_training_mode(True)

@@ -11,12 +11,14 @@ conf/train.yaml-> TrainConfig
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, make_dataclass
+from pathlib import Path
 from typing import Any, get_type_hints
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ANY, RETIRED_FIELDS, WorldConfig, drop_retired
+from searchrl.world.scenario import PAPER
 
 # WorldConfig's fields as a Hydra schema: the same names, types and defaults (types and unknown keys are checked at
 # composition), but `world_size` untyped so that an integer (`env.world.world_size=20`, every world 20×20) composes
@@ -66,8 +68,6 @@ class NetworkConfig:
     vector_size: int = 32  # FC on the 3-vector
     fc_sizes: list[int] = field(default_factory=lambda: [256, 256])  # FC after concatenation
     lstm_hidden_size: int = 256  # recurrent algorithms only
-    context_channels: list[int] = field(default_factory=lambda: [16, 32])  # with env.world.context: two convs
-    context_size: int = 64  # FC on the context stream
 
 
 @dataclass
@@ -124,9 +124,6 @@ class ImitationConfig:
     episodes: int = 32  # teacher episodes per world of the run's rollout worlds (K·N·episodes sequences)
     epochs: int = 4  # cross-entropy on the teacher's actions; 0: no clone before RL (nothing is collected)
     value_epochs: int = 1  # then the value-only parameters on the teacher's discounted returns (0 skips)
-    # DAgger rounds after the first fit: the clone plays `episodes` more episodes per world, the teacher labels the
-    # states it reaches, and the clone is refitted on all sequences so far (memory grows by the first set per round).
-    dagger_rounds: int = 0
     batch_sequences: int = 16  # whole episodes per minibatch
     learning_rate: float = 1e-3
     # "linear": each fit's rate falls from learning_rate to 0 over its minibatches; "constant" keeps it.
@@ -149,6 +146,9 @@ class TrainConfig:
     network: NetworkConfig = field(default_factory=NetworkConfig)
     validation: ValidationConfig = field(default_factory=ValidationConfig)
     imitation: ImitationConfig = field(default_factory=ImitationConfig)
+    # What a reset draws besides the sizes and the prior: obstacles, where the targets lie (conf/scenario/,
+    # searchrl/world/scenario.py); the paper's by default.
+    scenario: dict[str, Any] = field(default_factory=lambda: PAPER.to_dict())
     seed: int = 0
     total_timesteps: int = 18_400_000  # agent-steps; the paper's ≈ 9000 episodes × 8 agents × 256 steps
     checkpoint_every: int = 500_000  # agent-steps
@@ -161,6 +161,25 @@ class TrainConfig:
     device: str = "cpu"
     progress_bar: bool = True
     log_interval: int = 1  # rollouts between log rows
+
+
+# Settings removed from training, each with the one value a saved run may hold (ANY: inert at every value): a run
+# saved before is read without them (`resume=`, the recipes' tests). docs/log.md names the last commit with each.
+RETIRED_SETTINGS: dict[str, object] = {
+    **{f"env.world.{name}": value for name, value in RETIRED_FIELDS.items()},
+    "network.context_channels": ANY,  # the context stream's widths: no stream was built without env.world.context
+    "network.context_size": ANY,
+    "imitation.dagger_rounds": 0,
+}
+
+
+def saved_config(path: str | Path) -> DictConfig:
+    """A run's saved config.yaml without its retired settings (RETIRED_SETTINGS); ConfigError for one saved at a
+    value whose behaviour is gone, ValueError if the file is no mapping."""
+    loaded = OmegaConf.to_container(OmegaConf.load(path))
+    if not isinstance(loaded, dict):
+        raise ValueError(f"{path} holds no mapping")
+    return OmegaConf.create(drop_retired(loaded, RETIRED_SETTINGS))
 
 
 def override_keys(overrides: list[str]) -> list[str]:

@@ -1,57 +1,43 @@
-"""Policy rollouts on a fixed validation set: K worlds reset from one seed, one full episode each."""
+"""Validation: a policy's episodes on a fixed set of worlds, played as evaluation plays them.
+
+World w of a validation set with seed s is the evaluation's map w of cell 0 under seed s: map seed s + w, episode
+key (s, 0, w, 0) (searchrl/controllers/episodes.py). The policy acts through `PolicyController`, the evaluation's
+inference path, with actions sampled from the episode's own stream (or argmax), so the same weights give the same
+metrics at every validation (common random numbers: a curve's steps are changes of the weights, not of sampling
+luck) and a validation's found fraction is what `python -m searchrl.evaluate` reports on the same worlds.
+"""
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
-import torch
 from stable_baselines3.common.base_class import BaseAlgorithm
 
+from searchrl.controllers.base import RandomWalk
+from searchrl.controllers.episodes import play_episodes
+from searchrl.controllers.policy import PolicyController
+from searchrl.policies.actor import Actor
 from searchrl.world.config import WorldConfig
-from searchrl.world.engine import SearchWorld
+from searchrl.world.scenario import PAPER, Scenario
+from searchrl.world.streams import WorldStreams
 
 
 def run_episodes(
-    world_config: WorldConfig, n_worlds: int, seed: int, model: BaseAlgorithm | None, deterministic: bool = False
-) -> dict[str, float]:
-    """Mean episode metrics of `model` (LSTM state carried; sampled or argmax actions) or of a random walk (None)
-    over n_worlds worlds drawn from `seed`; each world's first episode counts.
+    world_config: WorldConfig, n_worlds: int, seed: int, model: BaseAlgorithm | None, deterministic: bool = False,
+    scenario: Scenario = PAPER,
+) -> dict[str, float]:  # fmt: skip
+    """Mean episode metrics of `model`'s policy (or of a random walk, None) over the validation set of `n_worlds`
+    worlds drawn from `seed` under `scenario` (module docstring)."""
+    if model is None:
+        factory = RandomWalk
+    else:
+        policy = model.policy if model.device.type == "cpu" else copy.deepcopy(model.policy).to("cpu")
+        actor = Actor(policy)  # traced as evaluation's is (about 0.2 s), so both act alike to the last bit
 
-    Sampled actions draw from torch's global generator, forked here and seeded from `seed`: the same weights give
-    the same metrics at every validation (common random numbers: a curve's steps are changes of the weights, not
-    of sampling luck, which on 32 worlds moves the found fraction by a few hundredths), and the training run's
-    own random stream is left as it was."""
-    with torch.random.fork_rng(devices=[]):
-        torch.manual_seed(seed + 2)
-        return _run_episodes(world_config, n_worlds, seed, model, deterministic)
+        def factory(config: WorldConfig, streams: WorldStreams) -> PolicyController:
+            return PolicyController(actor, config, deterministic=deterministic, seed=streams)
 
-
-def _run_episodes(
-    world_config: WorldConfig, n_worlds: int, seed: int, model: BaseAlgorithm | None, deterministic: bool
-) -> dict[str, float]:
-    world = SearchWorld(world_config, n_worlds, seed=seed)
-    maps, vector = world.reset()
-    n = world_config.n_agents
-    act_rng = np.random.default_rng(seed + 1)
-    lstm_state = None
-    episode_start = np.ones(n_worlds * n, bool)
-    finished = np.zeros(n_worlds, bool)
-    sums: dict[str, np.ndarray] = {}
-    while not finished.all():
-        if model is None:
-            actions = act_rng.integers(0, world_config.n_actions, size=(n_worlds, n))
-        else:
-            obs = {"map": maps.reshape(n_worlds * n, *maps.shape[2:]), "vector": vector.reshape(n_worlds * n, -1)}
-            if world.context is not None:  # the whole-belief context (env.world.context)
-                obs["context"] = world.context.reshape(n_worlds * n, *world.context.shape[2:])
-            flat, lstm_state = model.predict(
-                obs, state=lstm_state, episode_start=episode_start, deterministic=deterministic
-            )
-            actions = np.asarray(flat).reshape(n_worlds, n)
-        tr = world.step(actions)
-        maps, vector = tr.maps, tr.vector
-        first = tr.result.done & ~finished
-        for name, values in tr.metrics.items():
-            sums[name] = sums.get(name, np.zeros(n_worlds)) + np.where(first, values, 0.0)
-        finished |= tr.result.done
-        episode_start = np.repeat(tr.result.done, n)
-    return {name: float(v.mean()) for name, v in sums.items()}
+    keys = [(seed, 0, w, 0) for w in range(n_worlds)]
+    metrics = play_episodes(factory, world_config, [seed + w for w in range(n_worlds)], keys, scenario)
+    return {name: float(np.mean(values)) for name, values in metrics.items()}

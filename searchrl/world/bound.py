@@ -7,7 +7,7 @@ phase (phase 2 of every step; a reset detects nothing). Over T steps one agent's
 the expected number of targets it finds is at most the expected number of targets on the K cells most likely to
 hold one: the sum of the K largest target marginals π(c) = P(a target is on c).
 
-The marginals are those of the placement of §4.1.4 (`reset.place_targets`): a cell drawn ∝ p and kept with
+The marginals are those of the placement of §4.1.4 (`scenario.place_targets`): a cell drawn ∝ p and kept with
 probability 1 - u/max(u), redrawn while taken, until j distinct cells hold targets. That is successive sampling
 without replacement with weights w = p·(1 - u/max u) over the free cells, which the Gumbel-top-j trick reproduces
 exactly (the j largest of log w + Gumbel noise), so π is estimated from `draws` independent placements at once.
@@ -36,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from searchrl.world.footprint import GAMMA, MOVES, SUPPORT, Footprint
-from searchrl.world.reset import keep_probability
+from searchrl.world.scenario import keep_probability
 
 
 class SearchBound(NamedTuple):

@@ -35,7 +35,34 @@ def check_seed(seed: object, name: str = "seed") -> None:
     need(seed is None or (is_int(seed) and seed >= 0), name, seed, "None or an integer >= 0")
 
 
-INFO_REWARDS = ("information", "targets")  # what eq. 5 pays for (WorldConfig.info_reward)
+ANY = "any value"  # a retired setting that did nothing at any value (RETIRED_FIELDS, drop_retired)
+# Fields removed from WorldConfig, each with the one value a saved config may hold: the behaviour every run that
+# recorded it had, which is what the world does now. docs/log.md names the last commit that had each.
+# obstacle_density moved to the scenario (scenario.obstacles.density, searchrl/world/scenario.py).
+RETIRED_FIELDS: dict[str, object] = {"context": 0, "info_reward": "information", "obstacle_density": 0.0}
+
+
+def drop_retired(values: dict, retired: dict[str, object], prefix: str = "") -> dict:
+    """A copy of the nested mapping `values` without the `retired` settings (dotted keys -> the one value they may
+    hold, or ANY): what a run, checkpoint or record saved before a setting was removed is read as. ConfigError
+    naming a retired setting saved at another value, whose behaviour the code no longer has."""
+    values = dict(values)
+    for key, only in retired.items():
+        head, _, rest = key.partition(".")
+        if head not in values:
+            continue
+        if rest:
+            if isinstance(values[head], dict):
+                values[head] = drop_retired(values[head], {rest: only}, f"{prefix}{head}.")
+            continue
+        value = values.pop(head)
+        need(
+            only is ANY or value == only,
+            prefix + key,
+            value,
+            f"{only!r} only: the setting was removed from searchrl (docs/log.md names the last commit with it)",
+        )
+    return values
 
 
 def _is_number(value: object) -> bool:
@@ -81,7 +108,6 @@ class WorldConfig:
     variance_floor: float = 1.0  # paper: (0, ·); a floor of one cell keeps every Gaussian visible on the grid
     rho_max: float = 0.8  # ρ drawn in (-rho_max, rho_max): bounded away from ±1 so eq. 6 stays finite
     eta: float = 0.1  # baseline share of probability spread evenly over cells (eq. 7)
-    obstacle_density: float = 0.0  # share of cells that are obstacles (not in the paper's experiments)
 
     # --- sensing (§3.1): Δp = λ k Γ p, with k = k + k_per_n · n for a world of side n ("k a coefficient related
     # to world size n"; the paper gives no formula). k = 1000, k_per_n = 0 (λk = 1) makes sensing the Bayesian
@@ -110,19 +136,12 @@ class WorldConfig:
     # merging (model C) this is all an agent can learn of what others cleared, and it is what C's teacher keeps
     # in memory (greedy's `seen`); shown, a clone need not remember it. Costs K·N·S² float32 more when on.
     belief_seen: bool = False
-    # Observation only (not in the paper; 0 = off): G > 0 adds a third observation part, the agent's own belief
-    # over the whole world pooled to G × G bins and where its field of view sits (searchrl/world/context.py).
-    context: int = 0
 
     # --- rewards (Table 1, eq. 5, eq. 17)
     step_reward: float = -0.05
     collision_reward: float = -0.2
     target_reward: float = 10.0
     xi: float = 0.05  # ξ of eq. 5; 2ξ/λ = 100 is the whole map's worth of information
-    # What eq. 5's information reward pays for: "information" (the paper: M_p + M_u removed) or "targets" (not in
-    # the paper: the p removed times the targets §4.1.4's placement expects per unit of p there, keep(u)/Σ p·keep(u),
-    # scaled to the same total of 2ξ/λ a world). The paper's pays for u as much as p, and targets sit where u is low.
-    info_reward: str = "information"
     tau: float = 0.01  # τ of eq. 17
 
     max_steps: int = 256  # episode length (§4.1.1)
@@ -181,7 +200,6 @@ class WorldConfig:
         )
         need(0 <= self.rho_max < 1, "rho_max", self.rho_max, "0 <= rho_max < 1")
         need(0 <= self.eta <= 1, "eta", self.eta, "0 <= eta <= 1")
-        need(0 <= self.obstacle_density < 1, "obstacle_density", self.obstacle_density, "0 <= density < 1")
         need(self.lam > 0, "lam", self.lam, "> 0")
         need(self.k >= 0, "k", self.k, ">= 0")
         need(self.k_per_n >= 0, "k_per_n", self.k_per_n, ">= 0")
@@ -203,7 +221,6 @@ class WorldConfig:
             self.explicit_area,
             f"Φ must fit inside the field of view (fov={self.fov})",
         )
-        need(self.info_reward in INFO_REWARDS, "info_reward", self.info_reward, f"one of {', '.join(INFO_REWARDS)}")
         need(0 <= self.belief_age <= 4, "belief_age", self.belief_age, "0 <= belief_age <= 4 (0: beliefs do not age)")
         need(
             self.belief_age == 0 or self.bayesian_sensing,
@@ -223,19 +240,11 @@ class WorldConfig:
             self.belief_seen,
             "True or False, and False unless belief_age > 0 (it scales the belief's freshness)",
         )
-        need(
-            self.context == 0 or 2 <= self.context <= min(64, self.world_size[0]),
-            "context",
-            self.context,
-            f"0 (off) or 2 <= G <= min(64, smallest world size {self.world_size[0]}): G × G bins of the whole world",
-        )
         need(self.max_steps >= 1, "max_steps", self.max_steps, ">= 1")
         need(self.xi >= 0, "xi", self.xi, ">= 0")
         need(self.tau >= 0, "tau", self.tau, ">= 0")
-        # Agents need distinct free cells in the smallest world; obstacles are drawn per world so we
-        # require room even at the expected density, and re-check exactly at reset.
-        smallest = self.world_size[0] ** 2
-        free = int(smallest * (1.0 - self.obstacle_density))
+        # Agents and targets need distinct cells in the smallest world (a scenario with obstacles checks its own).
+        free = self.world_size[0] ** 2
         need(
             self.n_agents <= free,
             "n_agents",
@@ -252,7 +261,9 @@ class WorldConfig:
 
     @classmethod
     def from_dict(cls, values: dict) -> WorldConfig:
-        """Build from a plain mapping (Hydra, JSON); unknown keys are an error naming them."""
+        """Build from a plain mapping (Hydra, JSON, a saved run); unknown keys are an error naming them; retired
+        fields at the value they had are dropped (RETIRED_FIELDS)."""
+        values = drop_retired(values, RETIRED_FIELDS)
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:

@@ -1,56 +1,79 @@
-"""`SearchWorld`: K worlds × N agents with auto-reset. The one object the env layers wrap."""
+"""`SearchWorld`: K worlds × N agents, the one sequencing of a world step (step, observe, episode metrics, reset of
+the finished worlds) that every env layer and episode runner wraps."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from searchrl.world.config import WorldConfig, check_seed, is_int, need
-from searchrl.world.context import context_buffer, observe_context
 from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe
-from searchrl.world.reset import reset_worlds
+from searchrl.world.reset import reset_world, reset_worlds
+from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.state import WorldState, allocate
 from searchrl.world.step import StepResult, step
+from searchrl.world.streams import WorldStreams
 
 
 @dataclass
 class Transition:
     """What `SearchWorld.step` returns. Observations are those after auto-reset for finished worlds;
-    `final_maps`/`final_vector` hold the last observation of the worlds that finished (others are stale)."""
+    `final_maps`/`final_vector` hold the last observation of the worlds that finished (others are stale). Without
+    observations (`observe=False`) the four arrays are None."""
 
-    maps: np.ndarray  # (K, N, C, fov, fov) float32, C = 5, or 6 with belief_age_channel
-    vector: np.ndarray  # (K, N, 3) float32
+    maps: np.ndarray | None  # (K, N, C, fov, fov) float32, C = 5, or 6 with belief_age_channel
+    vector: np.ndarray | None  # (K, N, 3) float32
     result: StepResult
-    final_maps: np.ndarray  # (K, N, C, fov, fov) float32, valid where result.done
-    final_vector: np.ndarray  # (K, N, 3) float32, valid where result.done
+    final_maps: np.ndarray | None  # (K, N, C, fov, fov) float32, valid where result.done
+    final_vector: np.ndarray | None  # (K, N, 3) float32, valid where result.done
     metrics: dict[str, np.ndarray]  # (K,) each, episode metrics, valid where result.done
-    context: np.ndarray | None = None  # (K, N, 3, G, G) float32 with `config.context` (world/context.py), else None
-    final_context: np.ndarray | None = None  # (K, N, 3, G, G) float32, valid where result.done; None when off
 
 
 class SearchWorld:
-    """K independent worlds stepped together; a finished world is reset on its own, others untouched.
+    """K independent worlds stepped together.
 
-    All randomness comes from one `np.random.Generator` seeded at construction or by `reset(seed)`.
+    With `auto_reset` (training) a finished world is reset on its own, the others untouched; without it (episode
+    runners, the PettingZoo env) a finished world keeps stepping and its episode's metrics come with the step that
+    ended it. Randomness: one `np.random.Generator` seeded at construction or by `reset(seed)`, or one stream per
+    world (`from_maps`). What a reset draws besides the §4.1 sizes and prior (obstacles, where the targets are) is
+    the injected `scenario`'s (searchrl/world/scenario.py; the paper's by default). `observe=False` skips the
+    observations for controllers that read the state only.
     """
 
-    def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None) -> None:
+    def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None, scenario: Scenario = PAPER,
+                 auto_reset: bool = True, observe: bool = True) -> None:  # fmt: skip
         need(is_int(n_worlds) and n_worlds >= 1, "n_worlds", n_worlds, "an integer >= 1")
         check_seed(seed)
-        self.config = config
+        scenario.check(config)
+        self.config, self.scenario, self.auto_reset, self.observes = config, scenario, auto_reset, observe
         self.state: WorldState = allocate(config, n_worlds)
-        self.rng = np.random.default_rng(seed)
-        self._obs = observation_buffers(config, n_worlds)
-        self._final = tuple(np.zeros_like(a) for a in self._obs)
-        self._context = context_buffer(config, n_worlds)  # None when the context is off: nothing computed
-        self._final_context = None if self._context is None else np.zeros_like(self._context)
-        self.context: np.ndarray | None = None  # the context observed with the last reset or step
+        self.rng: np.random.Generator | WorldStreams = np.random.default_rng(seed)
+        self._obs = observation_buffers(config, n_worlds) if observe else None
+        self._final = tuple(np.zeros_like(a) for a in self._obs) if observe else (None, None)
+        self.observation: tuple[np.ndarray, np.ndarray] | tuple[None, None] = (None, None)  # of the last reset/step
+
+    @classmethod
+    def from_maps(cls, config: WorldConfig, map_seeds: Sequence[int], streams: WorldStreams,
+                  scenario: Scenario = PAPER, observe: bool = True) -> SearchWorld:  # fmt: skip
+        """Worlds for one episode each: world k reset from `np.random.default_rng(map_seeds[k])` (its map, targets
+        and start cells), stepped with draws from its own stream (`streams`, one per world), never reset again."""
+        need(len(streams) == len(map_seeds), "streams", len(streams), f"one per map seed ({len(map_seeds)})")
+        world = cls(config, len(map_seeds), scenario=scenario, auto_reset=False, observe=observe)
+        for k, seed in enumerate(map_seeds):
+            reset_world(config, world.state, k, np.random.default_rng(seed), scenario)
+        world.rng = streams
+        world.observation = world._observe()
+        return world
 
     @property
     def n_worlds(self) -> int:
         return self.state.n_worlds
+
+    def _observe(self) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+        return observe(self.config, self.state, self._obs) if self.observes else (None, None)
 
     def reset(self, seed: int | None = None, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Reset the worlds in `mask` (all by default); `seed` reseeds the generator first."""
@@ -58,25 +81,24 @@ class SearchWorld:
             check_seed(seed)
             self.rng = np.random.default_rng(seed)
         mask = np.ones(self.n_worlds, bool) if mask is None else np.asarray(mask, bool)
-        reset_worlds(self.config, self.state, mask, self.rng)
-        self.context = observe_context(self.config, self.state, self._context)
-        return observe(self.config, self.state, self._obs)
+        reset_worlds(self.config, self.state, mask, self.rng, self.scenario)
+        self.observation = self._observe()
+        return self.observation
 
     def step(self, actions: np.ndarray) -> Transition:
-        """Step all worlds with actions (K, N), then reset the finished ones."""
+        """Step all worlds with actions (K, N), then (with auto_reset) reset the finished ones."""
         result = step(self.config, self.state, actions, self.rng)
-        maps, vector = observe(self.config, self.state, self._obs)
-        context = observe_context(self.config, self.state, self._context)
+        maps, vector = self._observe()
         done = result.done
         metrics: dict[str, np.ndarray] = {}
         if done.any():
-            self._final[0][done] = maps[done]
-            self._final[1][done] = vector[done]
-            if context is not None:
-                self._final_context[done] = context[done]
             metrics = episode_metrics(self.state)
-            reset_worlds(self.config, self.state, done, self.rng)
-            maps, vector = observe(self.config, self.state, self._obs)
-            context = observe_context(self.config, self.state, self._context)
-        self.context = context
-        return Transition(maps, vector, result, self._final[0], self._final[1], metrics, context, self._final_context)
+            if self.auto_reset:
+                if self.observes:
+                    self._final[0][done] = maps[done]
+                    self._final[1][done] = vector[done]
+                reset_worlds(self.config, self.state, done, self.rng, self.scenario)
+                maps, vector = self._observe()
+        self.observation = (maps, vector)
+        final = self._final if self.auto_reset else (maps, vector)
+        return Transition(maps, vector, result, final[0], final[1], metrics)

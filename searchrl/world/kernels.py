@@ -133,11 +133,10 @@ def detect_targets(w, detect, support, found_by):
 
 
 @njit(cache=_CACHE)
-def sense(w, support, c_coef, scratch, collected, collected_targets):
+def sense(w, support, c_coef, scratch, collected):
     """Phase 3 (eq. 1-4). True maps w.p, w.u (K,S,S) decay by Π_i (1 - λkΓ_i) under overlapping footprints, c_coef
     (K,) float64 the λk of each world; each agent is credited the Γ-weighted share of what its cells lost.
-    collected (K,N) float64 = M_p + M_u. collected_targets (K,N) float64 = M_t, the same share of the p each cell
-    lost times w.target_weight there (expected targets; left untouched when target_weight is (K,0,0)).
+    collected (K,N) float64 = M_p + M_u.
 
     Scratch (S,S): surv, fsum float64; removed (2,S,S) float64; done bool (all False on entry and exit).
     """
@@ -146,8 +145,6 @@ def sense(w, support, c_coef, scratch, collected, collected_targets):
     surv, fsum, removed, done = scratch.surv, scratch.fsum, scratch.removed, scratch.done
     n_worlds, n_agents = pos.shape[0], pos.shape[1]
     n_support = dr.shape[0]
-    weight = w.target_weight
-    targets_on = weight.shape[1] > 0
     for k in range(n_worlds):
         for i in range(n_agents):  # agent index order: the product is taken in that order
             for s in range(n_support):
@@ -172,16 +169,12 @@ def sense(w, support, c_coef, scratch, collected, collected_targets):
                 removed[0, r, c] = np.float64(old_p) - np.float64(p[k, r, c])
                 removed[1, r, c] = np.float64(old_u) - np.float64(u[k, r, c])
         for i in range(n_agents):
-            total, expected = 0.0, 0.0
+            total = 0.0
             for s in range(n_support):
                 r, c = pos[k, i, 0] + h + dr[s], pos[k, i, 1] + h + dc[s]
                 if fsum[r, c] > 0.0:
                     total += (removed[0, r, c] + removed[1, r, c]) * (c_coef[k] * g[s]) / fsum[r, c]
-                    if targets_on:
-                        expected += removed[0, r, c] * np.float64(weight[k, r, c]) * (c_coef[k] * g[s]) / fsum[r, c]
             collected[k, i] = total
-            if targets_on:
-                collected_targets[k, i] = expected
 
 
 @njit(cache=_CACHE)

@@ -1,4 +1,5 @@
-"""Per-world reset (§4.1): draw a scenario and write it into the batched state, other worlds untouched."""
+"""Per-world reset (§4.1): draw a world (sizes, prior, then the scenario's obstacles and targets) and write it into
+the batched state, other worlds untouched. The order of the draws is searchrl/world/scenario.py's spec."""
 
 from __future__ import annotations
 
@@ -7,42 +8,9 @@ import numpy as np
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import team_sensing_rate
 from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
+from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
-
-_MAX_TARGET_ROUNDS = 1_000
-
-
-def keep_probability(u: np.ndarray) -> np.ndarray:
-    """The second stage of §4.1.4's placement: a tentative cell is kept with probability 1 - u/max(u) (the paper's
-    `1 - u` needs u on a [0, 1] scale and u sums to 1, so we read it relative to its maximum). Same shape as u."""
-    return 1.0 - u / u.max()
-
-
-def place_targets(p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
-    """Two-stage placement of §4.1.4 on distinct free cells.
-
-    A tentative cell is drawn from p over the free cells, then kept when a uniform draw is below
-    `keep_probability(u)`. A tentative cell that already holds a target is redrawn (rejection from p restricted
-    to empty cells). Candidates are drawn in batches of `4 · count` from one CDF. p, u, free: (n, n).
-    Returns (count, 2) int64 (row, col).
-    """
-    n = p.shape[0]
-    cdf = np.cumsum(np.where(free, p, 0.0).ravel())
-    keep_prob = keep_probability(u).ravel()
-    chosen: list[int] = []
-    taken: set[int] = set()
-    for _ in range(_MAX_TARGET_ROUNDS):
-        batch = 4 * count
-        cells = np.minimum(np.searchsorted(cdf, rng.random(batch) * cdf[-1], side="right"), n * n - 1)
-        keep = rng.random(batch) < keep_prob[cells]
-        for cell in cells[keep].tolist():
-            if cell not in taken:
-                taken.add(cell)
-                chosen.append(cell)
-                if len(chosen) == count:
-                    return np.stack(np.divmod(np.array(chosen, np.int64), n), axis=1)
-    raise RuntimeError(f"could not place {count} targets in {_MAX_TARGET_ROUNDS} batches (maps too peaked?)")
 
 
 def _unit_scale(peak: np.float32) -> np.float32:
@@ -53,19 +21,6 @@ def _unit_scale(peak: np.float32) -> np.float32:
     return scale
 
 
-def _draw_obstacles(
-    density: float, n: int, room: int, rng: np.random.Generator, k: int
-) -> tuple[np.ndarray | None, np.ndarray]:
-    """(obstacles or None, free) (n, n): iid obstacles at `density`, redrawn until `room` cells stay free."""
-    if density <= 0:
-        return None, np.ones((n, n), bool)
-    for _ in range(100):
-        obstacles = rng.random((n, n)) < density
-        if (~obstacles).sum() >= room:
-            return obstacles, ~obstacles
-    raise RuntimeError(f"world {k}: 100 obstacle draws at density {density} left fewer than {room} free cells")
-
-
 def draw_scenario_sizes(config: WorldConfig, rng: np.random.Generator) -> tuple[int, int, int]:
     """(n, m, j) drawn uniformly from the inclusive config ranges."""
     n = int(rng.integers(config.world_size[0], config.world_size[1] + 1))
@@ -74,8 +29,11 @@ def draw_scenario_sizes(config: WorldConfig, rng: np.random.Generator) -> tuple[
     return n, m, j
 
 
-def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.Generator) -> None:
-    """Draw a fresh scenario for world k in place: maps, obstacles, targets, agents, beliefs, counters."""
+def reset_world(
+    config: WorldConfig, state: WorldState, k: int, rng: np.random.Generator, scenario: Scenario = PAPER
+) -> None:
+    """Draw a fresh world k in place: sizes, prior maps, the scenario's obstacles and targets, agents, beliefs,
+    counters."""
     n, m, j = draw_scenario_sizes(config, rng)
     h = state.halo
     inner = (k, slice(h, h + n), slice(h, h + n))
@@ -87,12 +45,13 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
     u = uncertainty_map(
         gaussian_mixture(n, m, config.unc_variance_scale * n, config.variance_floor, config.rho_max, rng)
     )
-    obstacles, free = _draw_obstacles(config.obstacle_density, n, state.n_agents + j, rng, k)
     n_agents = state.n_agents
+    obstacles = scenario.obstacles(n, n_agents + j, rng)
+    free = np.ones((n, n), bool) if obstacles is None else ~obstacles
     if obstacles is not None:  # no target can sit on an obstacle, so it carries no information
         p, u = np.where(free, p, 0.0), np.where(free, u, 0.0)
         p, u = p / p.sum(), u / u.sum()
-    targets = place_targets(p, u, free, j, rng)
+    targets = scenario.targets(p, u, free, j, rng)
     free_for_agents = free.copy()
     free_for_agents[targets[:, 0], targets[:, 1]] = False
     start = rng.choice(np.flatnonzero(free_for_agents.ravel()), size=n_agents, replace=False)
@@ -126,17 +85,14 @@ def reset_world(config: WorldConfig, state: WorldState, k: int, rng: np.random.G
     state.n_targets[k] = j
     state.n_found[k] = 0
     state.obs_scale[k] = (_unit_scale(state.p[inner].max()), _unit_scale(state.u[inner].max()))
-    if state.target_weight.shape[1] > 0:  # info_reward="targets": p·weight sums to 1 over the world
-        keep = np.where(free, keep_probability(u), 0.0)
-        state.target_weight[k] = 0.0
-        state.target_weight[inner] = keep / (p * keep).sum()
     state.ep_return[k] = 0.0
     state.ep_comm_pairs[k] = 0
     state.ep_info[k] = 0.0
     state.ep_collisions[k] = 0
 
 
-def reset_worlds(config: WorldConfig, state: WorldState, mask: np.ndarray, rng: np.random.Generator) -> None:
+def reset_worlds(config: WorldConfig, state: WorldState, mask: np.ndarray, rng: np.random.Generator,
+                 scenario: Scenario = PAPER) -> None:  # fmt: skip
     """Reset the worlds where `mask` (K,) is true, in index order, leaving the others untouched."""
     for k in np.flatnonzero(mask):
-        reset_world(config, state, int(k), rng)
+        reset_world(config, state, int(k), rng, scenario)

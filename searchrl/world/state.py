@@ -51,9 +51,6 @@ class WorldState:
     n_targets: np.ndarray  # (K,) int64
     n_found: np.ndarray  # (K,) int64
     obs_scale: np.ndarray  # (K, 2) float32, 1 / max of the prior p and u (observation scaling)
-    # Expected targets per unit of p at reset, keep(u)/Σ p·keep(u) (§4.1.4's placement), for info_reward="targets";
-    # (K, 0, 0) otherwise.
-    target_weight: np.ndarray  # (K, S, S) float32
     # Episode accumulators (team totals), read by `episode_metrics`.
     ep_return: np.ndarray  # (K,) float64, sum of all agents' rewards
     ep_comm_pairs: np.ndarray  # (K,) int64, F: neighbour pairs summed over steps
@@ -149,7 +146,6 @@ def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
         n_targets=np.zeros(k, np.int64),
         n_found=np.zeros(k, np.int64),
         obs_scale=np.ones((k, 2), np.float32),
-        target_weight=np.zeros((k, side, side) if config.info_reward == "targets" else (k, 0, 0), np.float32),
         ep_return=np.zeros(k, np.float64),
         ep_comm_pairs=np.zeros(k, np.int64),
         ep_info=np.zeros(k, np.float64),

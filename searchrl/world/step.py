@@ -26,8 +26,6 @@ class StepResult:
     info_collected: np.ndarray  # (K, N) float64, M_p + M_u (eq. 3-4)
     comm_gain: np.ndarray  # (K, N) float64, ΔM_p + ΔM_u (eq. 15-16)
     comm_pairs: np.ndarray  # (K,) int64, unordered neighbour pairs this step
-    # (K, N) float64, M_t: the expected targets in the p each agent removed (info_reward="targets"; else 0)
-    expected_targets: np.ndarray
 
     @property
     def done(self) -> np.ndarray:
@@ -68,11 +66,7 @@ def step(
     kernels.detect_targets(w, detect, SUPPORT, targets_found)
 
     info = np.empty((k, n), np.float64)
-    expected_targets = np.zeros((k, n), np.float64)  # filled with info_reward="targets" only
-    kernels.sense(w, SUPPORT, config.sensing_rate(state.size), scratch, info, expected_targets)
-    # eq. 5 pays ξ/λ per unit of p + u removed (2 units a world); "targets" pays the same total for the targets
-    # the removed p was expected to hold (docs/world.md, "Deviations and choices").
-    paid = info if config.info_reward == "information" else 2.0 * expected_targets
+    kernels.sense(w, SUPPORT, config.sensing_rate(state.size), scratch, info)
 
     kernels.refresh_beliefs(w, config.explicit_area // 2)
 
@@ -84,7 +78,7 @@ def step(
         config.step_reward
         + config.collision_reward * collided
         + config.target_reward * targets_found
-        + (config.xi / config.lam) * paid
+        + (config.xi / config.lam) * info
         + (config.tau / config.lam) * comm_gain
     )
     state.t += 1
@@ -104,5 +98,4 @@ def step(
         info_collected=info,
         comm_gain=comm_gain,
         comm_pairs=comm_pairs,
-        expected_targets=expected_targets,
     )
