@@ -93,7 +93,8 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(err))
     try:
         if args.checkpoint:
-            from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor
+            from searchrl.controllers.policy import PolicyController
+            from searchrl.policies.checkpoint import checkpoint_config, load_actor
 
             world = WorldConfig.from_dict(checkpoint_config(args.checkpoint)[0])
         else:

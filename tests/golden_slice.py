@@ -13,10 +13,11 @@ from pathlib import Path
 import pandas as pd
 from omegaconf import OmegaConf
 
-from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor
+from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import make_controller
 from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.runner import run_cell
+from searchrl.policies.checkpoint import checkpoint_config, load_actor
 from searchrl.world.config import WorldConfig
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -78,7 +78,7 @@ def test_an_integer_world_size_is_an_n_by_n_world_everywhere() -> None:
     import searchrl
     from searchrl.envs.single_env import SearchEnv
     from searchrl.train.__main__ import CONF_DIR
-    from searchrl.train.build import team_groups
+    from searchrl.train.plan import team_groups
 
     assert WorldConfig(world_size=20).world_size == (20, 20) == WorldConfig(world_size=np.int64(20)).world_size
     assert WorldConfig(world_size=20) == WorldConfig(world_size=(20, 20))
@@ -94,12 +94,12 @@ def test_an_integer_world_size_is_an_n_by_n_world_everywhere() -> None:
     assert int(single._env.world_state.size[0]) == 20
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         teams = "env.extra_teams=[{n_agents:4,n_worlds:1,world_size:40},{n_agents:2,n_worlds:1,world_size:[30,50]}]"
-        cfg = compose(config_name="train", overrides=["+model=b", "recipe=paper", "env.world.world_size=20", teams])
+        cfg = compose(config_name="train", overrides=["+model=b", "env.world.world_size=20", teams])
         with pytest.raises(ConfigError, match=r"env.extra_teams\[0\]: world_size='big'"):
             team_groups(
                 compose(
                     config_name="train",
-                    overrides=["recipe=paper", "env.extra_teams=[{n_agents:4,n_worlds:1,world_size:big}]"],
+                    overrides=["env.extra_teams=[{n_agents:4,n_worlds:1,world_size:big}]"],
                 )
             )
     assert [(w.world_size, k) for w, k in team_groups(cfg)] == [((20, 20), 16), ((40, 40), 1), ((30, 50), 1)]

@@ -90,7 +90,7 @@ def test_checkpoint_settings_come_from_its_run(tmp_path, capsys):
     with pytest.raises(SystemExit):  # argmax actions are other episodes: not into the sampled ones' folder
         _evaluate(tmp_path / "again", f"checkpoint={model}", "deterministic=true")
     assert "deterministic: False there, True here" in capsys.readouterr().err
-    from searchrl.controllers.policy import load_actor
+    from searchrl.policies.checkpoint import load_actor
     from searchrl.world.config import WorldConfig
 
     six = WorldConfig(diagonal=True, belief_age=1.0, belief_age_channel=True)  # a sixth channel it never saw
@@ -171,7 +171,7 @@ def test_batches_threads_and_shards_change_no_episode(tmp_path, controller):
 
 
 def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
-    from searchrl.controllers.policy import checkpoint_label
+    from searchrl.policies.checkpoint import checkpoint_label
 
     run = tmp_path / "b_seed0"
     assert checkpoint_label(run / "model.zip") == "b_seed0"

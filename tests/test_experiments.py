@@ -14,9 +14,9 @@ import yaml
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+from searchrl.controllers.registry import resolved
 from searchrl.train.__main__ import CONF_DIR
-from searchrl.train.build import check_config
-from searchrl.train.command_line import recipe_arguments
+from searchrl.train.plan import make_plan
 from searchrl.train.schema import TrainConfig, saved_config
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,9 +77,19 @@ def _flat(node: Any, prefix: str = "") -> dict[str, Any]:
 def _composed(name: str, overrides: tuple[str, ...] | None = None) -> dict[str, Any]:
     """The config of `+experiment=<name>`, or of the command line `overrides` as the app composes it."""
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        cfg = compose(config_name="train", overrides=recipe_arguments(list(overrides or [f"+experiment={name}"])))
-    check_config(cfg)  # the recipe is a valid run for the current code (teacher arguments included)
+        cfg = compose(config_name="train", overrides=list(overrides or [f"+experiment={name}"]))
+    make_plan(cfg)  # the recipe is a valid run for the current code (teacher arguments included)
     return OmegaConf.to_container(cfg, resolve=True)
+
+
+def _resolved(config: dict[str, Any]) -> dict[str, Any]:
+    """`config` with its teacher written out (the registry's `resolved`): `greedy_target` with reach 2 and `greedy`
+    with target-greedy's settings and reach 2 are the same teacher."""
+    imitation = config.get("imitation") or {}
+    if imitation.get("teacher") is not None:
+        teacher, args = resolved(imitation["teacher"], imitation.get("teacher_args"))
+        config = {**config, "imitation": {**imitation, "teacher": teacher, "teacher_args": args}}
+    return config
 
 
 def _kept(flat: dict[str, Any]) -> dict[str, Any]:
@@ -100,15 +110,17 @@ def test_every_experiment_reproduces_a_shipped_folder_and_every_folder_has_one()
 
 @pytest.mark.parametrize("name", sorted(EXPERIMENTS))
 def test_experiment_composes_to_the_shipped_config(name):
-    composed = _kept(_flat(_composed(name)))
+    composed = _kept(_flat(_resolved(_composed(name))))
     loaded = saved_config(REFERENCE / EXPERIMENTS[name] / "config.yaml")  # as `resume=` reads it
-    recorded = _kept(_flat(OmegaConf.to_container(loaded)))
+    recorded = _kept(_flat(_resolved(OmegaConf.to_container(loaded))))
     # A setting the shipped run records that the code no longer has: a rerun would drop it without a word.
     gone = sorted(set(recorded) - set(composed))
     assert not gone, f"recorded by runs/reference/{EXPERIMENTS[name]}, lacking from the recipe or the code: {gone}"
     # What a rerun of the shipped run gets: its config.yaml with every setting it lacks at the schema default (as
     # `resume=` reads it), so the recipe must leave each setting added since at its default.
-    shipped = _kept(_flat(OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(TrainConfig), loaded))))
+    shipped = _kept(
+        _flat(_resolved(OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(TrainConfig), loaded))))
+    )
     assert set(composed) == set(shipped), sorted(set(composed) ^ set(shipped))
     differ = {k: (composed[k], shipped[k]) for k in sorted(shipped)
               if composed[k] != shipped[k] or type(composed[k]) is not type(shipped[k])}  # fmt: skip
@@ -137,26 +149,17 @@ def test_the_command_line_composes_an_experiment():
 
 
 @pytest.mark.parametrize("model", ["a", "b", "c", "diagonal"])
-def test_the_main_command_runs_the_shipped_recipe_of_its_model(model):
-    """`python -m searchrl.train +model=<m>` is the recipe of runs/reference/term/<m> (conf/recipe/<m>.yaml); the
-    command line still wins over it, and `recipe=paper` is the paper's recipe from scratch."""
-    assert _composed("", ("+model=" + model,)) == _composed(f"rl_term_{model}")
-    assert _composed("", ("+model=" + model, "total_timesteps=1000"))["total_timesteps"] == 1000
-    paper = _composed("", ("+model=" + model, "recipe=paper"))
+def test_a_model_alone_is_the_papers_recipe_in_that_models_world(model):
+    """`python -m searchrl.train +model=<m>` trains as the paper does (conf/train.yaml's values, RecurrentPPO from
+    scratch) in model m's world, what `+model=<m>` also means to evaluation; the shipped recipes are experiments
+    (`+experiment=rl_term_<m>`), and the command line wins over a recipe."""
+    paper = _composed("", ("+model=" + model,))
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        bare = OmegaConf.to_container(compose(config_name="train", overrides=["recipe=paper"]), resolve=True)
+        bare = OmegaConf.to_container(compose(config_name="train"), resolve=True)
     assert {k: v for k, v in paper.items() if k not in ("model", "env")} == {
         k: v for k, v in bare.items() if k not in ("model", "env")
     }
     assert paper["init"] is None and paper["imitation"]["teacher"] is None and paper["total_timesteps"] == 18400000
-
-
-def test_a_command_line_without_a_model_gets_the_papers_recipe_and_a_recipe_fixes_its_network(capsys):
-    assert recipe_arguments(["resume=runs/x", "threads=2"]) == ["resume=runs/x", "threads=2", "recipe=paper"]
-    assert recipe_arguments(["--help"]) == ["--help", "recipe=paper"]
-    for argv in (["+model=b"], ["+experiment=clone_b"], ["+model=b", "recipe=paper", "network=paper"]):
-        assert recipe_arguments(argv) == argv
-    with pytest.raises(SystemExit):
-        recipe_arguments(["+model=b", "network=paper"])
-    line = capsys.readouterr().err.strip()
-    assert line.startswith("error: network=") and "recipe=paper" in line and len(line.splitlines()) == 1
+    assert paper["model"]["name"] == model and paper["env"]["world"] == _composed(f"rl_{model}")["env"]["world"]
+    shipped = _composed("", (f"+experiment=rl_term_{model}", "total_timesteps=1000"))
+    assert shipped["total_timesteps"] == 1000 and shipped["init"] == f"runs/reference/{model}/model.zip"

@@ -10,10 +10,11 @@ import torch
 from sb3_contrib import RecurrentPPO
 from stable_baselines3 import PPO
 
+from searchrl.controllers.registry import make_teacher
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.extractor import SearchCNN
-from searchrl.train.imitation import clone, collect, discounted_returns, lr_factor, make_teacher
+from searchrl.train.imitation import clone, collect, discounted_returns, lr_factor
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 

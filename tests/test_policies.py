@@ -10,24 +10,27 @@ from hydra import compose, initialize_config_dir
 from searchrl.controllers.policy import PolicyController
 from searchrl.policies.actor import Actor, sample_actions
 from searchrl.train.__main__ import CONF_DIR
-from searchrl.train.build import make_algorithm, make_vec_env, world_config
+from searchrl.train.build import make_algorithm, make_vec_env
+from searchrl.train.plan import make_plan
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_world
 from searchrl.world.state import allocate
 from searchrl.world.step import step
 
 SMALL = ["env.n_worlds=3", "env.world.n_agents=4", "env.world.world_size=[12,20]", "network=small", "threads=1",
-         "algo.batch_size=128", "recipe=paper"]  # fmt: skip
+         "algo.batch_size=128"]  # fmt: skip
 
 
 def _model(algo: str, *overrides: str):
+    small = [o for o in SMALL if algo != "a2c" or "batch_size" not in o]  # A2C has no minibatches
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        cfg = compose(config_name="train", overrides=["+model=b", f"algo={algo}", *SMALL, *overrides])
+        cfg = compose(config_name="train", overrides=["+model=b", f"algo={algo}", *small, *overrides])
     torch.manual_seed(0)
-    model = make_algorithm(cfg, make_vec_env(cfg, seed=0), tensorboard_log=None)
+    plan = make_plan(cfg)
+    model = make_algorithm(plan, make_vec_env(plan, seed=0))
     with torch.no_grad():  # SB3 initialises the head with gain 0.01: make the distribution peaked
         model.policy.action_net.weight.mul_(2000)
-    return cfg, model
+    return plan, model
 
 
 def _sb3_probs(policy, obs: dict, lstm, starts: np.ndarray):
@@ -40,15 +43,15 @@ def _sb3_probs(policy, obs: dict, lstm, starts: np.ndarray):
         return dist.distribution.probs.numpy(), lstm
 
 
-@pytest.mark.parametrize("algo", ["recurrent_ppo", "ppo"])
+@pytest.mark.parametrize("algo", ["recurrent_ppo", "a2c"])
 def test_actor_gives_the_policys_own_distribution(algo):
     """Over an episode with resets inside it, the traced actor's softmax equals SB3's get_distribution."""
-    cfg, model = _model(algo)
+    plan, model = _model(algo)
     policy = model.policy
     policy.set_training_mode(False)
     actor = Actor(policy)
     assert isinstance(actor._extract, torch.jit.ScriptModule)  # the optimised path, not the eager fallback
-    env = make_vec_env(cfg, seed=1)
+    env = make_vec_env(plan, seed=1)
     obs = env.reset()
     slots = env.num_envs
     rng = np.random.default_rng(0)
@@ -80,8 +83,8 @@ def test_sample_actions_follows_the_probabilities_and_the_seed():
 
 def _three_worlds():
     """(world config, actor of an untrained recurrent policy, state of 3 freshly reset worlds)."""
-    cfg, model = _model("recurrent_ppo")
-    config = world_config(cfg)
+    plan, model = _model("recurrent_ppo")
+    config = plan.world
     state = allocate(config, 3)
     for w in range(3):
         reset_world(config, state, w, np.random.default_rng(w))

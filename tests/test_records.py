@@ -250,7 +250,8 @@ def test_run_cell_observes_for_the_controller_unless_told_it_needs_no_observatio
 def test_run_cell_lets_a_policy_act_in_every_running_world_and_keeps_each_columns_type():
     from pathlib import Path
 
-    from searchrl.controllers.policy import PolicyController, load_actor
+    from searchrl.controllers.policy import PolicyController
+    from searchrl.policies.checkpoint import load_actor
 
     world = WorldConfig()
     actor = load_actor(Path(__file__).resolve().parents[1] / "runs" / "reference" / "b" / "model.zip", world)

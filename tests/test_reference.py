@@ -13,11 +13,12 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from searchrl.controllers.policy import PolicyController, checkpoint_config
+from searchrl.controllers.policy import PolicyController
+from searchrl.controllers.registry import make_teacher
 from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import cell_config
-from searchrl.train.imitation import make_teacher
+from searchrl.policies.checkpoint import checkpoint_config
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_world

@@ -12,9 +12,8 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from searchrl.controllers.greedy import FootprintGreedy
-from searchrl.controllers.registry import HEURISTICS, allowed, heuristic, make_controller
+from searchrl.controllers.registry import HEURISTICS, TEACHERS, allowed, heuristic, make_controller, make_teacher
 from searchrl.evaluate.__main__ import CONF_DIR, make_controller_factory
-from searchrl.train.imitation import TEACHERS, make_teacher
 from searchrl.world.config import ConfigError, WorldConfig
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -17,7 +17,7 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.train.__main__ import train
-from searchrl.train.build import world_config
+from searchrl.train.plan import make_plan
 from searchrl.train.validation import run_episodes
 from tests.test_train import TINY, _compose, _run
 
@@ -153,7 +153,9 @@ def test_an_init_run_validates_its_starting_weights_at_step_0(tmp_path, finished
     assert rows["time/total_timesteps"].tolist() == [0, 256, 256]  # step 0, the rollout, the final validation
     cfg = _compose(overrides)
     v = cfg.validation
-    expected = run_episodes(world_config(cfg), int(v.n_worlds), int(v.seed), RecurrentPPO.load(source), v.deterministic)
+    expected = run_episodes(
+        make_plan(cfg).world, int(v.n_worlds), int(v.seed), RecurrentPPO.load(source), v.deterministic
+    )
     assert {name: rows[f"val/{name}"].iloc[0] for name in expected} == pytest.approx(expected)  # the init weights
     _resume(run, 512)
     assert _steps(run) == [0, 256, 256, 512, 512]  # one step-0 row: a resume starts from its checkpoint
@@ -175,7 +177,7 @@ def test_a_run_folder_made_before_scenarios_and_removed_options_resumes(tmp_path
     05d7673 (its config.yaml holds the world's context, info_reward and obstacle_density, the network's context
     widths and imitation.dagger_rounds; its checkpoint's policy_kwargs the context widths). It resumes to 2048
     under the paper's scenario and its checkpoint evaluates."""
-    from searchrl.controllers.policy import load_actor
+    from searchrl.policies.checkpoint import load_actor
     from searchrl.world.config import WorldConfig
 
     run = tmp_path / "run"

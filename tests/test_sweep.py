@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 TINY = ["+model=b", "total_timesteps=512", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,20]",
         "env.world.n_targets=[2,4]", "env.world.n_distributions=[4,8]", "network=small", "algo.batch_size=128",
         "checkpoint_every=1024", "validation.every=256", "validation.n_worlds=2", "progress_bar=false",
-        "threads=1", "recipe=paper"]  # fmt: skip
+        "threads=1"]  # fmt: skip
 
 
 def _optuna(sweep_dir: Path, storage: Path, trials: int) -> subprocess.CompletedProcess:

@@ -6,9 +6,10 @@ from pathlib import Path
 
 import torch
 
-from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor, load_checkpoint
+from searchrl.controllers.policy import PolicyController
 from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.runner import cell_config, run_cell
+from searchrl.policies.checkpoint import checkpoint_config, load_actor, load_checkpoint
 from searchrl.train.validation import run_episodes
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import IidObstacles, Scenario

@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     if checkpoint and getattr(args, "controller", None):
         parser.error("--controller cannot apply with --checkpoint: give one of them")
     if checkpoint:  # read it now: a corrupt file or run config is named before any measurement
-        from searchrl.controllers.policy import checkpoint_config, load_checkpoint
+        from searchrl.policies.checkpoint import checkpoint_config, load_checkpoint
 
         try:
             load_checkpoint(checkpoint, checkpoint_config(checkpoint)[1], device="cpu")

@@ -9,10 +9,11 @@ from typing import TextIO
 
 import torch
 
-from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
+from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import make_controller
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
+from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
 from searchrl.world.config import WorldConfig
 
 FULL_EPISODES_PER_CELL = 100 * 5

@@ -10,9 +10,10 @@ from typing import TextIO
 import numpy as np
 import torch
 
-from searchrl.controllers.policy import PolicyController, checkpoint_config, load_actor, load_checkpoint
+from searchrl.controllers.policy import PolicyController
 from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.runner import cell_config
+from searchrl.policies.checkpoint import checkpoint_config, load_actor, load_checkpoint
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_world

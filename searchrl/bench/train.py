@@ -13,7 +13,8 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from searchrl.train.__main__ import CONF_DIR
-from searchrl.train.build import attach_teacher, label_env, make_algorithm, make_vec_env, rollout_size
+from searchrl.train.build import make_algorithm, make_vec_env
+from searchrl.train.plan import make_plan
 from searchrl.train.teacher_labels import TeacherLabels
 
 
@@ -31,23 +32,23 @@ def run(updates: int = 4, threads: int = 2, network: str = "paper", experiment: 
         log: TextIO | None = None) -> list[dict]:  # fmt: skip
     """One run of `updates` rollouts (plus one warm-up rollout, not timed); `experiment` composes
     `+experiment=<name>` (its own model and network) instead of model B on the paper's recipe with `network`."""
-    overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", "recipe=paper", f"network={network}"]
+    overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", f"network={network}"]
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose(config_name="train", overrides=[*overrides, f"threads={threads}"])
     # The few timed rollouts would all fall in a recipe's critic warm-up (its first rollouts, value-only updates):
     # time the updates the rest of the run makes.
     cfg.imitation.critic_warmup = 0
     torch.set_num_threads(threads)
-    base = make_vec_env(cfg, seed=0)
-    env = label_env(cfg, base)
+    plan = make_plan(cfg)
+    env = make_vec_env(plan, seed=0)
+    base = env.venv if isinstance(env, TeacherLabels) else env
     spent = {"env": [0.0], "labels": [0.0], "update": [0.0]}
     base.step_wait = _timed(base.step_wait, spent["env"])
     if isinstance(env, TeacherLabels):
         env._label = _timed(env._label, spent["labels"])
-    model = make_algorithm(cfg, env, tensorboard_log=None)
-    attach_teacher(cfg, model, env)
+    model = make_algorithm(plan, env)
     model.train = _timed(model.train, spent["update"])
-    rollout = rollout_size(cfg)
+    rollout = plan.rollout
     model.learn(rollout)  # warm-up: numba cache, torch kernels
     for total in spent.values():
         total[0] = 0.0

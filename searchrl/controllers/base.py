@@ -64,16 +64,9 @@ class RandomWalk:
         return self.rng.integers(0, self.config.n_actions, size=(state.n_worlds, state.n_agents))
 
 
-class FallbackHeuristic:
+class FallbackHeuristic(RandomWalk):
     """Shell of the compiled heuristics (surfing, greedy): a kernel fills the (K, N) actions from the state, and
-    agents with nothing to follow take a uniformly random move (never stay) drawn here from a seeded generator."""
-
-    def __init__(self, config: WorldConfig, seed: int | WorldStreams = 0) -> None:
-        self.config = config
-        self.rng = random_source(seed)
-
-    def reset(self, state: WorldState, mask: np.ndarray) -> None:
-        pass
+    agents with nothing to follow take a uniformly random move (never stay), drawn as the random walk draws."""
 
     def act(
         self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None

@@ -123,7 +123,7 @@ class CoverageConfig(ControllerConfig):
 class GeometricCoverage:
     """Batched coverage controller; `radius` sets the lane spacing (2·radius + 1)."""
 
-    def __init__(self, config: WorldConfig, radius: int = 1) -> None:
+    def __init__(self, config: WorldConfig, radius: int = CoverageConfig.radius) -> None:  # CoverageConfig's default
         if radius < 0:
             raise ValueError(f"radius={radius!r} is not allowed: must be >= 0")
         self.config, self.radius = config, radius

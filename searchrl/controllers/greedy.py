@@ -235,9 +235,11 @@ class GreedyTargetConfig(GreedyConfig):
 class FootprintGreedy(FallbackHeuristic):
     """Batched footprint-greedy controller; parameters are config values of `controller=greedy`."""
 
-    def __init__(self, config: WorldConfig, horizon: int = 2, discount: float = 0.7, w_p: float = 0.6,
-                 w_u: float = 0.4, w_t: float = 0.0, contested: float = 1.0, reach: float = 0.0,
-                 seen: bool = False, age: float = 0.0,
+    # Defaults are GreedyConfig's (the schema `controller=greedy` composes), read from it, written once.
+    def __init__(self, config: WorldConfig, horizon: int = GreedyConfig.horizon,
+                 discount: float = GreedyConfig.discount, w_p: float = GreedyConfig.w_p, w_u: float = GreedyConfig.w_u,
+                 w_t: float = GreedyConfig.w_t, contested: float = GreedyConfig.contested,
+                 reach: float = GreedyConfig.reach, seen: bool = GreedyConfig.seen, age: float = GreedyConfig.age,
                  seed: int | WorldStreams = 0) -> None:  # fmt: skip
         view = config.fov // 2
         if not 1 <= horizon <= view:

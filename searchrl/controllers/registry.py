@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import inspect
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, get_type_hints
 
 from searchrl.controllers.base import Controller, ControllerConfig, RandomConfig, RandomWalk
 from searchrl.controllers.coverage import CoverageConfig, GeometricCoverage
@@ -51,6 +51,16 @@ HEURISTICS: dict[str, Heuristic] = {
 }
 
 
+def resolved(name: str, settings: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
+    """(the name results are recorded under, every setting) of controller `name` with `settings`: a preset and the
+    same settings spelled out give the same pair (`greedy_target` with reach 2 is `greedy` with horizon 3, w_p 0,
+    w_u 0, w_t 1 and reach 2); numbers take their field's type (a YAML's 0 is the float 0.0 of w_p)."""
+    entry = heuristic(name)
+    types = get_type_hints(entry.schema)
+    values = {**entry.settings(), **(settings or {})}
+    return entry.label, {k: float(v) if types.get(k) is float else v for k, v in values.items()}
+
+
 def allowed() -> str:
     """The registered names, comma-separated, for error messages."""
     return ", ".join(HEURISTICS)
@@ -77,3 +87,20 @@ def make_controller(name: str, config: WorldConfig, seed: int | WorldStreams = 0
     if "seed" in inspect.signature(entry.cls).parameters:
         values["seed"] = seed
     return entry.cls(config, **values)
+
+
+TEACHERS: tuple[str, ...] = tuple(name for name in HEURISTICS if name != "random")
+
+
+def make_teacher(teacher: str, config: WorldConfig, seed: int | WorldStreams, args: dict | None = None) -> Controller:
+    """The teacher's controller; ConfigError naming `imitation.teacher` or `imitation.teacher_args` if either is
+    not allowed (an unknown teacher, an argument its controller does not take, or a value it refuses)."""
+    if teacher not in TEACHERS:
+        raise ConfigError(f"imitation.teacher={teacher!r} is not allowed: one of {', '.join(TEACHERS)}, or null")
+    args = dict(args or {})
+    if "seed" in args:
+        raise ConfigError("imitation.teacher_args.seed is not allowed: the teacher is seeded from the run's seed")
+    try:
+        return make_controller(teacher, config, seed=seed, settings=args, key="imitation.teacher")
+    except (TypeError, ValueError) as err:
+        raise ConfigError(f"imitation.teacher_args={args} is not allowed for teacher {teacher!r}: {err}") from err

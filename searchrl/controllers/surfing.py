@@ -113,8 +113,11 @@ class SurfingConfig(ControllerConfig):
 class InformationSurfing(FallbackHeuristic):
     """Batched information-surfing controller; parameters are config values of `controller=surfing`."""
 
-    def __init__(self, config: WorldConfig, scales: tuple[int, ...] = (1, 3), w_p: float = 0.6,
-                 w_u: float = 0.4, repulsion: float = 0.4, seed: int | WorldStreams = 0) -> None:  # fmt: skip
+    # Defaults are SurfingConfig's (the schema `controller=surfing` composes), read from it, written once.
+    def __init__(self, config: WorldConfig, scales: tuple[int, ...] | None = None, w_p: float = SurfingConfig.w_p,
+                 w_u: float = SurfingConfig.w_u, repulsion: float = SurfingConfig.repulsion,
+                 seed: int | WorldStreams = 0) -> None:  # fmt: skip
+        scales = SurfingConfig().scales if scales is None else scales
         if not scales or min(scales) < 1:
             raise ValueError(f"scales={list(scales)!r} is not allowed: one or more positive block sizes")
         if not (0 <= w_p < math.inf and 0 <= w_u < math.inf and 0 <= repulsion < math.inf) or w_p + w_u == 0:

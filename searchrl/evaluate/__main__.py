@@ -31,14 +31,15 @@ from omegaconf.errors import OmegaConfBaseException
 from tqdm import tqdm
 
 from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, write_atomic
-from searchrl.controllers.policy import PolicyController, checkpoint_config, checkpoint_label, load_actor
+from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import heuristic, make_controller
 from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
-from searchrl.train.schema import override_keys
+from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
+from searchrl.schema import override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.scenario import Scenario
 from searchrl.world.streams import WorldStreams

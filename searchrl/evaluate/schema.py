@@ -7,13 +7,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
 from searchrl.controllers.registry import HEURISTICS
-from searchrl.train.schema import EnvConfig, ModelConfig
-from searchrl.train.schema import register_configs as register_train_configs
-from searchrl.world.scenario import PAPER
+from searchrl.schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
 
 
 @dataclass
@@ -34,7 +31,7 @@ class EvaluateConfig:
     checkpoint: str | None = None  # a trained model.zip: evaluated instead of the controller, with its own settings
     deterministic: bool = False  # policies: argmax instead of sampled actions
     # What a reset draws besides the sizes and the prior (conf/scenario/); any scenario applies to a checkpoint too.
-    scenario: dict[str, Any] = field(default_factory=lambda: PAPER.to_dict())
+    scenario: dict[str, Any] = field(default_factory=scenario_default)
     grid: GridConfig = field(default_factory=GridConfig)
     seed: int = 7_000_000  # evaluation map seeds: base + 100000·cell + map, disjoint from training and validation
     shard: int = 0  # this job evaluates cells shard, shard + num_shards, …
@@ -48,8 +45,7 @@ class EvaluateConfig:
 
 
 def register_configs() -> None:
-    register_train_configs()  # env and model groups are shared with training
-    cs = ConfigStore.instance()
+    cs = register_shared_configs()  # env and model groups are shared with training
     cs.store(name="evaluate_schema", node=EvaluateConfig)
     for name, entry in HEURISTICS.items():
         cs.store(group="controller", name=f"{name}_schema", node=entry.schema)

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 from sb3_contrib import RecurrentPPO
-from stable_baselines3 import A2C, PPO
+from stable_baselines3 import A2C
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 ALGORITHMS: dict[str, tuple[type[BaseAlgorithm], str]] = {
     "recurrent_ppo": (RecurrentPPO, "MultiInputLstmPolicy"),
-    "ppo": (PPO, "MultiInputPolicy"),
     "a2c": (A2C, "MultiInputPolicy"),
 }

@@ -1,5 +1,5 @@
-"""The command line before Hydra reads it: what `python -m searchrl.train` checks and adds to `sys.argv` first,
-and the one-line refusal (`fail`) every check of the training app uses."""
+"""The command line before Hydra reads it: what `python -m searchrl.train` checks in `sys.argv` first, and the
+one-line refusal (`fail`) every check of the training app uses."""
 
 from __future__ import annotations
 
@@ -20,17 +20,3 @@ def check_resume_argument(argv: list[str]) -> None:
         value = arg.split("=", 1)[1] if arg.startswith("resume=") else "null"
         if value != "null" and not (value and Path(value).is_dir()):
             fail(f"{arg} is not allowed: a run folder (with config.yaml and checkpoints/)")
-
-
-def recipe_arguments(argv: list[str]) -> list[str]:
-    """The command line as Hydra gets it. conf/train.yaml picks the recipe by the model (`optional recipe:
-    ${model}`), which Hydra cannot resolve when no model is chosen: such a command line (a resume, whose model is in
-    its saved config; `--help`; a missing model, which check_model then names) gets `recipe=paper`, the paper's
-    values. A model's recipe fine-tunes its shipped clone and so fixes the network: `network=` with it is refused."""
-    keys = {arg.split("=", 1)[0].lstrip("+") for arg in argv if "=" in arg and not arg.startswith("-")}
-    if "network" in keys and "model" in keys and not keys & {"recipe", "experiment"}:
-        fail("network= does not apply to a model's recipe (conf/recipe/<model>.yaml), which starts from the shipped "
-             "clone and so has its network: add recipe=paper to train another network from scratch")  # fmt: skip
-    if keys & {"model", "experiment", "recipe"}:
-        return argv
-    return [*argv, "recipe=paper"]

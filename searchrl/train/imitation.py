@@ -30,32 +30,15 @@ import torch
 from sb3_contrib.common.recurrent.policies import RecurrentActorCriticPolicy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
-from searchrl.controllers.base import Controller
-from searchrl.controllers.registry import HEURISTICS, make_controller
-from searchrl.policies.teacher_term import value_parameters
+from searchrl.controllers.registry import make_teacher
+from searchrl.train.teacher_term import value_parameters
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.scenario import PAPER, Scenario
 
+
 # The registry's controllers but the random walk (nothing to clone); without teacher_args a teacher has the settings
 # of controller=<name>.
-TEACHERS: tuple[str, ...] = tuple(name for name in HEURISTICS if name != "random")
-
-
-def make_teacher(teacher: str, config: WorldConfig, seed: int, args: dict | None = None) -> Controller:
-    """The teacher's controller; ConfigError naming `imitation.teacher` or `imitation.teacher_args` if either is
-    not allowed (an unknown teacher, an argument its controller does not take, or a value it refuses)."""
-    if teacher not in TEACHERS:
-        raise ConfigError(f"imitation.teacher={teacher!r} is not allowed: one of {', '.join(TEACHERS)}, or null")
-    args = dict(args or {})
-    if "seed" in args:
-        raise ConfigError("imitation.teacher_args.seed is not allowed: the teacher is seeded from the run's seed")
-    try:
-        return make_controller(teacher, config, seed=seed, settings=args, key="imitation.teacher")
-    except (TypeError, ValueError) as err:
-        raise ConfigError(f"imitation.teacher_args={args} is not allowed for teacher {teacher!r}: {err}") from err
-
-
 @dataclass
 class Demonstrations:
     """S sequences of T steps, one per slot and teacher episode."""

@@ -1,65 +1,22 @@
 """Hydra schemas: one dataclass per config group, registered in the ConfigStore and named by the YAML files in
 `conf/` (`defaults: [<group>_schema]`). They live outside `__main__` so submitit can unpickle them.
 
-conf/env       -> EnvConfig     (world: WorldConfig, the engine's own validated dataclass)
-conf/model     -> ModelConfig   (a model preset also writes Φ, communication, actions into env.world)
-conf/algo      -> RecurrentPPOConfig | PPOConfig | A2CConfig
+conf/env, conf/model, conf/scenario -> searchrl/schema.py (shared with evaluation)
+conf/algo      -> RecurrentPPOConfig | A2CConfig
 conf/network   -> NetworkConfig
 conf/train.yaml-> TrainConfig
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, make_dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, get_type_hints
+from typing import Any
 
-from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
-from searchrl.world.config import ANY, RETIRED_FIELDS, WorldConfig, drop_retired
-from searchrl.world.scenario import PAPER
-
-# WorldConfig's fields as a Hydra schema: the same names, types and defaults (types and unknown keys are checked at
-# composition), but `world_size` untyped so that an integer (`env.world.world_size=20`, every world 20×20) composes
-# as well as a range `[20, 128]`. WorldConfig itself checks every value again when the run builds it.
-WorldSchema = make_dataclass(
-    "WorldSchema",
-    [(f.name, Any if f.name == "world_size" else get_type_hints(WorldConfig)[f.name], field(default=f.default))
-     for f in fields(WorldConfig)],
-)  # fmt: skip
-WorldSchema.__module__ = __name__  # pickled by reference (submitit unpickles configs)
-
-
-def _world_node() -> DictConfig:
-    """WorldSchema as a typed node."""
-    return OmegaConf.structured(WorldSchema)
-
-
-@dataclass
-class TeamConfig:
-    n_agents: int = MISSING  # N of this group's worlds
-    n_worlds: int = MISSING  # K of this group
-    # [n_min, n_max] of this group's worlds, or n (every world n×n); null keeps env.world.world_size. Lets a clone
-    # see the crowded large worlds of the evaluation grid (n = 160, N = 256) that the training range [20, 128] never
-    # holds. Untyped so that both forms compose; WorldConfig checks it.
-    world_size: Any = None
-
-
-@dataclass
-class EnvConfig:
-    world: Any = field(default_factory=_world_node)
-    n_worlds: int = 16  # K worlds per VecEnv: K·N slots share the policy
-    # More groups of worlds with other team sizes in the same rollout (`TeamMixVecEnv`), e.g.
-    # 'env.extra_teams=[{n_agents:32,n_worlds:4},{n_agents:128,n_worlds:1,world_size:[80,160]}]'. Empty (the
-    # paper): every world has env.world.n_agents.
-    extra_teams: list[TeamConfig] = field(default_factory=list)
-
-
-@dataclass
-class ModelConfig:
-    name: str = MISSING  # a, b, c, diagonal (trainable) or a heuristic (surfing, coverage, random)
-    trainable: bool = True
+from searchrl.schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
+from searchrl.world.config import ANY, RETIRED_FIELDS, drop_retired
 
 
 @dataclass
@@ -83,16 +40,11 @@ class AlgoConfig:
 
 
 @dataclass
-class PPOConfig(AlgoConfig):
-    name: str = "ppo"
+class RecurrentPPOConfig(AlgoConfig):
+    name: str = "recurrent_ppo"  # sb3-contrib's RecurrentPPO; the LSTM size comes from the network group
     batch_size: int = 1024
     n_epochs: int = 4
     clip_range: float = 0.2
-
-
-@dataclass
-class RecurrentPPOConfig(PPOConfig):
-    name: str = "recurrent_ppo"  # same hyperparameters; the LSTM size comes from the network group
 
 
 @dataclass
@@ -128,7 +80,7 @@ class ImitationConfig:
     learning_rate: float = 1e-3
     # "linear": each fit's rate falls from learning_rate to 0 over its minibatches; "constant" keeps it.
     lr_schedule: str = "constant"
-    # During RL (searchrl/policies/teacher_term.py): PPO's loss gains rl_weight × the cross-entropy toward the
+    # During RL (searchrl/train/teacher_term.py): PPO's loss gains rl_weight × the cross-entropy toward the
     # teacher's action on every state the learner visits (0: plain PPO); "linear" takes the weight to 0 by the end
     # of the run. epochs=0 skips the clone (say with init= a clone made before).
     rl_weight: float = 0.0
@@ -148,7 +100,7 @@ class TrainConfig:
     imitation: ImitationConfig = field(default_factory=ImitationConfig)
     # What a reset draws besides the sizes and the prior: obstacles, where the targets lie (conf/scenario/,
     # searchrl/world/scenario.py); the paper's by default.
-    scenario: dict[str, Any] = field(default_factory=lambda: PAPER.to_dict())
+    scenario: dict[str, Any] = field(default_factory=scenario_default)
     seed: int = 0
     total_timesteps: int = 18_400_000  # agent-steps; the paper's ≈ 9000 episodes × 8 agents × 256 steps
     checkpoint_every: int = 500_000  # agent-steps
@@ -182,11 +134,6 @@ def saved_config(path: str | Path) -> DictConfig:
     return OmegaConf.create(drop_retired(loaded, RETIRED_SETTINGS))
 
 
-def override_keys(overrides: list[str]) -> list[str]:
-    """The keys a command line's Hydra overrides set: `+a.b=1`, `~a.b`, `a.b=1` -> `a.b`."""
-    return [o.split("=", 1)[0].lstrip("+~") for o in overrides]
-
-
 def run_dir(resume: str | None, model: str, seed: int, now: str) -> str:
     """Hydra's output folder: a new run under runs/train/, or, on resume, a log folder inside the resumed run."""
     return f"{resume}/resumed/{now}" if resume else f"runs/train/{model}/{now}_seed{seed}"
@@ -195,11 +142,8 @@ def run_dir(resume: str | None, model: str, seed: int, now: str) -> str:
 def register_configs() -> None:
     if not OmegaConf.has_resolver("searchrl_run_dir"):
         OmegaConf.register_new_resolver("searchrl_run_dir", run_dir)
-    cs = ConfigStore.instance()
+    cs = register_shared_configs()
     cs.store(name="train_schema", node=TrainConfig)
-    cs.store(group="env", name="env_schema", node=EnvConfig)
-    cs.store(group="model", name="model_schema", node=ModelConfig)
     cs.store(group="network", name="network_schema", node=NetworkConfig)
     cs.store(group="algo", name="recurrent_ppo_schema", node=RecurrentPPOConfig)
-    cs.store(group="algo", name="ppo_schema", node=PPOConfig)
     cs.store(group="algo", name="a2c_schema", node=A2CConfig)

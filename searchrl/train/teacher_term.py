@@ -26,7 +26,6 @@ import numpy as np
 import torch
 from sb3_contrib import RecurrentPPO
 from sb3_contrib.common.recurrent.buffers import RecurrentDictRolloutBuffer
-from stable_baselines3 import PPO
 from stable_baselines3.common.buffers import DictRolloutBuffer
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.utils import explained_variance
@@ -225,8 +224,4 @@ class TeacherRecurrentPPO(TeacherTerm, RecurrentPPO):
     """RecurrentPPO with the teacher term and critic warm-up."""
 
 
-class TeacherPPO(TeacherTerm, PPO):
-    """PPO with the teacher term and critic warm-up."""
-
-
-TEACHER_ALGORITHMS: dict[str, type] = {"recurrent_ppo": TeacherRecurrentPPO, "ppo": TeacherPPO}
+TEACHER_ALGORITHMS: dict[str, type] = {"recurrent_ppo": TeacherRecurrentPPO}

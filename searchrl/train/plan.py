@@ -1,0 +1,254 @@
+"""A training run's plan: its composed config checked once and read once into the objects every later step uses.
+
+`make_plan(cfg)` refuses a bad value with one ConfigError naming it and what is allowed, before any work or file;
+what it returns holds the world of each group of worlds, the scenario, the teacher (validated by building it), the
+algorithm class and the rollout size, so nothing downstream reads or checks the config again
+(searchrl/train/__main__.py builds env, algorithm, teacher and callbacks from it in one flat sequence).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import zipfile
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import Any
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+from stable_baselines3.common.base_class import BaseAlgorithm
+
+from searchrl.controllers.registry import make_teacher
+from searchrl.policies.algorithms import ALGORITHMS
+from searchrl.policies.extractor import SearchCNN
+from searchrl.schema import override_keys
+from searchrl.train.imitation import lr_factor
+from searchrl.train.schema import A2CConfig, RecurrentPPOConfig
+from searchrl.train.teacher_term import TEACHER_ALGORITHMS, check_settings
+from searchrl.world.config import ConfigError, WorldConfig, need
+from searchrl.world.scenario import Scenario
+
+ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "a2c": A2CConfig}
+TRAINABLE_MODELS = ("a", "b", "c", "diagonal")
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What a run is built from. `groups[0]` is env.world with env.n_worlds, then one per env.extra_teams entry."""
+
+    cfg: DictConfig  # the composed config, total_timesteps and checkpoint_every rounded up to whole rollouts
+    groups: tuple[tuple[WorldConfig, int], ...]  # (world config, K worlds) per group
+    scenario: Scenario
+    teacher: str | None  # imitation.teacher: a heuristic of the registry, or None
+    teacher_args: dict[str, Any]  # its settings (imitation.teacher_args)
+    algorithm: type[BaseAlgorithm]  # SB3's class, or its teacher-term subclass (searchrl/train/teacher_term.py)
+    teacher_term: bool  # RL with the teacher term or critic warm-up
+    rollout: int  # agent-steps of one rollout: algo.n_steps × every group's K·N
+    notes: tuple[str, ...]  # what the run will not use, or rounds, said before it starts
+
+    @property
+    def world(self) -> WorldConfig:
+        return self.groups[0][0]
+
+    @property
+    def clones(self) -> bool:
+        """A warm start: the teacher is cloned before RL."""
+        return self.teacher is not None and int(self.cfg.imitation.epochs) > 0
+
+
+def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
+    """Check every setting of `cfg` (a composed train config) and read it into a Plan holding a copy of it;
+    ConfigError naming the first bad value. `overrides` (the command line's) only choose the notes on settings the
+    run will not use."""
+    cfg = copy.deepcopy(cfg)  # rounded to whole rollouts below; the caller's stays as composed
+    check_model(cfg)
+    algorithm = check_algo(cfg)
+    groups = tuple(team_groups(cfg))
+    scenario = Scenario.from_dict(OmegaConf.to_container(cfg.scenario, resolve=True) if "scenario" in cfg else None)
+    for world, _ in groups:
+        scenario.check(world)
+    check_device(str(cfg.device))
+    check_numbers(cfg)
+    rollout = int(cfg.algo.n_steps) * sum(k * world.n_agents for world, k in groups)
+    batch = cfg.algo.get("batch_size")
+    need(batch is None or 1 <= int(batch) <= rollout, "algo.batch_size", batch, f"1 <= batch_size <= rollout "
+         f"size {rollout}")  # fmt: skip
+    check_init(cfg)
+    im = cfg.imitation
+    teacher_args = dict(OmegaConf.to_container(im.teacher_args, resolve=True) or {})
+    if im.teacher is not None:
+        make_teacher(im.teacher, groups[0][0], 0, teacher_args)  # an unknown teacher or a bad argument, named
+        check_imitation(im)
+    teacher_term = float(im.rl_weight) != 0 or int(im.critic_warmup) != 0
+    check_teacher_term(cfg, teacher_term)
+    SearchCNN.check_sizes(list(cfg.network.conv_channels), int(cfg.network.vector_size), list(cfg.network.fc_sizes),
+                          groups[0][0].fov)  # fmt: skip
+    notes = unused_settings(cfg, list(overrides), groups) + round_to_rollouts(cfg, rollout)
+    algorithm = TEACHER_ALGORITHMS[cfg.algo.name] if teacher_term else algorithm
+    return Plan(cfg, groups, scenario, im.teacher, teacher_args, algorithm, teacher_term, rollout, tuple(notes))
+
+
+def check_model(cfg: DictConfig) -> None:
+    """A trainable model chosen with +model= (or an experiment that sets one)."""
+    conf = Path(__file__).resolve().parents[2] / "conf" / "model"
+    trainable = [m for m in sorted(p.stem for p in conf.glob("*.yaml")) if m in TRAINABLE_MODELS]
+    if cfg.model is None:
+        raise ConfigError(f"choose a model to train with +model=<name>; trainable models: {', '.join(trainable)}")
+    if not cfg.model.trainable:
+        raise ConfigError(
+            f"model {cfg.model.name!r} is a heuristic controller, not trainable: use `python -m "
+            f"searchrl.evaluate controller={cfg.model.name}`; trainable models: {', '.join(trainable)}"
+        )
+
+
+def check_algo(cfg: DictConfig) -> type[BaseAlgorithm]:
+    """SB3's class of algo.name, whose group's settings the config holds."""
+    if cfg.algo.name not in ALGORITHMS:
+        raise ConfigError(f"algo.name={cfg.algo.name!r} is not allowed: one of {sorted(ALGORITHMS)}")
+    expected = {f.name for f in fields(ALGO_SCHEMAS[cfg.algo.name])}
+    if set(cfg.algo.keys()) != expected:
+        raise ConfigError(
+            f"algo.name={cfg.algo.name!r} does not match the algo group's settings {sorted(cfg.algo.keys())}: "
+            f"choose the algorithm with algo={cfg.algo.name}, not algo.name="
+        )
+    return ALGORITHMS[cfg.algo.name][0]
+
+
+def team_groups(cfg: DictConfig) -> list[tuple[WorldConfig, int]]:
+    """(world config, K) per group of worlds: env.world with env.n_worlds, then each of env.extra_teams."""
+    world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))  # ConfigError naming a field
+    groups = [(world, int(cfg.env.n_worlds))]
+    for j, team in enumerate(cfg.env.extra_teams):
+        if int(team.n_worlds) < 1:
+            raise ConfigError(f"env.extra_teams[{j}].n_worlds={team.n_worlds!r} is not allowed: must be >= 1")
+        try:
+            sizes = OmegaConf.to_container(team, resolve=True)["world_size"]  # n, [low, high] or null (the world's)
+            sizes = world.world_size if sizes is None else tuple(sizes) if isinstance(sizes, list) else sizes
+            groups.append((replace(world, n_agents=int(team.n_agents), world_size=sizes), int(team.n_worlds)))
+        except ConfigError as err:
+            raise ConfigError(f"env.extra_teams[{j}]: {err}") from None
+    return groups
+
+
+def check_numbers(cfg: DictConfig) -> None:
+    algo = cfg.algo
+    numbers = [  # (name, value, ok, allowed); NaN fails every comparison
+        ("seed", cfg.seed, 0 <= cfg.seed < 2**32, "0 <= seed < 2**32 (numpy and torch seeds)"),
+        ("validation.seed", cfg.validation.seed, cfg.validation.seed >= 0, "an integer >= 0"),
+        ("algo.learning_rate", algo.learning_rate, 0 < algo.learning_rate < math.inf, "a number > 0"),
+        ("algo.gamma", algo.gamma, 0 < algo.gamma <= 1, "0 < gamma <= 1"),
+        ("algo.gae_lambda", algo.gae_lambda, 0 <= algo.gae_lambda <= 1, "0 <= gae_lambda <= 1"),
+        ("algo.ent_coef", algo.ent_coef, 0 <= algo.ent_coef < math.inf, "a number >= 0"),
+        ("algo.vf_coef", algo.vf_coef, 0 <= algo.vf_coef < math.inf, "a number >= 0"),
+        ("algo.max_grad_norm", algo.max_grad_norm, 0 < algo.max_grad_norm < math.inf, "a number > 0"),
+        ("algo.clip_range", algo.get("clip_range", 0.2), 0 < algo.get("clip_range", 0.2) < math.inf, "a number > 0"),
+    ]
+    for name, value, ok, allowed in numbers:
+        need(bool(ok), name, value, allowed)
+    positive = {
+        "env.n_worlds": cfg.env.n_worlds,
+        "checkpoint_every": cfg.checkpoint_every,
+        "threads": cfg.threads,
+        "algo.n_steps": cfg.algo.n_steps,
+        "log_interval": cfg.log_interval,
+        "keep_checkpoints": cfg.keep_checkpoints,
+        "algo.n_epochs": cfg.algo.get("n_epochs", 1),
+        "network.lstm_hidden_size": cfg.network.lstm_hidden_size,
+    }
+    for name, value in positive.items():
+        if int(value) < 1:
+            raise ConfigError(f"{name}={value!r} is not allowed: must be >= 1")
+    # 0 agent-steps of RL is a clone-only run: model.zip is the policy fitted to the teacher (or the init weights).
+    no_start = cfg.imitation.teacher is None and cfg.get("init") is None
+    if int(cfg.total_timesteps) < 0 or (int(cfg.total_timesteps) == 0 and no_start):
+        raise ConfigError(
+            f"total_timesteps={cfg.total_timesteps!r} is not allowed: must be >= 1, or 0 with imitation.teacher "
+            "or init (a run without RL)"
+        )
+    if int(cfg.validation.every) < 0 or int(cfg.validation.n_worlds) < 1 or int(cfg.validation.score_last) < 1:
+        raise ConfigError(
+            f"validation={dict(cfg.validation)!r} is not allowed: every >= 0, n_worlds >= 1 and score_last >= 1"
+        )
+
+
+def check_init(cfg: DictConfig) -> None:
+    """init= names a model zip (a resumed run continues from its checkpoint and no longer needs it)."""
+    if cfg.get("init") is not None and cfg.get("resume") is None:
+        if not Path(cfg.init).is_file():
+            need(False, "init", cfg.init, "an existing model.zip, imitation.zip or checkpoint of a run")
+        need(zipfile.is_zipfile(cfg.init), "init", cfg.init, "a model zip written by searchrl.train (this is not one)")
+
+
+def check_imitation(im: DictConfig) -> None:
+    for name in ("episodes", "batch_sequences"):
+        if int(im[name]) < 1:
+            raise ConfigError(f"imitation.{name}={im[name]!r} is not allowed: must be >= 1")
+    for name in ("epochs", "value_epochs"):
+        if int(im[name]) < 0:
+            raise ConfigError(f"imitation.{name}={im[name]!r} is not allowed: must be >= 0")
+    need(0 < float(im.learning_rate) < math.inf, "imitation.learning_rate", im.learning_rate, "must be > 0")
+    lr_factor(str(im.lr_schedule), 0, 1)  # an unknown schedule, named
+
+
+def check_teacher_term(cfg: DictConfig, teacher_term: bool) -> None:
+    im = cfg.imitation
+    weight = float(im.rl_weight)
+    check_settings(weight, str(im.rl_schedule), int(im.critic_warmup))
+    if weight > 0 and im.teacher is None:
+        need(False, "imitation.rl_weight", weight, "0 without imitation.teacher (the term imitates the teacher)")
+    if teacher_term and cfg.algo.name not in TEACHER_ALGORITHMS:
+        need(False, "algo", cfg.algo.name, f"one of {', '.join(TEACHER_ALGORITHMS)} with imitation.rl_weight or "
+             "imitation.critic_warmup (the teacher term is a PPO loss term)")  # fmt: skip
+
+
+def check_device(device: str) -> None:
+    """ConfigError unless torch can run on `device` here: a run never falls back to the CPU unasked."""
+    allowed = "cpu, cuda, cuda:<index>, mps or auto (cuda when torch sees one, else cpu)"
+    if device == "auto":
+        return
+    try:
+        parsed = torch.device(device)
+    except (RuntimeError, ValueError):
+        raise ConfigError(f"device={device!r} is not allowed: {allowed}") from None
+    if parsed.type == "cuda":
+        count = torch.cuda.device_count()
+        need(count > 0, "device", device, "cpu here: torch sees no CUDA device (torch.cuda.is_available() is False)")
+        need((parsed.index or 0) < count, "device", device, f"a CUDA index below {count} (devices torch sees)")
+    elif parsed.type == "mps":
+        need(torch.backends.mps.is_available(), "device", device, "cpu here: torch sees no MPS device")
+    else:
+        need(parsed.type == "cpu", "device", device, allowed)
+
+
+def unused_settings(cfg: DictConfig, overrides: list[str], groups: tuple[tuple[WorldConfig, int], ...]) -> list[str]:
+    """Notes on what this run will not use that the command line set: imitation settings without a teacher, the
+    LSTM size of a feed-forward algorithm, a minibatch larger than the demonstrations. (Validation settings always
+    count: the final model is validated for the run's score even with validation.every=0.) Said, not refused: a
+    sweep over `imitation.teacher=null,greedy` or `algo=a2c,recurrent_ppo` keeps one command line for all its
+    jobs."""
+    keys = override_keys(overrides)
+    unused = []
+    if cfg.imitation.teacher is None:
+        used = ("imitation.teacher", "imitation.critic_warmup")
+        unused += [k for k in keys if k.startswith("imitation.") and k not in used]
+    if cfg.algo.name != "recurrent_ppo":
+        unused += [k for k in keys if k == "network.lstm_hidden_size"]
+    notes = [f"{k} has no effect here (no imitation.teacher, or a feed-forward algo)" for k in unused]
+    sequences = sum(k * world.n_agents for world, k in groups) * int(cfg.imitation.episodes)
+    if cfg.imitation.teacher is not None and int(cfg.imitation.batch_sequences) > sequences:
+        notes.append(f"imitation.batch_sequences={cfg.imitation.batch_sequences} is more than the {sequences} teacher "
+                     "sequences: each minibatch holds all of them")  # fmt: skip
+    return notes
+
+
+def round_to_rollouts(cfg: DictConfig, rollout: int) -> list[str]:
+    """Round total_timesteps and checkpoint_every up to whole rollouts in `cfg` (SB3 trains and saves whole
+    rollouts: the config then records what runs); a note for each changed."""
+    notes = []
+    for key in ("total_timesteps", "checkpoint_every"):
+        whole = -(-int(cfg[key]) // rollout) * rollout
+        if whole != int(cfg[key]):
+            notes.append(f"{key}={cfg[key]} rounds up to {whole} (whole rollouts of {rollout} agent-steps)")
+            cfg[key] = whole
+    return notes
