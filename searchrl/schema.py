@@ -59,6 +59,9 @@ class ModelConfig:
     trainable: bool = True
 
 
+MAX_THREADS = 1024  # torch's intra-op threads: far more than any node's cores; refused before the folder lock
+
+
 def scenario_default() -> dict[str, Any]:
     """The paper's scenario as the mapping a config holds (conf/scenario/paper.yaml)."""
     return PAPER.to_dict()

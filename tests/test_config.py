@@ -15,7 +15,8 @@ from searchrl.world.config import ConfigError, WorldConfig
         ({"explicit_area": 4}, "explicit_area"),
         ({"comm_range": 6}, "comm_range"),
         ({"explicit_area": 13, "fov": 11}, "explicit_area"),  # Φ must fit inside the FOV
-        ({"lam": 0.002, "k": 1000.0}, "k"),  # λk·max Γ = 2 would remove more than a cell holds
+        ({"lam": 0.002, "k": 1000.0}, "lam"),  # λk·max Γ = 2: lam is off the paper's 0.001, so it is named
+        ({"k": 2000.0}, "k"),  # the same product with the paper's lam: k is named
         ({"lam": 0.0}, "lam"),
         ({"k": -1.0}, "k"),
         ({"k": 0.0}, "k"),  # no sensing at all

@@ -194,6 +194,7 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
         ("controller.reach=-1", "reach=-1.0"),
         ("controller.age=9", "age=9.0"),
         ("scenario=walls scenario.obstacles.density=1.5", "scenario.obstacles.density=1.5 is not allowed"),
+        ("threads=100000", "threads=100000 is not allowed: 1 <= threads <= 1024"),
         ("scenario=off_prior scenario.targets.severity=-1", "scenario.targets.severity=-1 is not allowed"),
         ("scenario.targets.kind=truth", "scenario.targets.kind='truth' is not allowed: one of prior, off_prior"),
     ],
@@ -277,3 +278,27 @@ def test_greedy_target_is_greedy_with_its_settings_recorded_so(tmp_path, monkeyp
     with pytest.raises(SystemExit):
         _evaluate(tmp_path / out, "controller=greedy")  # footprint-greedy's defaults are other settings
     assert "controller_args.horizon: 3 there, 2 here" in capsys.readouterr().err
+
+
+def test_a_damaged_cell_file_is_named_in_one_line(tmp_path):
+    frame = _evaluate(tmp_path, "controller=random")
+    (tmp_path / "cells" / "n20_N1.parquet").write_bytes(b"PAR1 not a parquet file")
+    with pytest.raises(ValueError, match=r"n20_N1.parquet cannot be read as a cell's results \(\w+\); remove it"):
+        load(tmp_path)
+    assert len(frame) == 18
+
+
+def test_a_bound_cache_that_cannot_be_written_is_refused_before_work_and_a_damaged_one_is_recomputed(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    with pytest.raises(SystemExit):
+        _evaluate(tmp_path / "out", "controller=random", f"bound_cache={blocker}/bounds")
+    assert "bound_cache=" in capsys.readouterr().err and not (tmp_path / "out" / "evaluation.yaml").exists()
+    cache = tmp_path / "cache"
+    first = _evaluate(tmp_path / "a", "controller=random", f"bound_cache={cache}")
+    for path in cache.glob("*.parquet"):
+        path.write_bytes(b"damaged")
+    again = _evaluate(tmp_path / "b", "controller=random", f"bound_cache={cache}")
+    assert "its bounds are computed again" in capsys.readouterr().err
+    pd.testing.assert_frame_equal(first, again)
+    assert all(pd.read_parquet(path).shape[0] for path in cache.glob("*.parquet"))  # replaced by whole files

@@ -161,6 +161,31 @@ def test_resume_falls_back_from_a_truncated_checkpoint_and_clears_temporaries(tm
     assert pd.read_csv(run / "progress.csv")["time/total_timesteps"].tolist() == [*range(256, 1537, 256), 1536]
 
 
+def test_a_checkpoint_that_cannot_be_read_now_is_not_taken_for_a_damaged_one(tmp_path, tiny_run, capsys, monkeypatch):
+    """A passing read fault (no permission, as on a flaky network file system) refuses the resume in one line and
+    renames nothing; with access back, the resume continues from the newest checkpoint."""
+    import zipfile
+
+    run = _copy(tiny_run, tmp_path / "run")
+    before = sorted(p.name for p in (run / "checkpoints").iterdir())
+    original = zipfile.ZipFile
+
+    def no_access(file, *args, **kwargs):
+        name = str(getattr(file, "name", file))  # SB3 opens the file first and passes the open file
+        if name.endswith(".zip") and "checkpoints" in name:
+            raise PermissionError(13, "Permission denied", name)
+        return original(file, *args, **kwargs)
+
+    monkeypatch.setattr(zipfile, "ZipFile", no_access)
+    overrides = [f"resume={run}", "total_timesteps=2304"]
+    _refused(capsys, lambda: train(_compose("train", overrides), run / "resumed", overrides),
+             "step_2048.zip cannot be read now (PermissionError: Permission denied); nothing was renamed")  # fmt: skip
+    assert sorted(p.name for p in (run / "checkpoints").iterdir()) == before
+    monkeypatch.setattr(zipfile, "ZipFile", original)
+    final = train(_compose("train", overrides), run / "resumed2", overrides)
+    assert "resuming" in capsys.readouterr().err and RecurrentPPO.load(final).num_timesteps == 2304
+
+
 def test_resume_that_cannot_start_leaves_the_run_as_it_was(tmp_path, tiny_run, capsys):
     run = _copy(tiny_run, tmp_path / "run")
     record = (run / "config.yaml").read_bytes()
@@ -346,9 +371,15 @@ def test_budgets_round_to_whole_rollouts_and_are_recorded_so(tmp_path, capsys):
 def test_a_run_killed_before_its_first_checkpoint_resumes_from_step_0(tmp_path, tiny_run, capsys):
     run = _copy(tiny_run, tmp_path / "run")
     shutil.rmtree(run / "checkpoints")
+    before = (run / "progress.csv").read_text()
     overrides = [f"resume={run}", "total_timesteps=512"]
     final = train(_compose("train", overrides), run / "r", overrides)
     assert "no checkpoint yet" in capsys.readouterr().err and RecurrentPPO.load(final).num_timesteps == 512
+    # The restart logs every step once: the killed attempt's rows and events are moved aside, not mixed in.
+    steps = pd.read_csv(run / "progress.csv")["time/total_timesteps"].tolist()
+    assert steps == [256, 512, 512]  # two rollouts, then the final validation's row
+    assert (run / "killed" / "0" / "progress.csv").read_text() == before
+    assert (run / "killed" / "0" / "tensorboard").is_dir()
 
 
 @pytest.mark.parametrize(
@@ -429,3 +460,43 @@ def test_env_apis_refuse_wrong_arguments_with_value_errors():
     for actions, needle in ((np.full(4, 1.7), "dtype float64"), (np.zeros(3, np.int64), r"one action per slot")):
         with pytest.raises(ValueError, match=needle):
             vec.step(actions)
+
+
+# Resume bookkeeping: a damaged log refused before anything is rewritten, the clock continued, a path with spaces.
+@pytest.mark.parametrize("damage", ["garbage", "truncated"])
+def test_a_damaged_log_is_refused_before_anything_is_rewritten(tmp_path, tiny_run, capsys, damage):
+    run = _copy(tiny_run, tmp_path / "run")
+    log = run / "progress.csv"
+    if damage == "garbage":
+        log.write_bytes(b"\xff\xfe\x00garbage\x81\n")
+        needle = "progress.csv (the run's log) is not UTF-8 text"
+    else:  # half the file: the rows stop at a step far before the checkpoint
+        lines = log.read_text().splitlines(keepends=True)
+        log.write_text("".join(lines[: len(lines) // 2]))
+        needle = "jumps from step"
+    record, text = (run / "config.yaml").read_bytes(), log.read_bytes()
+    overrides = [f"resume={run}", "total_timesteps=2304"]
+    _refused(capsys, lambda: train(_compose("train", overrides), run / "resumed", overrides), needle)
+    assert (run / "config.yaml").read_bytes() == record and log.read_bytes() == text
+
+
+def test_a_resumed_log_continues_the_runs_clock(tmp_path, tiny_run):
+    """time/time_elapsed and time/iterations go on from the checkpoint's row instead of starting again."""
+    run = _copy(tiny_run, tmp_path / "run")
+    overrides = [f"resume={run}", "total_timesteps=2560"]
+    train(_compose("train", overrides), run / "resumed", overrides)
+    rows = pd.read_csv(run / "progress.csv")
+    rollouts = rows[rows["time/iterations"].notna()]
+    assert rollouts["time/iterations"].tolist() == list(range(1, len(rollouts) + 1))
+    assert rollouts["time/time_elapsed"].is_monotonic_increasing
+
+
+def test_a_run_folder_with_a_space_in_its_path_resumes(tmp_path, tiny_run, capsys):
+    from searchrl.train.command_line import check_resume_argument
+
+    run = _copy(tiny_run, tmp_path / "my run")
+    check_resume_argument([f"resume='{run}'"])  # quoted for Hydra, as a shell passes it
+    check_resume_argument([f'resume="{run}"'])
+    with pytest.raises(SystemExit):
+        check_resume_argument([f"resume='{tmp_path / 'no run'}'"])
+    assert "is not allowed: a run folder" in capsys.readouterr().err

@@ -143,7 +143,7 @@ def test_a_folder_of_results_without_a_record_adopts_this_runs(tmp_path, capsys)
 def test_the_grid_doubles_the_team_up_to_each_sizes_limit_and_refuses_bad_lists():
     cells = table2_cells([20, 40], [4, 8], [8, 16], [4, 1])
     assert cells == [Cell(20, 1, 4, 8), Cell(20, 2, 4, 8), Cell(20, 4, 4, 8), Cell(40, 1, 8, 16)]
-    assert [c.key for c in table2_cells([20], [4], [8], [3])] == ["n20_N1", "n20_N2"]
+    assert [c.key for c in table2_cells([20], [4], [8], [8])] == ["n20_N1", "n20_N2", "n20_N4", "n20_N8"]
     bad = [(([20, 40], [4], [8], [1]), "grid lists differ in length: world_sizes=[20, 40], n_targets=[4], "
                                        "n_distributions=[8], max_agents=[1]; give one entry per world size"),
            (([], [], [], []), "grid.world_sizes=[] is not allowed: one or more world sizes (with their other lists)"),
@@ -152,7 +152,9 @@ def test_the_grid_doubles_the_team_up_to_each_sizes_limit_and_refuses_bad_lists(
            (([20], [4], [8], [0]), "grid entry n=20, targets=4, m=8, max N=0: all must be >= 1"),
            (([0], [4], [8], [1]), "grid entry n=0, targets=4, m=8, max N=1: all must be >= 1"),
            (([20], [0], [8], [1]), "grid entry n=20, targets=0, m=8, max N=1: all must be >= 1"),
-           (([20], [4], [0], [1]), "grid entry n=20, targets=4, m=0, max N=1: all must be >= 1")]  # fmt: skip
+           (([20], [4], [0], [1]), "grid entry n=20, targets=4, m=0, max N=1: all must be >= 1"),
+           (([20, 40], [4, 8], [8, 16], [4, 3]), "grid.max_agents=[4, 3] is not allowed: each a power of two (N = "
+                                                 "1, 2, 4, … up to it), not 3")]  # fmt: skip
     for lists, message in bad:
         with pytest.raises(ValueError) as err:
             table2_cells(*lists)

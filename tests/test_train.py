@@ -279,6 +279,8 @@ def test_multirun_sweeps(tmp_path, launcher):
         ("imitation.teacher=surfing imitation.learning_rate=0", "imitation.learning_rate=0"),
         ("imitation.teacher=greedy imitation.value_epochs=-1", "imitation.value_epochs=-1"),
         ("imitation.teacher=greedy imitation.lr_schedule=cosine", "imitation.lr_schedule='cosine'.*constant, linear"),
+        ("threads=100000", "threads=100000 is not allowed: 1 <= threads <= 1024"),
+        ("env.world.lam=2", "lam=2.0 is not allowed: lam"),
     ],
 )
 def test_check_config_names_the_bad_value(override, message):

@@ -39,7 +39,7 @@ from searchrl.evaluate.record import claim_folder, evaluation_settings, option_d
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
-from searchrl.schema import override_keys
+from searchrl.schema import MAX_THREADS, override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.scenario import Scenario
 from searchrl.world.streams import WorldStreams
@@ -130,7 +130,7 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path,
             if isinstance(value, float):
                 need(math.isfinite(value), f"controller.{key}", value, "a finite number")
     need(0 <= int(cfg.seed) <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
-    need(int(cfg.threads) >= 1, "threads", cfg.threads, "an integer >= 1 (torch threads)")
+    need(1 <= int(cfg.threads) <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
     need(math.isfinite(cfg.batch_mb) and cfg.batch_mb > 0, "batch_mb", cfg.batch_mb, "a number of MiB > 0")
     need(int(cfg.bound_draws) >= 100, "bound_draws", cfg.bound_draws, "an integer >= 100 (placements per map)")
     need(int(cfg.num_shards) >= 1, "num_shards", cfg.num_shards, "an integer >= 1")
@@ -172,6 +172,8 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
         default = controller_name if cfg.checkpoint is not None else cfg.controller.name
         out_dir = out_dir or Path(f"runs/eval/{default.replace(':', '_')}")
         check_out_dir(out_dir)
+        if cfg.bound_cache is not None:  # the bounds are written after a cell's episodes: refused now, not then
+            check_writable(cfg.bound_cache, "bound_cache", folder=True)
         with hold(out_dir / LOCKS / "evaluation.lock", f"out_dir={str(out_dir)!r}", wait_s=60):
             claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name), option_defaults(cfg))
     except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException, FolderBusy) as err:

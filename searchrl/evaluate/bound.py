@@ -18,6 +18,7 @@ with its Table 3 means.
 from __future__ import annotations
 
 import hashlib
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -55,6 +56,16 @@ def map_digest(p: np.ndarray, u: np.ndarray, free: np.ndarray, targets: int) -> 
     return digest.hexdigest()[:16]
 
 
+def _read_cache(path: Path) -> pd.DataFrame | None:
+    """The cached rows of a cell, or None when the file is damaged: its rows are computed again and the file
+    replaced (a cache is never a reason to stop)."""
+    try:
+        return pd.read_parquet(path)
+    except Exception as err:  # pyarrow's errors for a damaged file have no common base but Exception
+        print(f"note: {path} cannot be read ({type(err).__name__}); its bounds are computed again", file=sys.stderr)
+        return None
+
+
 def cell_bounds(
     world: WorldConfig, cell: Cell, seeds: list[int], draws: int = BOUND_DRAWS, cache: str | Path | None = None,
     detection: bool = False, scenario: Scenario = PAPER,
@@ -75,7 +86,7 @@ def cell_bounds(
                for d in MOVE_SETS.values()] if detection else []  # fmt: skip
     own = "diagonal" if config.diagonal else "cardinal"
     path = Path(cache) / f"{cell.key}_draws{draws}.parquet" if cache is not None else None
-    known = pd.read_parquet(path) if path is not None and path.exists() else None
+    known = _read_cache(path) if path is not None and path.exists() else None
     if known is not None and not {"map_seed", "digest", "team_reach"} <= set(known.columns):
         known = None  # a cache file of another layout: computed afresh and replaced
     if known is not None:  # a detection bound without its move set (before MOVE_SETS): computed again if asked

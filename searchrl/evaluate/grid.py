@@ -39,6 +39,9 @@ def table2_cells(
     for n, targets, dists, top in zip(world_sizes, n_targets, n_distributions, max_agents, strict=True):
         if min(n, targets, dists, top) < 1:
             raise ValueError(f"grid entry n={n}, targets={targets}, m={dists}, max N={top}: all must be >= 1")
+        if top & (top - 1):  # N doubles from 1: another largest team would not be run, yet be recorded
+            raise ValueError(f"grid.max_agents={max_agents} is not allowed: each a power of two (N = 1, 2, 4, … up "
+                             f"to it), not {top}")  # fmt: skip
         agents = 1
         while agents <= top:
             cells.append(Cell(n, agents, targets, dists))

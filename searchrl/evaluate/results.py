@@ -37,7 +37,11 @@ def load(*out_dirs: str | Path) -> pd.DataFrame:
     frames = []
     for d in out_dirs:
         for f in cell_files(d):
-            frame = pd.read_parquet(f)
+            try:
+                frame = pd.read_parquet(f)
+            except Exception as err:  # pyarrow's errors for a damaged file have no common base but Exception
+                raise ValueError(f"{f} cannot be read as a cell's results ({type(err).__name__}); remove it and "
+                                 "rerun the evaluation into its folder to write it again") from None  # fmt: skip
             if "world" not in frame:
                 frame.insert(2, "world", world_of(d))
             if "scenario" not in frame:  # cells made before scenarios existed ran the paper's

@@ -47,11 +47,14 @@ def checkpoint_label(path: str | Path) -> str:
 def load_checkpoint(path: str | Path, algo: str, cls: type[BaseAlgorithm] | None = None,
                     **kwargs: object) -> BaseAlgorithm:  # fmt: skip
     """The SB3 model saved at `path` by algorithm `algo` (loaded as `cls`, a subclass of that algorithm's class, if
-    given); ValueError naming the file if it cannot be read (truncated, not an SB3 zip, another algorithm's)."""
+    given); ValueError naming the file if what it holds cannot be read (truncated, not an SB3 zip, another
+    algorithm's). An OSError (no permission now, an I/O fault) passes through as it is: the file may be whole."""
     if algo not in ALGORITHMS:
         raise ValueError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
     try:
         return (cls or ALGORITHMS[algo][0]).load(str(path), custom_objects=retired_kwargs_dropped(path), **kwargs)
+    except OSError:
+        raise
     except Exception as err:  # BadZipFile, EOFError, KeyError, RuntimeError of torch.load, ...
         raise ValueError(
             f"checkpoint={str(path)!r} cannot be read as a {algo} model ({type(err).__name__}: "

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import os
+import signal
 
 # Sleep rather than spin when torch's OpenMP threads wait: with parallel sweeps or any other busy process on the
 # cores, spinning threads slowed a tiny run 20x here. Set OMP_WAIT_POLICY yourself to override.
@@ -34,9 +35,15 @@ from stable_baselines3.common.vec_env import VecEnv
 from searchrl.atomic import FolderBusy, hold, remove_temporaries, write_atomic, write_text_atomic
 from searchrl.schema import override_keys
 from searchrl.train.build import init_weights, load_algorithm, make_algorithm, make_vec_env
-from searchrl.train.callbacks import AtomicCheckpointCallback, TeamMetricsCallback, ValidationCallback, checkpoints
+from searchrl.train.callbacks import (
+    AtomicCheckpointCallback,
+    Preemption,
+    TeamMetricsCallback,
+    ValidationCallback,
+    checkpoints,
+)
 from searchrl.train.command_line import check_resume_argument, fail
-from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
+from searchrl.train.csv_log import AppendingCSV, ContinuedClock, ResumableTensorBoard, check_log, clock_offsets
 from searchrl.train.imitation import clone, collect
 from searchrl.train.plan import Plan, make_plan
 from searchrl.train.schema import TrainConfig, register_configs, saved_config
@@ -106,19 +113,35 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
     env = make_vec_env(plan)
     model, resuming = start_model(plan, run_dir, env, resuming)
     start_step = model.num_timesteps if resuming else 0
+    if resuming:  # a damaged log is refused before anything is rewritten
+        try:
+            check_log(run_dir / "progress.csv", start_step, plan.rollout * int(cfg.log_interval))
+        except ValueError as err:
+            fail(f"resume={cfg.resume!r}: {err}")
     record_config(cfg, run_dir)
     if not resuming and plan.clones:
         warm_start(plan, model, run_dir)
     set_logs(model, run_dir, start_step if resuming else None)
+    preemption = Preemption()
     validation = ValidationCallback(plan.world, plan.scenario, int(cfg.validation.every), int(cfg.validation.n_worlds),
                                     int(cfg.validation.seed), bool(cfg.validation.deterministic),
-                                    at_start=(plan.clones or cfg.init is not None) and not resuming)  # fmt: skip
+                                    at_start=(plan.clones or cfg.init is not None) and not resuming,
+                                    preemption=preemption)  # fmt: skip
     callbacks: list[BaseCallback] = [
         TeamMetricsCallback(),
-        AtomicCheckpointCallback(run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints)),
+        AtomicCheckpointCallback(
+            run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints), preemption
+        ),
         validation,
     ]
-    learn(plan, model, callbacks, validation, resuming)
+    with preemption:
+        learn(plan, model, callbacks, validation, resuming)
+    if preemption.signal is not None:
+        env.close()
+        name = signal.Signals(preemption.signal).name
+        print(f"stopped by {name} at {model.num_timesteps} agent-steps (checkpoints/step_{model.num_timesteps}.zip); "
+              f"continue with resume={run_dir}", file=sys.stderr)  # fmt: skip
+        sys.exit(128 + preemption.signal)  # 143 for SIGTERM, 130 for SIGINT, as a shell reports them
     final = write_atomic(run_dir / "model.zip", lambda tmp: model.save(tmp))
     score = write_score(run_dir, int(cfg.validation.score_last))
     print(f"trained {model.num_timesteps} agent-steps; model: {final}; score {score['score']:.4f} (mean found "
@@ -155,7 +178,9 @@ def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple
             model.set_random_seed((int(cfg.seed) + start) % 2**32)  # new scenarios, not a replay of the first
             print(f"resuming {run_dir} from {checkpoint.name} at {start} agent-steps", file=sys.stderr)
             return model, True
-        print(f"{run_dir} has no checkpoint yet: starting it again from step 0", file=sys.stderr)
+        aside = set_aside_logs(run_dir)
+        print(f"{run_dir} has no checkpoint yet: starting it again from step 0"
+              + (f" (the killed attempt's logs moved to {aside})" if aside else ""), file=sys.stderr)  # fmt: skip
     model = make_algorithm(plan, env)
     if cfg.init is not None:
         try:
@@ -164,6 +189,22 @@ def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple
             fail(str(err))
         print(f"policy weights from {cfg.init}", file=sys.stderr)
     return model, False
+
+
+def set_aside_logs(run_dir: Path) -> Path | None:
+    """Move the logs of an attempt killed before its first checkpoint (progress.csv, tensorboard/, imitation.csv)
+    into `<run>/killed/<k>/`, so the restart from step 0 logs every step once; the folder, or None if none."""
+    logs = [run_dir / name for name in ("progress.csv", "tensorboard", "imitation.csv") if (run_dir / name).exists()]
+    if not logs:
+        return None
+    k = 0
+    while (run_dir / "killed" / str(k)).exists():
+        k += 1
+    aside = run_dir / "killed" / str(k)
+    aside.mkdir(parents=True)
+    for path in logs:
+        path.rename(aside / path.name)
+    return aside
 
 
 def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[BaseAlgorithm | None, Path | None]:
@@ -176,6 +217,9 @@ def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[Base
     for _, path in found:
         try:
             return load_algorithm(plan, str(path), env), path
+        except OSError as err:  # cannot be read now (permission, I/O): maybe whole, so nothing is set aside
+            fail(f"resume={plan.cfg.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
+                 f"{err.strerror or err}); nothing was renamed: restore access and resume again")  # fmt: skip
         except ValueError as err:
             aside = path.with_name(f"{path.name}.unreadable")
             path.rename(aside)
@@ -215,10 +259,13 @@ def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:
 
 
 def set_logs(model: BaseAlgorithm, run_dir: Path, resume_step: int | None) -> None:
-    """One CSV across resumed segments (rows past the checkpoint dropped), plus TensorBoard."""
+    """One CSV across resumed segments (rows past the checkpoint dropped), plus TensorBoard; a resumed segment's
+    elapsed time and iterations continue the run's."""
+    offsets = clock_offsets(run_dir / "progress.csv", resume_step) if resume_step is not None else {}
     csv_writer = AppendingCSV(run_dir / "progress.csv", resume_step=resume_step)
     purge = None if resume_step is None else resume_step + 1
-    model.set_logger(Logger(str(run_dir), [csv_writer, ResumableTensorBoard(str(run_dir / "tensorboard"), purge)]))
+    writers = [csv_writer, ResumableTensorBoard(str(run_dir / "tensorboard"), purge)]
+    model.set_logger(Logger(str(run_dir), [ContinuedClock(w, offsets) for w in writers] if offsets else writers))
 
 
 def learn(plan: Plan, model: BaseAlgorithm, callbacks: list[BaseCallback], validation: ValidationCallback,

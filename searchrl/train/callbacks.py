@@ -1,10 +1,15 @@
-"""SB3 callbacks of the training app: team metrics, atomic checkpoints, validation on fixed worlds."""
+"""SB3 callbacks of the training app: team metrics, atomic checkpoints, validation on fixed worlds, and the stop a
+SIGTERM or SIGINT asks for (`Preemption`)."""
 
 from __future__ import annotations
 
 import re
+import signal
+import sys
+import threading
 from collections import defaultdict
 from pathlib import Path
+from types import FrameType
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
@@ -39,31 +44,73 @@ class TeamMetricsCallback(BaseCallback):
             self.logger.record_mean("team/episodes", len(next(iter(self._values.values()))))
 
 
+class Preemption:
+    """While entered, SIGTERM and SIGINT ask the run to stop instead of ending it: `signal` holds the first one. A
+    cluster sends SIGTERM ahead of its kill (SLURM's `--signal`, submitit's requeue); the checkpoint callback then
+    ends the rollout at once and saves the model as the last finished update left it (the partial rollout, never
+    trained on, is dropped), and the app exits with 128 + the signal's number. A second SIGINT interrupts at once.
+    Handlers are only installed in the main thread, where Python delivers signals."""
+
+    def __init__(self) -> None:
+        self.signal: int | None = None
+        self._previous: dict[int, object] = {}
+
+    def __enter__(self) -> Preemption:
+        if threading.current_thread() is threading.main_thread():
+            for signum in (signal.SIGTERM, signal.SIGINT):
+                self._previous[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        self._previous.clear()
+
+    def _handle(self, signum: int, frame: FrameType | None) -> None:
+        if self.signal is not None and signum == signal.SIGINT:
+            raise KeyboardInterrupt  # a second Ctrl-C: stop now, without the checkpoint
+        if self.signal is None:
+            self.signal = signum
+            print(f"{signal.Signals(signum).name}: stopping at this step with a checkpoint of the last update",
+                  file=sys.stderr, flush=True)  # fmt: skip
+
+
 class AtomicCheckpointCallback(BaseCallback):
     """Saves `checkpoints/step_<agent-steps>.zip` every `every` agent-steps and at the end of training, each
     written atomically (model weights, optimiser state and step count in SB3's zip).
 
     Saves happen when a rollout starts, i.e. after the previous rollout has been trained on: a checkpoint taken
-    mid-rollout would count steps whose update it does not hold, and a resumed run would skip that update."""
+    mid-rollout would count steps whose update it does not hold, and a resumed run would skip that update. When
+    `preemption` has caught a signal, the next step ends training, and the checkpoint saved then is that of the
+    rollout's start (the steps of the unfinished rollout are not counted)."""
 
-    def __init__(self, directory: Path, every: int, keep: int = 3) -> None:
+    def __init__(self, directory: Path, every: int, keep: int = 3, preemption: Preemption | None = None) -> None:
         super().__init__()
         self.directory, self.every, self.keep = Path(directory), every, keep
+        self.preemption = preemption
         self._next = 0
+        self._rollout_start = 0
 
     def _init_callback(self) -> None:
         # self.num_timesteps is only set once training starts; the model's count is right on resume too.
         self._next = (self.model.num_timesteps // self.every + 1) * self.every
 
     def _on_rollout_start(self) -> None:
+        self._rollout_start = self.num_timesteps
         if self.num_timesteps >= self._next:
             self.save()
             self._next = (self.num_timesteps // self.every + 1) * self.every
 
     def _on_step(self) -> bool:
-        return True
+        return not self.preempted
+
+    @property
+    def preempted(self) -> bool:
+        return self.preemption is not None and self.preemption.signal is not None
 
     def _on_training_end(self) -> None:
+        if self.preempted:  # the model is as the last update left it: count only the steps it was trained on
+            self.model.num_timesteps = self.num_timesteps = self._rollout_start
         self.save()
 
     def save(self) -> Path:
@@ -86,8 +133,10 @@ class ValidationCallback(BaseCallback):
     validation's row also holds the last update's losses, which SB3 records after its last log row."""
 
     def __init__(self, world_config: WorldConfig, scenario: Scenario, every: int, n_worlds: int, seed: int,
-                 deterministic: bool, at_start: bool = False) -> None:  # fmt: skip
+                 deterministic: bool, at_start: bool = False,
+                 preemption: Preemption | None = None) -> None:  # fmt: skip
         super().__init__()
+        self.preemption = preemption
         self.world_config, self.scenario = world_config, scenario
         self.every, self.n_worlds, self.seed = every, n_worlds, seed
         self.deterministic, self.at_start = deterministic, at_start
@@ -113,6 +162,8 @@ class ValidationCallback(BaseCallback):
         return True
 
     def _on_training_end(self) -> None:
+        if self.preemption is not None and self.preemption.signal is not None:
+            return  # stopped early: the final model's validation belongs to the run's real end
         self.validate()
         self.logger.record("time/total_timesteps", self.num_timesteps)
         self.logger.dump(self.num_timesteps)

@@ -18,5 +18,7 @@ def check_resume_argument(argv: list[str]) -> None:
     first, in one line, instead of in Hydra's traceback."""
     for arg in argv:
         value = arg.split("=", 1)[1] if arg.startswith("resume=") else "null"
+        if len(value) >= 2 and value[0] == value[-1] and value[0] in "'\"":  # quoted for Hydra: a path with spaces
+            value = value[1:-1]
         if value != "null" and not (value and Path(value).is_dir()):
             fail(f"{arg} is not allowed: a run folder (with config.yaml and checkpoints/)")

@@ -17,6 +17,59 @@ from stable_baselines3.common.logger import KVWriter, TensorBoardOutputFormat
 from searchrl.atomic import write_atomic
 
 STEP_KEY = "time/total_timesteps"
+# SB3 counts these from 0 in every `learn` call: a resumed segment continues them from the checkpoint's row.
+CONTINUED_KEYS = ("time/time_elapsed", "time/iterations")
+
+
+def check_log(path: Path, resume_step: int, every: int) -> None:
+    """ValueError naming what is wrong with the log `path` a run resumes at `resume_step` from, before anything is
+    rewritten: not UTF-8 text, no step column, steps going back, or a gap wider than `every` agent-steps (one log
+    row per `every`: rows lost to a damaged file) up to the checkpoint. A missing log is fine (none yet)."""
+    if not path.exists():
+        return
+    where = f"{path} (the run's log)"
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ValueError(f"{where} is not UTF-8 text: move it aside to resume with a new log") from None
+    text = text[: text.rfind("\n") + 1]  # a last row cut short by a kill is dropped anyway
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    if text and STEP_KEY not in (reader.fieldnames or []):
+        raise ValueError(f"{where} has no {STEP_KEY} column: move it aside to resume with a new log")
+    steps = [_step(row) for row in reader]
+    kept = [s for s in steps if s <= resume_step]
+    for before, after in zip([0.0, *kept], [*kept, float(resume_step)], strict=True):
+        if after < before or after - before > every:
+            raise ValueError(f"{where} jumps from step {before:g} to {after:g} (a row every {every} agent-steps "
+                             f"up to the checkpoint at {resume_step}): it is damaged; move it aside to resume with "
+                             "a new log")  # fmt: skip
+
+
+def clock_offsets(path: Path, resume_step: int) -> dict[str, float]:
+    """CONTINUED_KEYS' values in the log's last row at or before `resume_step` (0 when there is none)."""
+    offsets = dict.fromkeys(CONTINUED_KEYS, 0.0)
+    if path.exists():
+        for row in csv.DictReader(io.StringIO(path.read_text(encoding="utf-8"), newline="")):
+            if _step(row) <= resume_step:
+                for key in CONTINUED_KEYS:
+                    if row.get(key):
+                        offsets[key] = float(row[key])
+    return offsets
+
+
+class ContinuedClock(KVWriter):
+    """Passes every row to `writer` with CONTINUED_KEYS advanced by `offsets`: a resumed segment's wall time and
+    iterations continue the run's instead of starting again at 1."""
+
+    def __init__(self, writer: KVWriter, offsets: dict[str, float]) -> None:
+        self.writer, self.offsets = writer, offsets
+
+    def write(self, key_values: dict[str, Any], key_excluded: dict[str, Any], step: int = 0) -> None:
+        shifted = {k: v + self.offsets[k] if k in self.offsets and v is not None else v for k, v in key_values.items()}
+        self.writer.write(shifted, key_excluded, step)
+
+    def close(self) -> None:
+        self.writer.close()
 
 
 def _step(row: dict[str, str | None]) -> float:

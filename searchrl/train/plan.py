@@ -22,7 +22,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from searchrl.controllers.registry import make_teacher
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.extractor import SearchCNN
-from searchrl.schema import override_keys
+from searchrl.schema import MAX_THREADS, override_keys
 from searchrl.train.imitation import lr_factor
 from searchrl.train.schema import A2CConfig, RecurrentPPOConfig
 from searchrl.train.teacher_term import TEACHER_ALGORITHMS, check_settings
@@ -159,6 +159,7 @@ def check_numbers(cfg: DictConfig) -> None:
     for name, value in positive.items():
         if int(value) < 1:
             raise ConfigError(f"{name}={value!r} is not allowed: must be >= 1")
+    need(int(cfg.threads) <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
     # 0 agent-steps of RL is a clone-only run: model.zip is the policy fitted to the teacher (or the init weights).
     no_start = cfg.imitation.teacher is None and cfg.get("init") is None
     if int(cfg.total_timesteps) < 0 or (int(cfg.total_timesteps) == 0 and no_start):

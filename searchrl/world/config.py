@@ -206,11 +206,13 @@ class WorldConfig:
         lo, hi = self.world_size
         need(self.k + self.k_per_n * lo > 0, "k", self.k, "k + k_per_n * n > 0 in the smallest world (sensing)")
         largest = self.lam * (self.k + self.k_per_n * hi)
+        name, value = ("lam", self.lam) if self.lam != 0.001 else ("k", self.k)  # the one moved from the paper's
         need(
             largest * float(GAMMA.max()) <= 1.0 + 1e-12,
-            "k",
-            self.k,
-            f"lam * (k + k_per_n * n) * max(Γ) <= 1 so no cell loses more than it holds (here {largest:g} at n={hi})",
+            name,
+            value,
+            f"lam * (k + k_per_n * n) * max(Γ) <= 1 so no cell loses more than it holds (here {largest:g} at n={hi}"
+            f" with lam={self.lam:g}, k={self.k:g}, k_per_n={self.k_per_n:g})",
         )
         for name in ("fov", "explicit_area", "comm_range"):
             v = getattr(self, name)

@@ -1,0 +1,60 @@
+"""Preemption: SIGTERM or SIGINT to a real training process stops it with a checkpoint of its last update, an exit
+status a requeueing launcher reads (128 + the signal), and a log that a resume continues with every step once."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from sb3_contrib import RecurrentPPO
+
+from searchrl.train.callbacks import checkpoints
+
+ROOT = Path(__file__).resolve().parents[1]
+# A tiny run that would take hours: only the signal ends it; no periodic checkpoint (checkpoint_every beyond it).
+TINY = ["+model=b", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,20]",
+        "env.world.n_targets=[2,4]", "env.world.n_distributions=[4,8]", "network=small", "algo.batch_size=128",
+        "algo.n_steps=32", "validation.every=0", "progress_bar=false", "threads=1"]  # fmt: skip
+ROLLOUT = 32 * 2 * 4  # algo.n_steps × K × N agent-steps
+
+
+def _train(run: Path, *overrides: str) -> subprocess.Popen:
+    cmd = [sys.executable, "-m", "searchrl.train", *overrides, f"hydra.run.dir={run}"]
+    return subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _rows(run: Path) -> list[int]:
+    """The steps of progress.csv's rows ([] while the run has written none, or is writing its first)."""
+    try:
+        return pd.read_csv(run / "progress.csv")["time/total_timesteps"].tolist()
+    except (FileNotFoundError, pd.errors.EmptyDataError):
+        return []
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_checkpoints_the_last_update_and_a_resume_logs_every_step_once(tmp_path, signum):
+    run = tmp_path / "run"
+    process = _train(run, *TINY, "total_timesteps=100000000", "checkpoint_every=100000000")
+    deadline = time.monotonic() + 240
+    while len(_rows(run)) < 3 and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert process.poll() is None, process.communicate()[1][-3000:]
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 128 + signum, err[-3000:]
+    saved = checkpoints(run / "checkpoints")
+    assert len(saved) == 1 and not (run / "model.zip").exists()  # stopped, not finished
+    step, path = saved[0]
+    assert step % ROLLOUT == 0 and step > 0 and RecurrentPPO.load(path).num_timesteps == step
+    assert f"stopped by {signal.Signals(signum).name} at {step} agent-steps" in err and "Traceback" not in err
+    assert _rows(run) == list(range(ROLLOUT, step + 1, ROLLOUT))  # each finished update's row, none past it
+    resumed = _train(tmp_path / "log", f"resume={run}", f"total_timesteps={step + 2 * ROLLOUT}")
+    _, err = resumed.communicate(timeout=300)
+    assert resumed.returncode == 0, err[-3000:]
+    assert _rows(run)[:-1] == list(range(ROLLOUT, step + 2 * ROLLOUT + 1, ROLLOUT))  # then the final validation's
+    assert RecurrentPPO.load(run / "model.zip").num_timesteps == step + 2 * ROLLOUT
