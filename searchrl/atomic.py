@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
 import socket
@@ -68,6 +69,18 @@ def check_writable(path: str | Path, name: str, folder: bool = False) -> None:
         raise ValueError(f"{name}={str(path)!r} is not allowed: {parent} is a file, not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise ValueError(f"{name}={str(path)!r} is not allowed: {parent} is not writable")
+
+
+STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS)  # a full disk, a quota, a read-only file system
+
+
+def storage_message(err: OSError) -> str | None:
+    """One line for an OSError the storage gave (full, over quota, read-only), naming the file; None for others,
+    which are bugs or faults to show whole."""
+    if err.errno not in STORAGE_ERRORS:
+        return None
+    where = f" writing {err.filename}" if err.filename else ""
+    return f"{err.strerror or 'storage error'}{where}: free space (or ask for quota) and run the same command again"
 
 
 def write_atomic(path: str | Path, write: Callable[[Path], None]) -> Path:

@@ -196,7 +196,11 @@ def test_notebooks_take_folders_and_out_as_arguments(fixture_dirs, tmp_path):
 def test_a_missing_or_empty_folder_is_named_in_one_line(tmp_path):
     empty = tmp_path / "empty"
     (empty / "cells").mkdir(parents=True)
+    damaged = tmp_path / "damaged"
+    (damaged / "cells").mkdir(parents=True)
+    (damaged / "cells" / "n20_N1.parquet").write_bytes(b"PAR1 not a parquet file")
     for notebook, args, message in [
+        ("table3.py", [str(damaged)], f"{damaged / 'cells' / 'n20_N1.parquet'} cannot be read as a cell's results"),
         ("table3.py", [str(tmp_path / "nowhere")], f"evaluation folder '{tmp_path / 'nowhere'}' does not exist"),
         ("figures.py", [str(empty)], f"evaluation folder '{empty}' holds no results"),
         ("claims.py", [str(empty), "--out", str(tmp_path)], f"evaluation folder '{empty}' holds no results"),

@@ -500,3 +500,36 @@ def test_a_run_folder_with_a_space_in_its_path_resumes(tmp_path, tiny_run, capsy
     with pytest.raises(SystemExit):
         check_resume_argument([f"resume='{tmp_path / 'no run'}'"])
     assert "is not allowed: a run folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("app", ["train", "evaluate"])
+def test_a_full_disk_is_said_in_one_line(tmp_path, capsys, monkeypatch, app):
+    """ENOSPC while writing a checkpoint or a cell: one line naming the file and what to do, no traceback."""
+    import errno
+
+    import searchrl.atomic
+
+    def full(fd: int) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device", "disk")
+
+    monkeypatch.setattr(searchrl.atomic.os, "fsync", full)
+    if app == "train":
+        overrides = ["total_timesteps=256"]
+        call = lambda: train(_compose("train", [*TINY, *overrides]), tmp_path / "run", overrides)  # noqa: E731
+        needle = "the run resumes from its last checkpoint"
+    else:
+        call = lambda: _evaluate(tmp_path / "eval", "controller=random")  # noqa: E731
+        needle = "run the same command again"  # the record is the first file the evaluation writes
+    _refused(capsys, call, "No space left on device writing disk", needle)
+
+
+def test_an_out_dir_that_cannot_hold_folders_is_refused_before_work(tmp_path, capsys):
+    _refused(capsys, lambda: _evaluate(Path("/proc/searchrl_eval"), "controller=random"),
+             "out_dir='/proc/searchrl_eval' is not allowed: its folders cannot be made there")  # fmt: skip
+
+
+def test_a_world_larger_than_memory_is_refused_in_one_line():
+    import searchrl
+
+    with pytest.raises(ValueError, match=r"n_agents=4096, world_size=\(2048, 2048\) is not allowed here: .* GiB"):
+        searchrl.parallel_env(n_agents=4096, world_size=2048)

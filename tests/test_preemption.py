@@ -58,3 +58,26 @@ def test_a_signal_checkpoints_the_last_update_and_a_resume_logs_every_step_once(
     assert resumed.returncode == 0, err[-3000:]
     assert _rows(run)[:-1] == list(range(ROLLOUT, step + 2 * ROLLOUT + 1, ROLLOUT))  # then the final validation's
     assert RecurrentPPO.load(run / "model.zip").num_timesteps == step + 2 * ROLLOUT
+
+
+@pytest.mark.slow
+def test_kill_9_at_any_moment_then_resume_logs_every_step_once_and_in_order(tmp_path):
+    """A clone-then-RL run killed with SIGKILL at several moments (start-up, the clone, RL), resumed after each kill,
+    then to its end: progress.csv holds every step once and in order (the final validation's row repeats the last
+    step), and the final model has trained the whole budget."""
+    run = tmp_path / "run"
+    budget = 40 * ROLLOUT
+    first = [*TINY, f"total_timesteps={budget}", f"checkpoint_every={4 * ROLLOUT}", "imitation.teacher=greedy_target",
+             "imitation.episodes=2", "imitation.epochs=2"]  # fmt: skip
+    for attempt, delay in enumerate([1.0, 6.0, 9.0, 12.0, 15.0]):
+        started = run.joinpath("config.yaml").exists() or any(checkpoints(run / "checkpoints"))
+        process = _train(tmp_path / f"log{attempt}", f"resume={run}") if started else _train(run, *first)
+        time.sleep(delay)
+        process.kill()
+        process.communicate(timeout=60)
+    last = _train(tmp_path / "last", f"resume={run}") if run.joinpath("config.yaml").exists() else _train(run, *first)
+    _, err = last.communicate(timeout=600)
+    assert last.returncode == 0, err[-3000:]
+    steps = _rows(run)
+    assert steps[-1] == steps[-2] == budget and steps[:-1] == sorted(set(steps[:-1])), steps
+    assert RecurrentPPO.load(run / "model.zip").num_timesteps == budget

@@ -149,3 +149,28 @@ def test_the_sweep_notebook_writes_table_and_plot(tmp_path):
     missing = subprocess.run([sys.executable, "analysis/sweep.py", str(tmp_path / "nowhere")], cwd=ROOT,
                              capture_output=True, text=True, timeout=120)  # fmt: skip
     assert missing.returncode == 1 and missing.stderr.strip().count("\n") == 0 and "nowhere" in missing.stderr
+
+
+def test_a_refused_trial_is_marked_failed_not_left_running(tmp_path):
+    """A trial whose run is refused (here every trial: algo.n_epochs=0) is a failed job: the study records it FAIL,
+    where the refusal's exit used to end the sweep with the trial RUNNING for ever."""
+    import optuna
+
+    cmd = [sys.executable, "-m", "searchrl.train", "-m", "hydra/sweeper=optuna_searchrl", *TINY, "algo.n_epochs=0",
+           "hydra.sweeper.n_trials=1", f"hydra.sweeper.storage=sqlite:///{tmp_path / 'study.db'}",
+           f"hydra.sweep.dir={tmp_path / 'sweep'}"]  # fmt: skip
+    out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode != 0 and "error: algo.n_epochs=0 is not allowed: must be >= 1" in out.stderr
+    study = optuna.load_study(study_name="b_recurrent_ppo", storage=f"sqlite:///{tmp_path / 'study.db'}")
+    assert [t.state for t in study.trials] == [optuna.trial.TrialState.FAIL]
+
+
+def test_the_study_is_stored_in_the_checkout_whatever_the_working_folder(tmp_path):
+    """`python -m searchrl.train -m hydra/sweeper=optuna_searchrl ...` started outside the checkout keeps its study
+    in the checkout's runs/ (a path relative to the working folder failed there)."""
+    cmd = [sys.executable, "-m", "searchrl.train", "hydra/sweeper=optuna_searchrl", "+model=b", "--cfg", "hydra",
+           "--package", "hydra.sweeper", "--resolve"]  # fmt: skip
+    out = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    storage = yaml.safe_load(out.stdout)["storage"]  # the package's keys, printed at the top level
+    assert storage == f"sqlite:///{ROOT / 'runs' / 'optuna.db'}"

@@ -15,6 +15,8 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import pyarrow.parquet as pq
+
 from searchrl.evaluate.results import cell_files
 
 
@@ -78,6 +80,12 @@ def check_eval_dirs(dirs: Sequence[Path], min_dirs: int = 1) -> None:
         if not cell_files(d):
             stop(f"evaluation folder {str(d)!r} holds no results (no cells/*.parquet): run "
                  f"`python -m searchrl.evaluate ... out_dir={d}` first")  # fmt: skip
+        for cell in cell_files(d):  # a damaged file named here, not as pyarrow's traceback halfway through a notebook
+            try:
+                pq.read_metadata(cell)
+            except Exception as err:  # pyarrow's errors for a damaged file have no common base but Exception
+                stop(f"{cell} cannot be read as a cell's results ({type(err).__name__}); remove it and rerun the "
+                     f"evaluation into {d} to write it again")  # fmt: skip
 
 
 def check_run_dirs(dirs: Sequence[Path]) -> None:

@@ -30,7 +30,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from tqdm import tqdm
 
-from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, write_atomic
+from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, storage_message, write_atomic
 from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import heuristic, make_controller
 from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds
@@ -152,8 +152,12 @@ def check_out_dir(out_dir: Path) -> None:
         check_writable(out_dir, "out_dir", folder=True)
         for part in ("cells", LOCKS):
             check_writable(out_dir / part, f"out_dir/{part}", folder=True)
+        out_dir.mkdir(parents=True, exist_ok=True)  # /proc, /sys, a full disk: refused here, in one line
     except ValueError as err:
         raise ConfigError(str(err)) from None
+    except OSError as err:
+        raise ConfigError(f"out_dir={str(out_dir)!r} is not allowed: its folders cannot be made there "
+                          f"({err.strerror or type(err).__name__})") from None  # fmt: skip
 
 
 def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
@@ -178,6 +182,8 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
             claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name), option_defaults(cfg))
     except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException, FolderBusy) as err:
         fail(str(err))
+    except OSError as err:  # writing the folder's record: a full disk, a read-only file system
+        fail(storage_message(err) or f"out_dir={str(out_dir)!r}: {err}")
     import torch
 
     torch.set_num_threads(int(cfg.threads))
@@ -187,29 +193,35 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
     total = sum(maps * repeats * world.max_steps * c.n_agents for _, c in todo)
     print(f"{controller_name}: {len(todo)} of {len(mine)} cells to run into {out_dir}", file=sys.stderr)
     start, done_steps = time.perf_counter(), 0
-    with tqdm(total=total, unit="agent-step", unit_scale=True, disable=not cfg.progress_bar) as bar:
-        for index, cell in todo:
-            target = out_dir / "cells" / f"{cell.key}.parquet"
-            try:  # one writer per cell: a job running the same folder elsewhere keeps the cells it has started
-                with hold(out_dir / LOCKS / f"{cell.key}.lock", f"cell {cell.key} of {out_dir}"):
-                    if target.exists():  # finished by another job since the list was made
-                        continue
-                    remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
-                    frame = run_cell(factory, world, cell, index, maps, repeats, int(cfg.seed), float(cfg.batch_mb),
-                                     needs_obs, on_steps=bar.update, scenario=scenario)  # fmt: skip
-                    seeds = frame["map_seed"].unique().tolist()
-                    bounds = cell_bounds(world, cell, seeds, int(cfg.bound_draws), cfg.bound_cache,
-                                         scenario=scenario)  # fmt: skip
-                    frame = frame.merge(bounds[["map_seed", *BOUND_COLUMNS]], on="map_seed", validate="many_to_one")
-                    frame.insert(0, "scenario", scenario.label)
-                    frame.insert(0, "world", world.sensing_label)
-                    frame.insert(0, "model", model_name)
-                    frame.insert(0, "controller", controller_name)
-                    write_atomic(target, lambda tmp, f=frame: f.to_parquet(tmp))
-            except FolderBusy as busy:
-                print(f"skipped: {busy}", file=sys.stderr)
-                continue
-            done_steps += int(((frame["L"]) * cell.n_agents).sum())
+    try:  # a full disk mid-grid: the cells written stand, a rerun writes the rest
+        with tqdm(total=total, unit="agent-step", unit_scale=True, disable=not cfg.progress_bar) as bar:
+            for index, cell in todo:
+                target = out_dir / "cells" / f"{cell.key}.parquet"
+                try:  # one writer per cell: a job running the same folder elsewhere keeps the cells it has started
+                    with hold(out_dir / LOCKS / f"{cell.key}.lock", f"cell {cell.key} of {out_dir}"):
+                        if target.exists():  # finished by another job since the list was made
+                            continue
+                        remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
+                        frame = run_cell(factory, world, cell, index, maps, repeats, int(cfg.seed), float(cfg.batch_mb),
+                                         needs_obs, on_steps=bar.update, scenario=scenario)  # fmt: skip
+                        seeds = frame["map_seed"].unique().tolist()
+                        bounds = cell_bounds(world, cell, seeds, int(cfg.bound_draws), cfg.bound_cache,
+                                             scenario=scenario)  # fmt: skip
+                        frame = frame.merge(bounds[["map_seed", *BOUND_COLUMNS]], on="map_seed", validate="many_to_one")
+                        frame.insert(0, "scenario", scenario.label)
+                        frame.insert(0, "world", world.sensing_label)
+                        frame.insert(0, "model", model_name)
+                        frame.insert(0, "controller", controller_name)
+                        write_atomic(target, lambda tmp, f=frame: f.to_parquet(tmp))
+                except FolderBusy as busy:
+                    print(f"skipped: {busy}", file=sys.stderr)
+                    continue
+                done_steps += int(((frame["L"]) * cell.n_agents).sum())
+    except OSError as err:
+        message = storage_message(err)
+        if message is None:
+            raise
+        fail(f"{message}; the cells already written stay, and a rerun into {out_dir} does the rest")
     elapsed = time.perf_counter() - start
     if todo:
         print(f"done in {elapsed:.1f} s; {done_steps / max(elapsed, 1e-9):,.0f} agent-steps/s "

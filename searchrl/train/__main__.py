@@ -24,6 +24,7 @@ import hydra
 import pandas as pd
 import torch
 from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -32,7 +33,7 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.utils import get_device
 from stable_baselines3.common.vec_env import VecEnv
 
-from searchrl.atomic import FolderBusy, hold, remove_temporaries, write_atomic, write_text_atomic
+from searchrl.atomic import FolderBusy, hold, remove_temporaries, storage_message, write_atomic, write_text_atomic
 from searchrl.schema import override_keys
 from searchrl.train.build import init_weights, load_algorithm, make_algorithm, make_vec_env
 from searchrl.train.callbacks import (
@@ -105,6 +106,11 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
             return _train_locked(plan, run_dir, resuming)
     except FolderBusy as err:
         fail(str(err))
+    except OSError as err:  # a full disk mid-run: the last checkpoint stands, resume once there is space
+        message = storage_message(err)
+        if message is None:
+            raise
+        fail(f"{message}; the run resumes from its last checkpoint with resume={run_dir}")
 
 
 def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
@@ -136,7 +142,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
     ]
     with preemption:
         learn(plan, model, callbacks, validation, resuming)
-    if preemption.signal is not None:
+    if preemption.stopped:
         env.close()
         name = signal.Signals(preemption.signal).name
         print(f"stopped by {name} at {model.num_timesteps} agent-steps (checkpoints/step_{model.num_timesteps}.zip); "
@@ -286,7 +292,14 @@ def learn(plan: Plan, model: BaseAlgorithm, callbacks: list[BaseCallback], valid
 def main(cfg: DictConfig) -> float:
     """Train, and return the run's score (score.py) for Hydra sweepers: `-m hydra/sweeper=optuna` maximises it."""
     hydra_cfg = HydraConfig.get()
-    final = train(cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
+    try:
+        final = train(cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
+    except SystemExit as stop:
+        # In a sweep, a refused or stopped run is a failed job (an Optuna trial marked FAIL, not left RUNNING when
+        # the exit would end the whole sweep); its error line is already on stderr.
+        if hydra_cfg.mode == RunMode.MULTIRUN and stop.code not in (0, None):
+            raise RuntimeError(f"the run stopped with exit status {stop.code} (its error line is above)") from None
+        raise
     return read_score(final.parent)
 
 

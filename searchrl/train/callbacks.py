@@ -46,13 +46,14 @@ class TeamMetricsCallback(BaseCallback):
 
 class Preemption:
     """While entered, SIGTERM and SIGINT ask the run to stop instead of ending it: `signal` holds the first one. A
-    cluster sends SIGTERM ahead of its kill (SLURM's `--signal`, submitit's requeue); the checkpoint callback then
-    ends the rollout at once and saves the model as the last finished update left it (the partial rollout, never
-    trained on, is dropped), and the app exits with 128 + the signal's number. A second SIGINT interrupts at once.
+    cluster sends SIGTERM ahead of its kill (SLURM's `--signal`); the checkpoint callback lets the rollout under way
+    and its update finish, stops before the next and saves the model, and the app exits with 128 + the signal's
+    number. A second SIGINT interrupts at once.
     Handlers are only installed in the main thread, where Python delivers signals."""
 
     def __init__(self) -> None:
-        self.signal: int | None = None
+        self.signal: int | None = None  # the first signal caught
+        self.stopped = False  # training ended early for it (a signal in the last rollout of the budget stops nothing)
         self._previous: dict[int, object] = {}
 
     def __enter__(self) -> Preemption:
@@ -71,7 +72,7 @@ class Preemption:
             raise KeyboardInterrupt  # a second Ctrl-C: stop now, without the checkpoint
         if self.signal is None:
             self.signal = signum
-            print(f"{signal.Signals(signum).name}: stopping at this step with a checkpoint of the last update",
+            print(f"{signal.Signals(signum).name}: stopping after this rollout's update, with a checkpoint",
                   file=sys.stderr, flush=True)  # fmt: skip
 
 
@@ -81,8 +82,9 @@ class AtomicCheckpointCallback(BaseCallback):
 
     Saves happen when a rollout starts, i.e. after the previous rollout has been trained on: a checkpoint taken
     mid-rollout would count steps whose update it does not hold, and a resumed run would skip that update. When
-    `preemption` has caught a signal, the next step ends training, and the checkpoint saved then is that of the
-    rollout's start (the steps of the unfinished rollout are not counted)."""
+    `preemption` has caught a signal, the rollout under way is still collected and trained on; the next one stops
+    at its first step (`Preemption.stopped`), and the checkpoint then saved holds every update: nothing trained is
+    lost."""
 
     def __init__(self, directory: Path, every: int, keep: int = 3, preemption: Preemption | None = None) -> None:
         super().__init__()
@@ -97,19 +99,22 @@ class AtomicCheckpointCallback(BaseCallback):
 
     def _on_rollout_start(self) -> None:
         self._rollout_start = self.num_timesteps
-        if self.num_timesteps >= self._next:
+        # A signal caught during the last rollout or its update: that update is done, so stop before collecting more.
+        if self.preemption is not None and self.preemption.signal is not None:
+            self.preemption.stopped = True
+        if self.num_timesteps >= self._next and not self.stopped:
             self.save()
             self._next = (self.num_timesteps // self.every + 1) * self.every
 
-    def _on_step(self) -> bool:
-        return not self.preempted
-
     @property
-    def preempted(self) -> bool:
-        return self.preemption is not None and self.preemption.signal is not None
+    def stopped(self) -> bool:
+        return self.preemption is not None and self.preemption.stopped
+
+    def _on_step(self) -> bool:
+        return not self.stopped
 
     def _on_training_end(self) -> None:
-        if self.preempted:  # the model is as the last update left it: count only the steps it was trained on
+        if self.stopped:  # the one step of the new rollout was never trained on: not counted
             self.model.num_timesteps = self.num_timesteps = self._rollout_start
         self.save()
 
@@ -162,7 +167,7 @@ class ValidationCallback(BaseCallback):
         return True
 
     def _on_training_end(self) -> None:
-        if self.preemption is not None and self.preemption.signal is not None:
+        if self.preemption is not None and self.preemption.stopped:
             return  # stopped early: the final model's validation belongs to the run's real end
         self.validate()
         self.logger.record("time/total_timesteps", self.num_timesteps)

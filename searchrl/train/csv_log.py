@@ -34,9 +34,12 @@ def check_log(path: Path, resume_step: int, every: int) -> None:
         raise ValueError(f"{where} is not UTF-8 text: move it aside to resume with a new log") from None
     text = text[: text.rfind("\n") + 1]  # a last row cut short by a kill is dropped anyway
     reader = csv.DictReader(io.StringIO(text, newline=""))
-    if text and STEP_KEY not in (reader.fieldnames or []):
+    rows = list(reader)
+    if not rows:  # nothing logged yet (the header alone, or an empty file written when the log was opened)
+        return
+    if STEP_KEY not in (reader.fieldnames or []):
         raise ValueError(f"{where} has no {STEP_KEY} column: move it aside to resume with a new log")
-    steps = [_step(row) for row in reader]
+    steps = [_step(row) for row in rows]
     kept = [s for s in steps if s <= resume_step]
     for before, after in zip([0.0, *kept], [*kept, float(resume_step)], strict=True):
         if after < before or after - before > every:

@@ -12,6 +12,7 @@ cost more than the step itself).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, fields
 from operator import attrgetter
 
@@ -117,6 +118,14 @@ def _world_arrays(values):
     return WorldArrays(*values)
 
 
+def physical_memory() -> int:
+    """Bytes of RAM on this machine (0 where the platform does not say)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 0
+
+
 def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
     """Zeroed arrays for `n_worlds` worlds; `reset_worlds` fills them. Memory is dominated by the beliefs:
     K · N · 2 · S² · 4 bytes (K · N · 3 · S² · 4 with `belief_age`, K · N · 4 · S² · 4 with `belief_seen` too)."""
@@ -125,6 +134,14 @@ def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
     k, n = n_worlds, config.n_agents
     h = config.halo
     side = config.world_size[1] + 2 * h
+    layers = 2 + (config.belief_age > 0) + config.belief_seen
+    need_bytes, have = k * n * layers * side * side * 4, physical_memory()
+    if have and need_bytes > have:  # numpy would fail with a bare allocation error, or the machine swap to a halt
+        raise ValueError(
+            f"n_worlds={k}, n_agents={n}, world_size={config.world_size} is not allowed here: the agents' beliefs "
+            f"alone need {need_bytes / 2**30:,.1f} GiB and this machine has {have / 2**30:,.1f} GiB; fewer worlds, "
+            "agents or a smaller largest world"
+        )
     t_max = config.n_targets[1]
     state = WorldState(
         size=np.zeros(k, np.int64),
