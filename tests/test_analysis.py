@@ -367,3 +367,29 @@ def test_training_curves_carry_the_teacher_distance_and_the_critic(tmp_path):
     assert out.returncode == 0, out.stderr[-3000:]
     table = (tmp_path / "tc" / "teacher_distance.md").read_text()
     assert "| 0 | 0.200 |" in table and "| 250000 | 0.400 |" in table
+
+
+def test_two_folders_with_one_label_are_shown_apart_by_every_analysis_script(fixture_dirs, tmp_path):
+    """The same controller evaluated into two folders (as greedy and greedy_target, or a clone and its RL policy,
+    share a label): `load` names each by its folder instead of merging their maps under one name, so table3,
+    claims and figures (which read through it) and compare (which names by folder) all show two rows."""
+    import shutil
+
+    from searchrl.evaluate.results import load
+
+    twin = tmp_path / "surfing_again"
+    shutil.copytree(fixture_dirs / "eval" / "surfing", twin)
+    both = [fixture_dirs / "eval" / "surfing", twin]
+    episodes = load(*both)
+    assert set(episodes.controller) == {"surfing@surfing", "surfing@surfing_again"}
+    assert len(episodes) == 2 * len(load(both[0]))
+    same_names = tmp_path / "a" / "surfing"
+    shutil.copytree(both[0], same_names)
+    assert set(load(both[0], same_names).controller) == {f"surfing@{both[0]}", f"surfing@{same_names}"}
+    out = _script("table3.py", *map(str, both), "--out", str(tmp_path / "t3"))
+    assert out.returncode == 0 and "named apart by its folder" in out.stderr, out.stderr[-2000:]
+    table = pd.read_csv(tmp_path / "t3" / "table3.csv")
+    assert set(table.controller) == {"surfing@surfing", "surfing@surfing_again"}
+    for script in ("claims.py", "figures.py", "compare.py"):
+        out = _script(script, *map(str, both), "--out", str(tmp_path / script))
+        assert out.returncode == 0, (script, out.stderr[-2000:])

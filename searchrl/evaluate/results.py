@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -32,8 +33,16 @@ def world_of(out_dir: str | Path) -> str:
     return config.sensing_label if config else "unknown"
 
 
+LABEL = ["controller", "model", "world", "scenario"]  # what a result row is grouped under in every table
+
+
 def load(*out_dirs: str | Path) -> pd.DataFrame:
-    """Every episode row of the given evaluation directories (`<dir>/cells/<cell>.parquet`), one frame."""
+    """Every episode row of the given evaluation directories (`<dir>/cells/<cell>.parquet`), one frame.
+
+    Two folders whose rows carry the same label (controller, model, world, scenario) hold different evaluations
+    (greedy and greedy_target are both `greedy`; a clone and its RL policy both `policy:b`): merged, their maps
+    would count twice under one name. Their controllers are named apart as `<controller>@<folder>` (the folder's
+    name, or its path where the names are equal too), and a note says so."""
     frames = []
     for d in out_dirs:
         for f in cell_files(d):
@@ -46,7 +55,28 @@ def load(*out_dirs: str | Path) -> pd.DataFrame:
                 frame.insert(2, "world", world_of(d))
             if "scenario" not in frame:  # cells made before scenarios existed ran the paper's
                 frame.insert(3, "scenario", PAPER.label)
+            frame["folder"] = str(d)
             frames.append(frame)
     if not frames:
         raise FileNotFoundError(f"no cells/*.parquet under {[str(d) for d in out_dirs]}")
-    return pd.concat(frames, ignore_index=True)
+    return _named_apart(frames)
+
+
+def _named_apart(frames: list[pd.DataFrame]) -> pd.DataFrame:
+    """The frames (each with a `folder` column) as one, controllers whose label two folders share renamed per
+    folder."""
+    episodes = pd.concat(frames, ignore_index=True)
+    keys = episodes[LABEL].astype(str).agg(" | ".join, axis=1)
+    per_label = episodes.groupby(keys)["folder"].nunique()
+    clash = keys.isin(per_label[per_label > 1].index)
+    if clash.any():
+        folders = sorted(episodes.loc[clash, "folder"].unique())
+        names = [Path(f).name for f in folders]
+        suffix = dict(zip(folders, names if len(set(names)) == len(names) else folders, strict=True))
+        episodes.loc[clash, "controller"] += "@" + episodes.loc[clash, "folder"].map(suffix)
+        print(
+            f"note: {', '.join(folders)} hold results under one label: each named apart by its folder "
+            f"({', '.join(sorted(episodes.loc[clash, 'controller'].unique()))})",
+            file=sys.stderr,
+        )
+    return episodes.drop(columns="folder")
