@@ -1,10 +1,12 @@
-"""`python -m searchrl.train +model=<a|b|c|diagonal> [algo=a2c|ppo] [network=small] [key=value ...]`
+"""`python -m searchrl.train +model=<a|b|c|diagonal> [algo=a2c] [network=small] [scenario=...] [key=value ...]`
+or `python -m searchrl.train +experiment=<recipe>` (conf/experiment/, the recipe of a shipped policy).
 
 Trains one shared policy for all agents (parameter sharing) and writes under the run directory: the resolved
 `config.yaml`, `progress.csv` and TensorBoard logs (team metrics, losses, validation), `checkpoints/`, and at the
 end `model.zip` and `score.json` (the run's score, score.py, which `main` returns to Hydra's sweepers), every file
 written atomically. `resume=<run dir>` continues a killed run from its newest readable checkpoint with step count
-and optimiser state intact. The run folder is locked while in use (docs/files.md).
+and optimiser state intact; SIGTERM or SIGINT stops it with a checkpoint (exit 143, 130). The run folder is locked
+while in use (docs/files.md).
 """
 
 from __future__ import annotations
