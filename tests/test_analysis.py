@@ -393,3 +393,15 @@ def test_two_folders_with_one_label_are_shown_apart_by_every_analysis_script(fix
     for script in ("claims.py", "figures.py", "compare.py"):
         out = _script(script, *map(str, both), "--out", str(tmp_path / script))
         assert out.returncode == 0, (script, out.stderr[-2000:])
+
+
+def test_one_controller_in_two_scenarios_is_shown_apart(tmp_path):
+    """The tables group by controller and model: a folder of the paper's scenario and one of walls are named apart."""
+    from searchrl.evaluate.results import load
+    from tests.test_evaluate import _evaluate
+
+    _evaluate(tmp_path / "greedy", "controller=greedy")
+    _evaluate(tmp_path / "greedy_walls", "controller=greedy", "scenario=walls")
+    episodes = load(tmp_path / "greedy", tmp_path / "greedy_walls")
+    assert set(episodes.controller) == {"greedy@greedy", "greedy@greedy_walls"}
+    assert set(episodes.groupby("controller").scenario.unique().map(tuple)) == {("paper",), ("iid0.2",)}

@@ -33,16 +33,18 @@ def world_of(out_dir: str | Path) -> str:
     return config.sensing_label if config else "unknown"
 
 
-LABEL = ["controller", "model", "world", "scenario"]  # what a result row is grouped under in every table
+# What a result row is grouped under in every table (searchrl/analysis/stats.py): two folders sharing it are named
+# apart, whatever else differs between them (the world, the scenario, the settings).
+LABEL = ["controller", "model"]
 
 
 def load(*out_dirs: str | Path) -> pd.DataFrame:
     """Every episode row of the given evaluation directories (`<dir>/cells/<cell>.parquet`), one frame.
 
-    Two folders whose rows carry the same label (controller, model, world, scenario) hold different evaluations
-    (greedy and greedy_target are both `greedy`; a clone and its RL policy both `policy:b`): merged, their maps
-    would count twice under one name. Their controllers are named apart as `<controller>@<folder>` (the folder's
-    name, or its path where the names are equal too), and a note says so."""
+    Two folders whose rows carry the same label (controller, model) hold different evaluations (greedy and
+    greedy_target are both `greedy`; a clone and its RL policy both `policy:b`; one controller in two worlds or
+    scenarios): merged, their maps would count twice under one name. Their controllers are named apart as
+    `<controller>@<folder>` (the folder's name, or its path where the names are equal too), and a note says so."""
     frames = []
     for d in out_dirs:
         for f in cell_files(d):
