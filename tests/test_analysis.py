@@ -99,6 +99,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                               "missed_targets.md": ("# Missed targets by distance to the edge", 4)},
         "calibration.py": {"calibration.csv": (12, 15), "calibration.png": (880, 396),
                            "calibration.md": ("# Which k: heuristics in four worlds beside the paper", 11)},
+        "shipped.py": {"shipped.md": ("| policy | RL agent-steps | RL hours (1 core) | policy found | paper |", 6)},
         "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
                      "sweep_curves.png": (780, 480)},
     }[notebook]  # fmt: skip
@@ -144,6 +145,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                 "worse):\n\n(none)\n\nAll cells:\n\n- b: better on 0 of 4 cells, tie 0, saturated 0, worse 0, too few "
                 "maps 4; smallest margin ") in claims  # fmt: skip
         assert "## Efficiency against the search bound" in claims
+    if notebook == "shipped.py":  # made from shipped files only: the README's table is what it writes
+        assert (tmp_path / "shipped.md").read_text() == (ROOT / "analysis" / "out" / "shipped.md").read_text()
     if notebook == "bounds.py":
         bounds = pd.read_csv(tmp_path / "bounds.csv")
         assert len(bounds) == 30 and (bounds.maps == 1).all() and bounds.bound.between(0, 1).all()

@@ -177,6 +177,13 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
     assert checkpoint_label(run / "model.zip") == "b_seed0"
     assert checkpoint_label(run / "imitation.zip") == "b_seed0@imitation"
     assert checkpoint_label(run / "checkpoints" / "step_512.zip") == "b_seed0@step_512"
+    # Under a runs/ folder the label is the run's path below it: a clone and its RL policy, both run folders `b`,
+    # never share a label or a default output folder (the nearest runs/ counts)
+    runs = tmp_path / "runs" / "x" / "runs" / "reference"
+    labels = {checkpoint_label(runs / sub / "model.zip") for sub in ("b", "term/b", "rl/b")}
+    assert labels == {"reference/b", "reference/term/b", "reference/rl/b"}
+    assert checkpoint_label(runs / "term" / "b" / "checkpoints" / "step_512.zip") == "reference/term/b@step_512"
+    assert checkpoint_label(tmp_path / "runs" / "model.zip") == "runs"  # a run folder named runs: its own name
 
 
 @pytest.mark.parametrize(
@@ -250,6 +257,22 @@ def test_run_cell_shows_each_episode_end_once():
                      needs_observation=False, on_done=on_done)  # fmt: skip
     assert sorted(seen) == list(range(6))
     assert np.allclose([found[w] for w in range(6)], frame.found_fraction)
+
+
+def test_a_clone_and_its_rl_policy_default_to_folders_and_labels_of_their_own(tmp_path, monkeypatch):
+    """runs/reference/b (the clone) and runs/reference/term/b (its RL policy) are both run folders `b`: each is
+    evaluated into runs/eval/policy/<its path under runs/> under that label, the second not refused."""
+    monkeypatch.chdir(tmp_path)  # the default out_dir is relative to the working directory
+    outs = {}
+    for run in ("b", "term/b"):
+        checkpoint = ROOT / "runs" / "reference" / run / "model.zip"
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            cfg = compose(config_name="evaluate", overrides=[*SLICE, "grid.maps_per_cell=1", "grid.repeats=1",
+                                                             f"checkpoint={checkpoint}"])  # fmt: skip
+        outs[run] = evaluate(cfg, [f"checkpoint={checkpoint}"])
+    assert outs == {"b": Path("runs/eval/policy/reference/b"), "term/b": Path("runs/eval/policy/reference/term/b")}
+    assert set(load(outs["b"]).controller) == {"policy:reference/b"}
+    assert set(load(outs["term/b"]).controller) == {"policy:reference/term/b"}
 
 
 def test_greedy_target_is_greedy_with_its_settings_recorded_so(tmp_path, monkeypatch, capsys):

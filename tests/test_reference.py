@@ -76,4 +76,4 @@ def test_the_readme_evaluation_command_runs_on_reference_b(tmp_path):
     out = subprocess.run(cmd, cwd=REFERENCE.parents[1], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     frame = load(tmp_path)
-    assert len(frame) == 4 and set(frame.controller) == {"policy:b"} and set(frame.model) == {"b"}
+    assert len(frame) == 4 and set(frame.controller) == {"policy:reference/b"} and set(frame.model) == {"b"}

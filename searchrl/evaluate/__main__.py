@@ -172,9 +172,10 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
                 factory(cell_config(world, cell))
             except ConfigError as err:
                 raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
-        # Default runs/eval/<controller=…> (greedy_target's folder though its rows say greedy) or runs/eval/policy_<run>
-        default = controller_name if cfg.checkpoint is not None else cfg.controller.name
-        out_dir = out_dir or Path(f"runs/eval/{default.replace(':', '_')}")
+        # Default runs/eval/<controller=…> (greedy_target's folder though its rows say greedy) or
+        # runs/eval/policy/<label>: the label is the run's path under runs/, so two runs never share a folder
+        default = controller_name.replace(":", "/") if cfg.checkpoint is not None else cfg.controller.name
+        out_dir = out_dir or Path(f"runs/eval/{default}")
         check_out_dir(out_dir)
         if cfg.bound_cache is not None:  # the bounds are written after a cell's episodes: refused now, not then
             check_writable(cfg.bound_cache, "bound_cache", folder=True)

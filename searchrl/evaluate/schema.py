@@ -36,7 +36,7 @@ class EvaluateConfig:
     seed: int = 7_000_000  # evaluation map seeds: base + 100000·cell + map, disjoint from training and validation
     shard: int = 0  # this job evaluates cells shard, shard + num_shards, …
     num_shards: int = 1
-    out_dir: str | None = None  # default runs/eval/<controller or checkpoint run>
+    out_dir: str | None = None  # default runs/eval/<controller> or runs/eval/policy/<run path under runs/>
     batch_mb: float = 1024.0  # memory budget of one batch of worlds
     bound_draws: int = 1000  # placements per map for the search bound columns (searchrl/evaluate/bound.py)
     bound_cache: str | None = "runs/bounds"  # bounds computed once per map, shared by evaluations; null: no cache

@@ -37,11 +37,15 @@ def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
 
 
 def checkpoint_label(path: str | Path) -> str:
-    """The name a checkpoint is evaluated under: its run's folder for `<run>/model.zip`, `<run>@<file stem>` for
-    any other file of the run (`<run>@imitation`, `<run>@step_500000`), so they never share an output folder."""
+    """The name a checkpoint is evaluated under: its run folder's path below the nearest folder named `runs`
+    (`reference/b` for the clone, `reference/term/b` for its RL policy), or the run folder's name when no `runs`
+    folder holds it; `<run>@<file stem>` for any other file of the run (`reference/b@imitation`,
+    `train/b/x@step_500000`). Two run folders under one `runs/` never share a label or a default output folder."""
     path = Path(path).resolve()
     run = path.parent.parent if path.parent.name == "checkpoints" else path.parent
-    return run.name if path.name == "model.zip" else f"{run.name}@{path.stem}"
+    above = [i for i, part in enumerate(run.parts) if part == "runs"]
+    name = "/".join(run.parts[above[-1] + 1 :]) if above and above[-1] < len(run.parts) - 1 else run.name
+    return name if path.name == "model.zip" else f"{name}@{path.stem}"
 
 
 def load_checkpoint(path: str | Path, algo: str, cls: type[BaseAlgorithm] | None = None,
