@@ -55,6 +55,8 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
                 "grid.repeats=2"]  # fmt: skip
     if notebook == "bounds.py":  # the whole grid with one map per cell, joined with the shipped Table 3
         args = ["--maps", "1", "--draws", "100", "--cache", str(out_dir / "cache"), "analysis/out/table3.csv"]
+    if notebook == "prior_quality.py":  # worlds only, two maps per world size
+        args = ["--maps", "2"]
     if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
         args = [str(eval_dirs[0].parent.parent), str(out_dir)]
     env = {
@@ -99,6 +101,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                               "missed_targets.md": ("# Missed targets by distance to the edge", 4)},
         "calibration.py": {"calibration.csv": (12, 15), "calibration.png": (880, 396),
                            "calibration.md": ("# Which k: heuristics in four worlds beside the paper", 11)},
+        "prior_quality.py": {"prior_quality.csv": (2 * 4 * 5 * 3, 9),
+                             "prior_quality.md": ("Mean prior quality over 2 maps per n", 10)},
         "shipped.py": {"shipped.md": ("| policy | RL agent-steps | RL hours (1 core) | policy found | paper |", 6)},
         "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
                      "sweep_curves.png": (780, 480)},

@@ -20,7 +20,7 @@ from searchrl.world.bound import (
     team_reach,
 )
 from searchrl.world.footprint import GAMMA, MOVES
-from searchrl.world.scenario import place_targets
+from searchrl.world.truth import place_targets
 
 ROOT = Path(__file__).resolve().parents[1]
 

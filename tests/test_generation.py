@@ -8,8 +8,9 @@ import pytest
 from searchrl.world.config import WorldConfig
 from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
 from searchrl.world.reset import reset_worlds
-from searchrl.world.scenario import IidObstacles, Scenario, place_targets
+from searchrl.world.scenario import IidObstacles, Scenario
 from searchrl.world.state import allocate
+from searchrl.world.truth import place_targets
 
 
 def _inner(state, k):

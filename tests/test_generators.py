@@ -14,8 +14,9 @@ from scipy import stats
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.reset import reset_worlds
-from searchrl.world.scenario import PAPER, IidObstacles, OffPriorTargets, PriorTargets, Scenario, place_targets
+from searchrl.world.scenario import PAPER, IidObstacles, Scenario
 from searchrl.world.state import allocate
+from searchrl.world.truth import OffPriorTargets, PriorTargets, place_targets
 
 GOLDEN = Path(__file__).resolve().parent / "golden" / "worlds.json"
 

@@ -6,8 +6,9 @@ import numpy as np
 from hypothesis import strategies as st
 
 from searchrl.world.config import WorldConfig
-from searchrl.world.scenario import PAPER, IidObstacles, OffPriorTargets, Scenario
+from searchrl.world.scenario import PAPER, IidObstacles, Scenario
 from searchrl.world.state import WorldState
+from searchrl.world.truth import OffPriorTargets
 
 # Discrete state (positions, occupancy, targets, counters) must be bit-exact between engine and oracle.
 DISCRETE_FIELDS = (

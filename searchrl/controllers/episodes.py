@@ -22,6 +22,7 @@ from searchrl.world.engine import SearchWorld
 from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
+from searchrl.world.truth import prior_qualities
 
 ControllerFactory = Callable[[WorldConfig, WorldStreams], Controller]
 
@@ -76,7 +77,9 @@ def play_episodes(
     on_done: Callable[[WorldState, np.ndarray], None] | None = None,
 ) -> dict[str, np.ndarray]:
     """One episode per (map seed, key), all in one batch of worlds of `config` under `scenario`, played by
-    `controller_factory(config, controller streams)`; their metrics, (episodes,) per name."""
+    `controller_factory(config, controller streams)`; their metrics, (episodes,) per name, and `prior_quality`,
+    how well the prior the agents start from points at the episode's targets (searchrl/world/truth.py)."""
     world_streams, controller_streams = episode_streams(keys)
     world = SearchWorld.from_maps(config, map_seeds, world_streams, scenario, observe=needs_observation)
-    return play(world, controller_factory(config, controller_streams), on_step, on_done)
+    quality = prior_qualities(world.state)
+    return {**play(world, controller_factory(config, controller_streams), on_step, on_done), "prior_quality": quality}

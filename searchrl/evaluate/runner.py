@@ -18,8 +18,10 @@ from searchrl.world.state import WorldState
 # `world` names the sensing the episodes ran under (WorldConfig.sensing_label: "bayes" λk = 1, "paper" k = n),
 # `scenario` what their resets drew (Scenario.label: "paper", "iid0.2", "off_prior1", …).
 # The evaluation app (__main__) adds the map's search bound, searchrl/evaluate/bound.py's BOUND_COLUMNS.
+# `prior_quality` is how well the prior the agents start from points at the episode's targets (MapScore-like: 0 no
+# better than uniform, 1 every target on the prior's best cell; searchrl/world/truth.py).
 COLUMNS = ["controller", "model", "world", "scenario", "n", "N", "targets", "map_seed", "repeat", "found_fraction",
-           "L", "R", "F", "M_bar"]  # fmt: skip
+           "L", "R", "F", "M_bar", "prior_quality"]  # fmt: skip
 
 
 def cell_config(world: WorldConfig, cell: Cell) -> WorldConfig:
@@ -85,6 +87,6 @@ def run_cell(
         for w, (_, r) in enumerate(chunk):
             rows.append(
                 {"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "map_seed": seeds[w], "repeat": r,
-                 **{name: final[name][w] for name in ("found_fraction", "L", "R", "F", "M_bar")}}
+                 **{name: final[name][w] for name in ("found_fraction", "L", "R", "F", "M_bar", "prior_quality")}}
             )  # fmt: skip
     return pd.DataFrame(rows)

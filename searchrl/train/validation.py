@@ -40,4 +40,4 @@ def run_episodes(
 
     keys = [(seed, 0, w, 0) for w in range(n_worlds)]
     metrics = play_episodes(factory, world_config, [seed + w for w in range(n_worlds)], keys, scenario)
-    return {name: float(np.mean(values)) for name, values in metrics.items()}
+    return {name: float(np.mean(values)) for name, values in metrics.items() if name != "prior_quality"}  # a world's

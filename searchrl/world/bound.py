@@ -36,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from searchrl.world.footprint import GAMMA, MOVES, SUPPORT, Footprint
-from searchrl.world.scenario import keep_probability
+from searchrl.world.truth import keep_probability
 
 
 class SearchBound(NamedTuple):

@@ -4,7 +4,8 @@ Spec. A reset of world k draws, from its generator and in this order (searchrl/w
 1. the side n, Gaussian count m and target count j from WorldConfig's ranges (§4.1.2-4.1.4);
 2. the prior maps p and u the agents start from (§4.1.3: mixtures of Gaussians, eq. 6-8);
 3. the obstacles, `scenario.obstacles(n, room, rng)`: (n, n) bool or None; p and u are renormalised over free cells;
-4. the targets, `scenario.targets(p, u, free, j, rng)`: (j, 2) distinct free cells, where the truth puts them;
+4. the targets, `scenario.targets(p, u, free, j, rng)`: (j, 2) distinct free cells, where the truth puts them
+   (searchrl/world/truth.py: the paper's placement and the families of prior error);
 5. the agents' start cells, uniformly on the free cells left.
 
 A `Scenario` is those two injected parts (Jumanji's `Generator`, split where scenarios vary). Its default, the
@@ -25,44 +26,10 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
-from searchrl.world.config import ConfigError, WorldConfig, is_int, need
+from searchrl.world.config import ConfigError, WorldConfig, need
+from searchrl.world.truth import PLACERS, PriorTargets, finite, keep_probability, place_targets  # noqa: F401 (imported from here too)
 
 _MAX_OBSTACLE_DRAWS = 100
-_MAX_TARGET_ROUNDS = 1_000
-
-
-def keep_probability(u: np.ndarray) -> np.ndarray:
-    """The second stage of §4.1.4's placement: a tentative cell is kept with probability 1 - u/max(u) (the paper's
-    `1 - u` needs u on a [0, 1] scale and u sums to 1, so we read it relative to its maximum). Same shape as u."""
-    return 1.0 - u / u.max()
-
-
-def place_targets(p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
-    """Two-stage placement of §4.1.4 on distinct free cells.
-
-    A tentative cell is drawn from p over the free cells, then kept when a uniform draw is below
-    `keep_probability(u)`. A tentative cell that already holds a target is redrawn (rejection from p restricted
-    to empty cells). Candidates are drawn in batches of `4 · count` from one CDF. p, u, free: (n, n).
-    Returns (count, 2) int64 (row, col).
-    """
-    if count == 0:
-        return np.zeros((0, 2), np.int64)
-    n = p.shape[0]
-    cdf = np.cumsum(np.where(free, p, 0.0).ravel())
-    keep_prob = keep_probability(u).ravel()
-    chosen: list[int] = []
-    taken: set[int] = set()
-    for _ in range(_MAX_TARGET_ROUNDS):
-        batch = 4 * count
-        cells = np.minimum(np.searchsorted(cdf, rng.random(batch) * cdf[-1], side="right"), n * n - 1)
-        keep = rng.random(batch) < keep_prob[cells]
-        for cell in cells[keep].tolist():
-            if cell not in taken:
-                taken.add(cell)
-                chosen.append(cell)
-                if len(chosen) == count:
-                    return np.stack(np.divmod(np.array(chosen, np.int64), n), axis=1)
-    raise RuntimeError(f"could not place {count} targets in {_MAX_TARGET_ROUNDS} batches (maps too peaked?)")
 
 
 class ObstacleGenerator(Protocol):
@@ -88,9 +55,8 @@ class TargetPlacer(Protocol):
     @property
     def label(self) -> str: ...
 
-
-def _finite(value: object) -> bool:
-    return (is_int(value) or isinstance(value, (float, np.floating))) and np.isfinite(value)
+    @property
+    def follows_prior(self) -> bool: ...
 
 
 @dataclass(frozen=True)
@@ -113,7 +79,7 @@ class IidObstacles:
                            f"{room} free cells of {n}x{n}")  # fmt: skip
 
     def check(self, config: WorldConfig) -> None:
-        need(_finite(self.density) and 0 <= self.density < 1, "scenario.obstacles.density", self.density,
+        need(finite(self.density) and 0 <= self.density < 1, "scenario.obstacles.density", self.density,
              "0 <= density < 1")  # fmt: skip
         # Agents and targets need distinct free cells in the smallest world: checked at the expected density here,
         # exactly at every reset (the draw repeats until they fit).
@@ -129,57 +95,8 @@ class IidObstacles:
         return f"iid{self.density:g}" if self.density > 0 else ""
 
 
-@dataclass(frozen=True)
-class PriorTargets:
-    """§4.1.4: targets placed from the prior itself (`place_targets`, the paper's two-stage law)."""
-
-    kind: ClassVar[str] = "prior"
-
-    def __call__(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-                 ) -> np.ndarray:  # fmt: skip
-        return place_targets(p, u, free, count, rng)
-
-    def check(self, config: WorldConfig) -> None:
-        pass
-
-    @property
-    def label(self) -> str:
-        return ""
-
-
-@dataclass(frozen=True)
-class OffPriorTargets:
-    """Targets off the prior: each of the j targets, independently with probability `severity`, lies uniformly on
-    a free cell instead of following §4.1.4's law; the agents still start from the prior. Severity 0 is the paper's
-    placement, drawn exactly as `PriorTargets` draws it; severity 1 places every target uniformly (the prior says
-    nothing about where they are). Draws: j uniforms (which targets are off), the prior's placement of the others,
-    then the off targets' cells without replacement among the free cells left."""
-
-    kind: ClassVar[str] = "off_prior"
-    severity: float = 1.0
-
-    def __call__(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-                 ) -> np.ndarray:  # fmt: skip
-        if self.severity == 0:
-            return place_targets(p, u, free, count, rng)
-        off = int((rng.random(count) < self.severity).sum())
-        placed = place_targets(p, u, free, count - off, rng) if off < count else np.zeros((0, 2), np.int64)
-        left = free.copy()
-        left[placed[:, 0], placed[:, 1]] = False
-        cells = rng.choice(np.flatnonzero(left.ravel()), size=off, replace=False).astype(np.int64)
-        return np.concatenate([placed, np.stack(np.divmod(cells, free.shape[0]), axis=1)])
-
-    def check(self, config: WorldConfig) -> None:
-        need(_finite(self.severity) and 0 <= self.severity <= 1, "scenario.targets.severity", self.severity,
-             "0 <= severity <= 1 (the share of targets placed uniformly instead of from the prior)")  # fmt: skip
-
-    @property
-    def label(self) -> str:
-        return f"off_prior{self.severity:g}"
-
-
 OBSTACLES: dict[str, type] = {cls.kind: cls for cls in (IidObstacles,)}
-TARGETS: dict[str, type] = {cls.kind: cls for cls in (PriorTargets, OffPriorTargets)}
+TARGETS: dict[str, type] = PLACERS  # searchrl/world/truth.py
 
 
 @dataclass(frozen=True)
@@ -197,8 +114,9 @@ class Scenario:
 
     @property
     def targets_follow_prior(self) -> bool:
-        """Targets placed by §4.1.4's law from the prior the agents hold (what the search bound assumes)."""
-        return self.targets.label == ""
+        """Targets placed by §4.1.4's law from the prior the agents hold (what the search bound assumes): the
+        paper's placement, or a family of prior error at severity 0."""
+        return self.targets.follows_prior
 
     def check(self, config: WorldConfig) -> None:
         """ConfigError naming the first value this scenario cannot draw in `config`'s worlds."""
