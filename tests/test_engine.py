@@ -126,6 +126,9 @@ def test_bench_train_times_a_recipe_with_the_teacher_term(capsys):
     assert bench_main(["train", "--updates", "1", "--threads", "1", "--experiment", "rl_term_b", "--json"]) == 0
     (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert row["case"] == "rl_term_b_threads1" and 0 < row["labels_share"] < 1 and 0 < row["update_share"] < 1
+    # The raw bound of the same run: the network alone, so above the recipe's own speed by a margin of its update's
+    assert row["raw_bound_agent_steps_per_s"] > 0
+    assert row["ratio_to_raw_bound"] == round(row["agent_steps_per_s"] / row["raw_bound_agent_steps_per_s"], 3)
     with pytest.raises(SystemExit):
         bench_main(["train", "--experiment", "nothing"])
     assert "--experiment=nothing is not allowed: one of" in capsys.readouterr().err

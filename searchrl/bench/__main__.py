@@ -6,12 +6,6 @@ refused by argparse rather than ignored.
 
 from __future__ import annotations
 
-import os
-
-# Sleep rather than spin when torch's OpenMP threads wait: with parallel sweeps or any other busy process on the
-# cores, spinning threads slowed a tiny run 20x here. Set OMP_WAIT_POLICY yourself to override.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-
 import argparse
 import json
 import math

@@ -14,10 +14,6 @@ Load the results with `searchrl.evaluate.results.load`.
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # see searchrl/train/__main__.py
-
 import math
 import sys
 import time

@@ -56,7 +56,10 @@ def load_checkpoint(path: str | Path, algo: str, cls: type[BaseAlgorithm] | None
     if algo not in ALGORITHMS:
         raise ValueError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
     try:
-        return (cls or ALGORITHMS[algo][0]).load(str(path), custom_objects=retired_kwargs_dropped(path), **kwargs)
+        custom = retired_kwargs_dropped(path) or {}
+        if isinstance(ALGORITHMS[algo][1], type):  # checkpoints saved with sb3-contrib's own class load as this one
+            custom["policy_class"] = ALGORITHMS[algo][1]
+        return (cls or ALGORITHMS[algo][0]).load(str(path), custom_objects=custom, **kwargs)
     except OSError:
         raise
     except Exception as err:  # BadZipFile, EOFError, KeyError, RuntimeError of torch.load, ...

@@ -12,13 +12,7 @@ while in use (docs/files.md).
 from __future__ import annotations
 
 import copy
-import os
 import signal
-
-# Sleep rather than spin when torch's OpenMP threads wait: with parallel sweeps or any other busy process on the
-# cores, spinning threads slowed a tiny run 20x here. Set OMP_WAIT_POLICY yourself to override.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-
 import sys
 from pathlib import Path
 

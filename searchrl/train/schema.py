@@ -109,7 +109,7 @@ class TrainConfig:
     # A checkpoint whose policy weights start this run (fine-tuning, e.g. from a run's imitation.zip); the step
     # count and optimiser start afresh. Same observation and action spaces and network needed.
     init: str | None = None
-    threads: int = 2  # torch threads (1 makes a run bit-reproducible)
+    threads: int = 2  # torch threads; a run is bit-reproducible for a given count (on one machine and torch build)
     device: str = "cpu"
     progress_bar: bool = True
     log_interval: int = 1  # rollouts between log rows
