@@ -204,6 +204,10 @@ def test_checkpoint_labels_keep_files_of_one_run_apart(tmp_path):
         ("threads=100000", "threads=100000 is not allowed: 1 <= threads <= 1024"),
         ("scenario=off_prior scenario.targets.severity=-1", "scenario.targets.severity=-1 is not allowed"),
         ("scenario.targets.kind=truth", "scenario.targets.kind='truth' is not allowed: one of prior, off_prior"),
+        ("controller.hedge=2", "hedge=2.0"),
+        ("grid.agents=[3]", "grid.agents=[3] is not allowed"),
+        ("scenario=misweighted scenario.prior.severity=2", "scenario.prior.severity=2 is not allowed"),
+        ("scenario=sharp scenario.prior.variance_scale=0", "scenario.prior.variance_scale=0 is not allowed"),
     ],
 )
 def test_bad_input_fails_before_work(tmp_path, override, message, capsys):

@@ -1,10 +1,11 @@
 """docs/options.md lists every option, and only options that exist.
 
-The settings are read from the code: the world's (`WorldConfig`), the scenario's parts (`OBSTACLES`, `TARGETS`),
-each registered controller's schema (`HEURISTICS`), training's (`TrainConfig` and its nested dataclasses, the three
-algorithm schemas) and evaluation's (`EvaluateConfig`). The page's tables are read section by section (a `##` or
-`###` heading; a controller's heading names it in backticks), each row's first cell one key in backticks. A setting
-without a row, a row without a setting, or a row whose "needed by" cell is empty fails here.
+The settings are read from the code: the world's (`WorldConfig`), the scenario's parts (`OBSTACLES`, `PRIORS`,
+`TARGETS`), each registered controller's schema (`HEURISTICS`), training's (`TrainConfig` and its nested
+dataclasses, the three algorithm schemas) and evaluation's (`EvaluateConfig`). The page's tables are read section
+by section (a `##` or `###` heading; a controller's heading names it in backticks), each row's first cell one key
+in backticks. A setting without a row, a row without a setting, or a row whose "needed by" cell is empty fails
+here.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from searchrl.controllers.registry import HEURISTICS
 from searchrl.evaluate.schema import EvaluateConfig
 from searchrl.train.schema import A2CConfig, RecurrentPPOConfig, TrainConfig
 from searchrl.world.config import WorldConfig
-from searchrl.world.scenario import OBSTACLES, TARGETS
+from searchrl.world.scenario import OBSTACLES, PRIORS, TARGETS
 
 PAGE = Path(__file__).resolve().parents[1] / "docs" / "options.md"
 COLUMNS = ["option", "default", "what it does", "needed by"]
@@ -66,9 +67,10 @@ def dotted_keys(schema: type, prefix: str = "", skip: frozenset[str] = frozenset
 def code_options() -> dict[str, set[str]]:
     """Section of docs/options.md -> the keys the code has for it."""
     scenario = set()
-    for part, kinds in (("obstacles", OBSTACLES), ("targets", TARGETS)):
+    for part, kinds in (("obstacles", OBSTACLES), ("prior", PRIORS), ("targets", TARGETS)):
         scenario.add(f"scenario.{part}.kind")
         scenario |= {f"scenario.{part}.{f.name}" for cls in kinds.values() for f in fields(cls)}
+    scenario.add("scenario.mix")  # a training distribution over whole scenarios (ScenarioMix.from_spec)
     controllers = {name: {f"controller.{f.name}" for f in fields(entry.schema) if f.name != "name"}
                    for name, entry in HEURISTICS.items()}  # fmt: skip
     return {

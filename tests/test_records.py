@@ -45,11 +45,15 @@ def test_a_heuristics_record_names_it_its_settings_its_world_and_the_whole_grid(
     cfg = _cfg("controller=greedy_target", "+model=c", "seed=5", "grid.repeats=2")
     settings = evaluation_settings(cfg, "greedy", "c")
     assert list(settings) == ["controller", "model", "seed", "grid", "scenario", "controller_args", "world"]
-    assert settings["scenario"] == {"obstacles": {"kind": "iid", "density": 0.0}, "targets": {"kind": "prior"}}
+    assert settings["scenario"] == {
+        "obstacles": {"kind": "iid", "density": 0.0},
+        "prior": {"kind": "mixture", "variance_scale": None},
+        "targets": {"kind": "prior"},
+    }
     assert (settings["controller"], settings["model"], settings["seed"]) == ("greedy", "c", 5)
     assert settings["grid"] == {"world_sizes": [20, 40, 80, 160], "n_targets": [4, 8, 16, 32],
                                 "n_distributions": [8, 16, 32, 64], "max_agents": [32, 64, 128, 256],
-                                "maps_per_cell": 100, "repeats": 2}  # fmt: skip
+                                "agents": None, "maps_per_cell": 100, "repeats": 2}  # fmt: skip
     assert settings["controller_args"]["name"] == "greedy" and settings["controller_args"]["horizon"] == 3
     assert settings["world"] == OmegaConf.to_container(cfg.env.world, resolve=True)
 
@@ -62,7 +66,8 @@ def test_a_checkpoints_record_names_its_file_by_hash_and_how_it_acts(tmp_path):
     assert settings["checkpoint_sha256"] == hashlib.sha256(b"weights").hexdigest()
     assert settings["deterministic"] is True and "world" not in settings and "controller_args" not in settings
     assert option_defaults(cfg) == {"scenario.obstacles.kind": "iid", "scenario.obstacles.density": 0.0,
-                                    "scenario.targets.kind": "prior"}  # fmt: skip
+                                    "scenario.prior.kind": "mixture", "scenario.prior.variance_scale": None,
+                                    "scenario.targets.kind": "prior", "grid.agents": None}  # fmt: skip
     walls = evaluation_settings(_cfg(f"checkpoint={model}", "scenario=walls"), "policy:run", "b")
     assert walls["scenario"]["obstacles"] == {"kind": "iid", "density": 0.2}
 

@@ -78,6 +78,7 @@ class GreedyParams(NamedTuple):
     w_t: float
     fov_half: int  # half the field of view: what an agent sees lies within that many cells
     contested: float
+    hedge: float  # ε: the information read off (1 − ε)·belief + ε·uniform, both as sensing has depleted them
 
 
 class GreedyMemory(NamedTuple):
@@ -87,6 +88,7 @@ class GreedyMemory(NamedTuple):
     seen: np.ndarray  # (K, N, S, S) float32, Π (1 − Γ) of the neighbours' footprints seen; (K, N, 0, 0) without `seen`
     known: np.ndarray  # (K, N, S, S) int32, step each agent last saw a cell's truth; (K, N, 0, 0) without `age`
     rates: np.ndarray  # (K,) float64, age · N · ΣΓ / free cells: how fast an evenly spread team senses a cell
+    flat: np.ndarray  # (K,) float64, the prior's mean information per free cell (with `hedge`; else (0,))
 
 
 @njit(cache=True)
@@ -96,18 +98,25 @@ def _moves_apart(dr, dc, diagonal):
 
 
 @njit(cache=True, inline="always")  # inlined: called per cell of every footprint scored
-def cell_information(params, belief, sp, su, seen, known, rate, now, k, i, r, c):
+def cell_information(params, belief, prior, flat, sp, su, seen, known, rate, now, k, i, r, c):
     """I(r, c) = w_p·p̂ + w_u·û + w_t·p̂·(1 − û) of agent i's belief (`WorldState.belief`; p̂ = sp·p, û = su·u, the
     observation's scaling) at padded cell (r, c) of world k at step `now`, p̂ and û scaled by the `seen` and `age`
-    factors where GreedyMemory keeps them (seen, known; rate: its rates[k]). The caller reads every array off the
-    world and the memory once: a kernel's read of a field per cell costs more than the cell."""
+    factors where GreedyMemory keeps them (seen, known; rate: its rates[k]). With params.hedge = ε > 0:
+    (1 − ε)·I + ε·flat[k]·left, flat the prior's mean I per free cell and left = belief p / prior p (`prior`,
+    `WorldState.p`) the share of the cell sensing has not yet cleared: greedy on a belief that keeps ε of its
+    mass uniform, depleted by the same sensing. The caller reads every array off the world and the memory once: a
+    kernel's read of a field per cell costs more than the cell."""
     p_hat, u_hat = belief[k, i, 0, r, c] * sp, belief[k, i, 1, r, c] * su
+    left = belief[k, i, 0, r, c] / prior[k, r, c] if params.hedge > 0.0 and prior[k, r, c] > 0.0 else 0.0
     if seen.shape[2] > 0:  # what the neighbours it saw there have sensed, as that sensing scales p and u
-        p_hat, u_hat = p_hat * seen[k, i, r, c], u_hat * seen[k, i, r, c]
+        p_hat, u_hat, left = p_hat * seen[k, i, r, c], u_hat * seen[k, i, r, c], left * seen[k, i, r, c]
     if known.shape[2] > 0:  # what unseen agents have likely sensed since it last saw the cell's truth
         fresh = freshness(rate, now, known[k, i, r, c])
-        p_hat, u_hat = p_hat * fresh, u_hat * fresh
-    return params.w_p * p_hat + params.w_u * u_hat + params.w_t * p_hat * max(0.0, 1.0 - u_hat)
+        p_hat, u_hat, left = p_hat * fresh, u_hat * fresh, left * fresh
+    info = params.w_p * p_hat + params.w_u * u_hat + params.w_t * p_hat * max(0.0, 1.0 - u_hat)
+    if params.hedge > 0.0:
+        info = (1.0 - params.hedge) * info + params.hedge * flat[k] * left
+    return info
 
 
 @njit(cache=True, inline="always")  # inlined: called per move and step ahead, so its arguments are not copied
@@ -133,7 +142,7 @@ def _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_othe
                     if _moves_apart(rr - others[j, 0], cc - others[j, 1], diagonal) < mine:
                         weight *= contested
                         break
-                info = cell_information(params, belief, sp, su, seen, known, rate, now, k, i, rr, cc)
+                info = cell_information(params, belief, w.p, memory.flat, sp, su, seen, known, rate, now, k, i, rr, cc)
                 total += weight * reach[k, rr, cc] * info
     return total
 
@@ -216,6 +225,8 @@ class GreedyConfig(ControllerConfig):
     # Count what an agent believes of a cell exp(−age · ρ · steps since it last saw the cell's truth) times, ρ the
     # rate at which a team spread evenly senses a cell (for worlds without merging).
     age: float = 0.0
+    # Hedge against a wrong prior: read the information off (1 − hedge)·belief + hedge·uniform (0: the belief).
+    hedge: float = 0.0
 
 
 @dataclass
@@ -240,7 +251,7 @@ class FootprintGreedy(FallbackHeuristic):
                  discount: float = GreedyConfig.discount, w_p: float = GreedyConfig.w_p, w_u: float = GreedyConfig.w_u,
                  w_t: float = GreedyConfig.w_t, contested: float = GreedyConfig.contested,
                  reach: float = GreedyConfig.reach, seen: bool = GreedyConfig.seen, age: float = GreedyConfig.age,
-                 seed: int | WorldStreams = 0) -> None:  # fmt: skip
+                 hedge: float = GreedyConfig.hedge, seed: int | WorldStreams = 0) -> None:  # fmt: skip
         view = config.fov // 2
         if not 1 <= horizon <= view:
             raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the view)")
@@ -254,6 +265,8 @@ class FootprintGreedy(FallbackHeuristic):
             raise ValueError(f"reach={reach!r} is not allowed: 0 <= reach <= 4 (0: every cell counts the same)")
         if not 0 <= age <= 4:
             raise ValueError(f"age={age!r} is not allowed: 0 <= age <= 4 (0: a belief does not age)")
+        if not 0 <= hedge <= 1:
+            raise ValueError(f"hedge={hedge!r} is not allowed: 0 <= hedge <= 1 (0: the belief as it is)")
         if (seen or age > 0) and not config.bayesian_sensing:
             raise ValueError(
                 f"seen={seen!r}, age={age!r} are not allowed in this world: both model sensing as p·(1 − Γ), so they "
@@ -265,12 +278,12 @@ class FootprintGreedy(FallbackHeuristic):
         self.contested = float(contested)
         self.reach = float(reach)
         self.seen = bool(seen)
-        self.age = float(age)
+        self.age, self.hedge = float(age), float(hedge)
         self._params = GreedyParams(MOVES, config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u,
-                                    self.w_t, view, self.contested)  # fmt: skip
+                                    self.w_t, view, self.contested, self.hedge)  # fmt: skip
         # GreedyMemory's arrays, sized on the first reset
         self._weights, self._seen = np.ones((0, 0, 0)), np.ones((0, 0, 0, 0), np.float32)
-        self._known, self._rates = np.zeros((0, 0, 0, 0), np.int32), np.zeros(0)
+        self._known, self._rates, self._flat = np.zeros((0, 0, 0, 0), np.int32), np.zeros(0), np.zeros(0)
         self.scores = np.zeros((0, 0))  # (K, N) float64: the score of each agent's last move (greedy_actions)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
@@ -285,6 +298,16 @@ class FootprintGreedy(FallbackHeuristic):
             self._known = np.zeros(maps if self.age > 0 else off, np.int32)
         self._seen[mask], self._known[mask] = 1.0, 0
         self._rates = self.age * team_sensing_rate(state.blocked, state.n_agents) if self.age > 0 else np.zeros(0)
+        if self.hedge > 0:
+            if self._flat.shape != (state.n_worlds,):
+                self._flat, mask = np.zeros(state.n_worlds), np.ones(state.n_worlds, bool)
+            self._flat[mask] = self.prior_information(state)[mask]
+
+    def prior_information(self, state: WorldState) -> np.ndarray:
+        """(K,) float64: the mean information I of the prior (p, u as the observation scales them) per free cell."""
+        p_hat, u_hat = state.p * state.obs_scale[:, 0, None, None], state.u * state.obs_scale[:, 1, None, None]
+        info = self.w_p * p_hat + self.w_u * u_hat + self.w_t * p_hat * np.maximum(0.0, 1.0 - u_hat)
+        return np.where(state.blocked, 0.0, info).sum(axis=(1, 2)) / (~state.blocked).sum(axis=(1, 2))
 
     def remember(self, state: WorldState) -> GreedyMemory:
         """The memory brought to this step: what each agent saw (forgotten on Φ only with age, as always)."""
@@ -293,7 +316,7 @@ class FootprintGreedy(FallbackHeuristic):
         if self.seen or self.age > 0:
             remember_sightings(state.arrays(), SUPPORT, self._seen, self._known, self.config.fov // 2,
                                self.config.explicit_area // 2, self.age > 0, 0, state.n_worlds)  # fmt: skip
-        return GreedyMemory(self._weights, self._seen, self._known, self._rates)
+        return GreedyMemory(self._weights, self._seen, self._known, self._rates, self._flat)
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
         memory, w = self.remember(state), state.arrays()

@@ -22,6 +22,7 @@ from searchrl.controllers.base import Controller, ControllerConfig, RandomConfig
 from searchrl.controllers.coverage import CoverageConfig, GeometricCoverage
 from searchrl.controllers.greedy import FootprintGreedy, GreedyConfig, GreedyTargetConfig
 from searchrl.controllers.surfing import InformationSurfing, SurfingConfig
+from searchrl.controllers.switch import EvidenceSwitch, SwitchConfig
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.streams import WorldStreams
 
@@ -47,6 +48,7 @@ HEURISTICS: dict[str, Heuristic] = {
     "greedy": Heuristic(FootprintGreedy, GreedyConfig, "greedy"),
     "greedy_target": Heuristic(FootprintGreedy, GreedyTargetConfig, "greedy"),
     "coverage": Heuristic(GeometricCoverage, CoverageConfig, "coverage"),
+    "switch": Heuristic(EvidenceSwitch, SwitchConfig, "switch"),
     "random": Heuristic(RandomWalk, RandomConfig, "random"),
 }
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from dataclasses import fields, is_dataclass
+from dataclasses import dataclass, fields, is_dataclass
 from pathlib import Path
 
 import hydra
@@ -30,7 +30,7 @@ from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries
 from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import heuristic, make_controller
 from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds
-from searchrl.evaluate.grid import table2_cells
+from searchrl.evaluate.grid import Cell, table2_cells
 from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
@@ -94,8 +94,9 @@ def scenario_of(cfg: DictConfig) -> Scenario:
     return Scenario.from_dict(None if node is None else OmegaConf.to_container(node, resolve=True))
 
 
-def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path, Scenario]:
-    """Every check of an evaluation's settings, before any work or file: (grid cells, output folder, scenario). Raises
+def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[int, Cell]], Path | None, Scenario]:
+    """Every check of an evaluation's settings, before any work or file: ((grid index, cell) pairs, output folder,
+    scenario). Raises
     ConfigError naming the bad value and what is allowed."""
     if cfg.checkpoint is not None:
         fixed = [o for o, k in zip(overrides, override_keys(overrides), strict=True)
@@ -138,8 +139,14 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list, Path,
         list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
         list(cfg.grid.max_agents),
     )  # fmt: skip
+    # A subset of team sizes keeps each cell's index in the whole grid, so its maps are the grid's (map_seed)
+    agents = None if cfg.grid.get("agents") is None else [int(a) for a in cfg.grid.agents]
+    on_grid = sorted({c.n_agents for c in cells})
+    need(agents is None or (len(agents) > 0 and set(agents) <= set(on_grid)), "grid.agents", agents,
+         f"null (every N) or team sizes of the grid, from {on_grid}")  # fmt: skip
+    indexed = [(i, c) for i, c in enumerate(cells) if agents is None or c.n_agents in agents]
     out_dir = Path(cfg.out_dir) if cfg.out_dir else None
-    return cells, out_dir, scenario
+    return indexed, out_dir, scenario
 
 
 def check_out_dir(out_dir: Path) -> None:
@@ -156,39 +163,74 @@ def check_out_dir(out_dir: Path) -> None:
                           f"({err.strerror or type(err).__name__})") from None  # fmt: skip
 
 
+@dataclass
+class Evaluation:
+    """One evaluation folder's checked plan: its cells (grid index, cell), folder, scenario and controller."""
+
+    cfg: DictConfig
+    cells: list[tuple[int, Cell]]
+    out_dir: Path
+    scenario: Scenario
+    world: WorldConfig
+    controller: str
+    model: str
+    factory: object
+    needs_observation: bool
+    shard_offset: int = 0  # a suite's folders rotate which shard runs their first cell
+
+
+def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | None = None) -> Evaluation:
+    """Every check of an evaluation, before any work or file (ConfigError naming the bad value)."""
+    cells, out_dir, scenario = check_evaluation(cfg, overrides)
+    world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
+    for index, cell in cells:  # a cell impossible for its n or N fails now, not when reached
+        try:
+            scenario.check(cell_config(world, cell))
+            factory(cell_config(world, cell))
+        except ConfigError as err:
+            raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
+    # Default runs/eval/<controller=…> (greedy_target's folder though its rows say greedy) or
+    # runs/eval/policy/<label>: the label is the run's path under runs/, so two runs never share a folder
+    default = controller_name.replace(":", "/") if cfg.checkpoint is not None else cfg.controller.name
+    out_dir = out_dir or default_dir or Path(f"runs/eval/{default}")
+    return Evaluation(cfg, cells, out_dir, scenario, world, controller_name, model_name, factory, needs_obs)
+
+
+def claim_evaluation(plan: Evaluation) -> None:
+    """Make the folder and record its settings (or find them equal); ConfigError / FolderBusy / OSError."""
+    check_out_dir(plan.out_dir)
+    if plan.cfg.bound_cache is not None:  # the bounds are written after a cell's episodes: refused now, not then
+        check_writable(plan.cfg.bound_cache, "bound_cache", folder=True)
+    with hold(plan.out_dir / LOCKS / "evaluation.lock", f"out_dir={str(plan.out_dir)!r}", wait_s=60):
+        claim_folder(plan.out_dir, evaluation_settings(plan.cfg, plan.controller, plan.model),
+                     option_defaults(plan.cfg))  # fmt: skip
+
+
 def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
     """Evaluate every cell of this shard that has no result yet; returns the output directory. `overrides` are the
     command line's (Hydra's task overrides), to refuse those a checkpoint cannot apply."""
+    plan = None
     try:
-        cells, out_dir, scenario = check_evaluation(cfg, overrides or [])
-        world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
-        for index, cell in enumerate(cells):  # a cell impossible for its n or N fails now, not when reached
-            try:
-                scenario.check(cell_config(world, cell))
-                factory(cell_config(world, cell))
-            except ConfigError as err:
-                raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
-        # Default runs/eval/<controller=…> (greedy_target's folder though its rows say greedy) or
-        # runs/eval/policy/<label>: the label is the run's path under runs/, so two runs never share a folder
-        default = controller_name.replace(":", "/") if cfg.checkpoint is not None else cfg.controller.name
-        out_dir = out_dir or Path(f"runs/eval/{default}")
-        check_out_dir(out_dir)
-        if cfg.bound_cache is not None:  # the bounds are written after a cell's episodes: refused now, not then
-            check_writable(cfg.bound_cache, "bound_cache", folder=True)
-        with hold(out_dir / LOCKS / "evaluation.lock", f"out_dir={str(out_dir)!r}", wait_s=60):
-            claim_folder(out_dir, evaluation_settings(cfg, controller_name, model_name), option_defaults(cfg))
+        plan = plan_evaluation(cfg, overrides or [])
+        claim_evaluation(plan)
     except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException, FolderBusy) as err:
         fail(str(err))
     except OSError as err:  # writing the folder's record: a full disk, a read-only file system
-        fail(storage_message(err) or f"out_dir={str(out_dir)!r}: {err}")
+        fail(storage_message(err) or f"out_dir={str(plan.out_dir if plan else cfg.out_dir)!r}: {err}")
+    return run_evaluation(plan)
+
+
+def run_evaluation(plan: Evaluation) -> Path:
+    """Run the plan's cells of this shard that have no result yet (its folder claimed); returns the folder."""
     import torch
 
+    cfg, out_dir, scenario, world = plan.cfg, plan.out_dir, plan.scenario, plan.world
     torch.set_num_threads(int(cfg.threads))
-    mine = [(i, c) for i, c in enumerate(cells) if i % int(cfg.num_shards) == int(cfg.shard)]
+    mine = [(i, c) for i, c in plan.cells if (i + plan.shard_offset) % int(cfg.num_shards) == int(cfg.shard)]
     todo = [(i, c) for i, c in mine if not (out_dir / "cells" / f"{c.key}.parquet").exists()]
     maps, repeats = int(cfg.grid.maps_per_cell), int(cfg.grid.repeats)
     total = sum(maps * repeats * world.max_steps * c.n_agents for _, c in todo)
-    print(f"{controller_name}: {len(todo)} of {len(mine)} cells to run into {out_dir}", file=sys.stderr)
+    print(f"{plan.controller}: {len(todo)} of {len(mine)} cells to run into {out_dir}", file=sys.stderr)
     start, done_steps = time.perf_counter(), 0
     try:  # a full disk mid-grid: the cells written stand, a rerun writes the rest
         with tqdm(total=total, unit="agent-step", unit_scale=True, disable=not cfg.progress_bar) as bar:
@@ -199,16 +241,18 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
                         if target.exists():  # finished by another job since the list was made
                             continue
                         remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
-                        frame = run_cell(factory, world, cell, index, maps, repeats, int(cfg.seed), float(cfg.batch_mb),
-                                         needs_obs, on_steps=bar.update, scenario=scenario)  # fmt: skip
+                        frame = run_cell(plan.factory, world, cell, index, maps, repeats, int(cfg.seed),
+                                         float(cfg.batch_mb), plan.needs_observation, on_steps=bar.update,
+                                         scenario=scenario)  # fmt: skip
                         seeds = frame["map_seed"].unique().tolist()
                         bounds = cell_bounds(world, cell, seeds, int(cfg.bound_draws), cfg.bound_cache,
                                              scenario=scenario)  # fmt: skip
                         frame = frame.merge(bounds[["map_seed", *BOUND_COLUMNS]], on="map_seed", validate="many_to_one")
-                        frame.insert(0, "scenario", scenario.label)
+                        for position, (name, value) in enumerate(scenario_columns(scenario, world).items()):
+                            frame.insert(position, name, value)
                         frame.insert(0, "world", world.sensing_label)
-                        frame.insert(0, "model", model_name)
-                        frame.insert(0, "controller", controller_name)
+                        frame.insert(0, "model", plan.model)
+                        frame.insert(0, "controller", plan.controller)
                         write_atomic(target, lambda tmp, f=frame: f.to_parquet(tmp))
                 except FolderBusy as busy:
                     print(f"skipped: {busy}", file=sys.stderr)
@@ -226,9 +270,24 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
     return out_dir
 
 
+def scenario_columns(scenario: Scenario, world: WorldConfig) -> dict[str, object]:
+    """What a row records of its scenario: its label, its family of prior error ("paper" when the prior is right),
+    the family's severity, and the prior's sharpness (the variance scale of p's Gaussians, searchrl/world/prior.py)."""
+    prior = getattr(scenario, "prior", None)  # a mix has none: its rows' scale is NaN
+    scale = world.prob_variance_scale if prior is None or prior.variance_scale is None else prior.variance_scale
+    return {"scenario": scenario.label, "family": scenario.family, "severity": scenario.severity,
+            "variance_scale": float("nan") if prior is None else float(scale)}  # fmt: skip
+
+
 @hydra.main(version_base="1.3", config_path="../../conf", config_name="evaluate")
 def main(cfg: DictConfig) -> None:
-    evaluate(cfg, list(HydraConfig.get().overrides.task))
+    overrides = list(HydraConfig.get().overrides.task)
+    if cfg.get("suite") is not None:
+        from searchrl.evaluate.suite import evaluate_suite
+
+        evaluate_suite(cfg, overrides)
+    else:
+        evaluate(cfg, overrides)
 
 
 if __name__ == "__main__":

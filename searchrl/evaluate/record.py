@@ -22,7 +22,7 @@ from searchrl.world.config import RETIRED_FIELDS, ConfigError, WorldConfig, drop
 from searchrl.world.scenario import PAPER, Scenario
 
 RECORD = "evaluation.yaml"
-GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents", "maps_per_cell", "repeats")
+GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents", "agents", "maps_per_cell", "repeats")
 # Settings removed since records were written, with the one value a record may hold (what the code does now): a
 # record holding them at that value describes the same episodes. docs/log.md names the last commit with each.
 RETIRED_SETTINGS: dict[str, object] = {
@@ -65,7 +65,7 @@ def option_defaults(cfg: DictConfig) -> dict[str, Any]:
     """Flattened defaults of the heuristic's own schema (`controller_args.<name>`) and of the world (`world.<name>`):
     an option added to a controller or the world after a folder was recorded is absent there, and at its default
     it plays the episodes the record describes. A record made before scenarios existed ran the paper's."""
-    defaults = _flatten({"scenario": PAPER.to_dict()})
+    defaults = _flatten({"scenario": PAPER.to_dict(), "grid": {"agents": None}})
     if cfg.checkpoint is not None:
         return defaults
     world = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default for f in fields(WorldConfig)}

@@ -19,6 +19,7 @@ class GridConfig:
     n_targets: list[int] = field(default_factory=lambda: [4, 8, 16, 32])
     n_distributions: list[int] = field(default_factory=lambda: [8, 16, 32, 64])
     max_agents: list[int] = field(default_factory=lambda: [32, 64, 128, 256])  # §6.3's density limits
+    agents: list[int] | None = None  # only these team sizes N (null: 1, 2, 4, … up to each size's limit)
     maps_per_cell: int = 100  # 30 cells × 100 = 3000 maps
     repeats: int = 5
 
@@ -29,6 +30,7 @@ class EvaluateConfig:
     model: ModelConfig | None = None
     controller: Any = MISSING
     checkpoint: str | None = None  # a trained model.zip: evaluated instead of the controller, with its own settings
+    suite: Any = None  # a frozen scenario suite (conf/suite/): its cells, maps, seed and scenarios, one folder each
     deterministic: bool = False  # policies: argmax instead of sampled actions
     # What a reset draws besides the sizes and the prior (conf/scenario/); any scenario applies to a checkpoint too.
     scenario: dict[str, Any] = field(default_factory=scenario_default)

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 
-def gaussian_mixture(
+def gaussian_components(
     n: int, m: int, variance_high: float, variance_low: float, rho_max: float, rng: np.random.Generator
 ) -> np.ndarray:
-    """Sum of m bivariate Gaussian densities (eq. 6) evaluated at the cell centres of an n×n grid.
+    """The m bivariate Gaussian densities of eq. 6, each evaluated at the cell centres of an n×n grid.
 
     Means are uniform over [0, n - 1]², each σ² uniform in [variance_low, variance_high), ρ uniform in
-    (-rho_max, rho_max). Returns (n, n) float64 indexed [row = y, col = x].
+    (-rho_max, rho_max). Returns (m, n, n) float64 indexed [component, row = y, col = x].
     """
     mu = rng.uniform(0.0, n - 1.0, size=(m, 2))  # (m, 2) as (x, y)
     var = rng.uniform(variance_low, variance_high, size=(m, 2))  # (m, 2) σ_x², σ_y²
@@ -24,10 +24,16 @@ def gaussian_mixture(
     quad = (
         dx[:, None, :] ** 2 + dy[:, :, None] ** 2 - 2.0 * rho[:, None, None] * dx[:, None, :] * dy[:, :, None]
     )  # (m, n_y, n_x)
-    dens = (
+    return (
         np.exp(-quad / (2.0 * one_minus[:, None, None])) / (2.0 * np.pi * sx * sy * np.sqrt(one_minus))[:, None, None]
     )
-    return dens.sum(axis=0)
+
+
+def gaussian_mixture(
+    n: int, m: int, variance_high: float, variance_low: float, rho_max: float, rng: np.random.Generator
+) -> np.ndarray:
+    """Sum of the m densities of `gaussian_components` (eq. 6): (n, n) float64 indexed [row = y, col = x]."""
+    return gaussian_components(n, m, variance_high, variance_low, rho_max, rng).sum(axis=0)
 
 
 def probability_map(mixture: np.ndarray, eta: float) -> np.ndarray:

@@ -7,7 +7,6 @@ import numpy as np
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import team_sensing_rate
-from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
 from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
@@ -34,24 +33,20 @@ def reset_world(
 ) -> None:
     """Draw a fresh world k in place: sizes, prior maps, the scenario's obstacles and targets, agents, beliefs,
     counters."""
+    scenario = scenario.pick(rng)  # a mix draws which scenario (searchrl/world/scenario.py), a scenario nothing
     n, m, j = draw_scenario_sizes(config, rng)
     h = state.halo
     inner = (k, slice(h, h + n), slice(h, h + n))
 
-    p = probability_map(
-        gaussian_mixture(n, m, config.prob_variance_scale * n, config.variance_floor, config.rho_max, rng),
-        config.eta,
-    )
-    u = uncertainty_map(
-        gaussian_mixture(n, m, config.unc_variance_scale * n, config.variance_floor, config.rho_max, rng)
-    )
+    prior = scenario.prior(config, n, m, rng)
     n_agents = state.n_agents
     obstacles = scenario.obstacles(n, n_agents + j, rng)
     free = np.ones((n, n), bool) if obstacles is None else ~obstacles
+    maps = (prior.p, prior.u, prior.truth_p, prior.truth_u)
     if obstacles is not None:  # no target can sit on an obstacle, so it carries no information
-        p, u = np.where(free, p, 0.0), np.where(free, u, 0.0)
-        p, u = p / p.sum(), u / u.sum()
-    targets = scenario.targets(p, u, free, j, rng)
+        maps = tuple(np.where(free, x, 0.0) / np.where(free, x, 0.0).sum() for x in maps)
+    p, u, truth_p, truth_u = maps
+    targets = scenario.targets(truth_p, truth_u, free, j, rng)
     free_for_agents = free.copy()
     free_for_agents[targets[:, 0], targets[:, 1]] = False
     start = rng.choice(np.flatnonzero(free_for_agents.ravel()), size=n_agents, replace=False)

@@ -133,6 +133,11 @@ class PriorError:
         return f"{self.kind}{self.severity:g}"
 
     @property
+    def family(self) -> str:
+        """The family's name in result rows (`Scenario.family`)."""
+        return self.kind
+
+    @property
     def follows_prior(self) -> bool:
         return self.severity == 0
 
@@ -222,6 +227,10 @@ class TemperedTargets(PriorError):
     @property
     def label(self) -> str:
         return f"{super().label}p{self.power:g}"
+
+    @property
+    def family(self) -> str:
+        return "sharper" if self.power > 1 else "flatter" if self.power < 1 else "tempered"
 
 
 PLACERS: dict[str, type] = {cls.kind: cls for cls in (PriorTargets, OffPriorTargets, ShiftedTargets,

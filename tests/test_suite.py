@@ -1,0 +1,97 @@
+"""Frozen scenario suites (searchrl/evaluate/suite.py): the shipped suites' scenarios and cells, one command that
+runs, resumes and shards a suite into one folder per scenario, rows that name family, severity and sharpness, and
+a suite that refuses to be changed from the command line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+from omegaconf import OmegaConf
+
+from searchrl.evaluate.__main__ import CONF_DIR
+from searchrl.evaluate.results import load
+from searchrl.evaluate.suite import SuiteConfig, evaluate_suite, suite_scenarios
+from searchrl.world.scenario import PAPER
+
+TINY = {"name": "tiny", "seed": 5, "variance_scales": [1.0], "severities": [1.0],
+        "grid": {"world_sizes": [20, 40], "n_targets": [4, 8], "n_distributions": [8, 16], "max_agents": [4, 4],
+                 "agents": [1, 4], "maps_per_cell": 2, "repeats": 1},
+        "families": {"off_prior": {"targets": {"kind": "off_prior"}},
+                     "uninformed": {"prior": {"kind": "uninformed"}}}}  # fmt: skip
+FAST = ["progress_bar=false", "threads=1", "bound_draws=200", "bound_cache=null"]
+
+
+def _suite(name: str) -> dict:
+    node = OmegaConf.merge(OmegaConf.structured(SuiteConfig), OmegaConf.load(CONF_DIR / "suite" / f"{name}.yaml"))
+    return OmegaConf.to_container(node)
+
+
+def _run(out: Path, *overrides: str, suite: dict = TINY) -> list[Path]:
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose(config_name="evaluate", overrides=["suite=prior_error", *FAST, f"out_dir={out}", *overrides])
+    cfg.suite = OmegaConf.create(suite)  # a small suite, run as the shipped ones are
+    return evaluate_suite(cfg, ["suite=prior_error", *overrides])
+
+
+@pytest.mark.parametrize("name, scale", [("prior_error", 1.0), ("prior_error_broad", None)])
+def test_the_shipped_suites_pose_every_family_at_every_severity(name, scale):
+    suite = _suite(name)
+    scenarios = suite_scenarios(suite)
+    assert len(scenarios) == 1 + 7 * 3 and len({s.label for s in scenarios}) == len(scenarios)
+    right = scenarios[0]
+    assert right.family == "paper" and right.severity == 0 and right.targets_follow_prior
+    assert right.prior.variance_scale == scale
+    assert {s.family for s in scenarios[1:]} == {"off_prior", "shifted", "sharper", "flatter", "misweighted",
+                                                 "adversarial", "uninformed"}  # fmt: skip
+    assert all(not s.targets_follow_prior and s.prior.variance_scale == scale for s in scenarios[1:])
+    assert suite["grid"]["agents"] == [1, 4, 16, 64] and suite["grid"]["maps_per_cell"] >= 50
+    if scale is None:
+        assert right == PAPER  # the broad suite's right prior is the paper's scenario, bit for bit
+
+
+def test_a_suite_runs_from_one_command_into_a_folder_per_scenario_and_resumes(tmp_path, capsys):
+    folders = _run(tmp_path, "controller=coverage")
+    assert [f.name for f in folders] == ["var1", "var1+off_prior1", "var1+uninformed1"]
+    frame = load(*folders)
+    assert len(frame) == 3 * 4 * 2  # scenarios x cells (n 20, 40 x N 1, 4) x maps
+    assert set(zip(frame["family"], frame["severity"], strict=True)) == {("paper", 0.0), ("off_prior", 1.0),
+                                                                         ("uninformed", 1.0)}  # fmt: skip
+    assert (frame["variance_scale"] == 1.0).all() and set(frame["N"]) == {1, 4}
+    assert frame.loc[frame["family"] == "paper", "bound"].notna().all()  # the bound holds where the prior is right
+    assert frame.loc[frame["family"] != "paper", "bound"].isna().all()
+    capsys.readouterr()
+    _run(tmp_path, "controller=coverage")  # a rerun finds every cell done
+    assert capsys.readouterr().err.count("0 of 4 cells to run") == 3
+
+
+def test_shards_split_the_suites_scenario_cells_once(tmp_path):
+    for shard in range(3):
+        _run(tmp_path / "shards", "controller=coverage", f"shard={shard}", "num_shards=3")
+    _run(tmp_path / "whole", "controller=coverage")
+    sharded = load(*sorted((tmp_path / "shards").iterdir()))
+    whole = load(*sorted((tmp_path / "whole").iterdir()))
+    key = ["scenario", "n", "N", "map_seed"]
+    assert (
+        sharded.sort_values(key)
+        .reset_index(drop=True)[[*key, "found_fraction"]]
+        .equals(whole.sort_values(key).reset_index(drop=True)[[*key, "found_fraction"]])
+    )
+
+
+@pytest.mark.parametrize("override", ["grid.maps_per_cell=3", "seed=1", "scenario=walls", "suite.seed=3"])
+def test_a_suite_is_frozen(tmp_path, override, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        _run(tmp_path, "controller=coverage", override)
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and override in err and "frozen" in err, err[-1500:]
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_bad_family_is_named_before_any_folder(tmp_path, capsys):
+    bad = {**TINY, "families": {**TINY["families"], "psychic": {"targets": {"kind": "psychic"}}}}
+    with pytest.raises(SystemExit):
+        _run(tmp_path, "controller=coverage", suite=bad)
+    assert "scenario.targets.kind='psychic' is not allowed" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
