@@ -15,7 +15,6 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from searchrl.world.config import WorldConfig
-from searchrl.world.scenario import PAPER
 
 # WorldConfig's fields as a Hydra schema: the same names, types and defaults (types and unknown keys are checked at
 # composition), but `world_size` untyped so that an integer (`env.world.world_size=20`, every world 20×20) composes
@@ -63,8 +62,10 @@ MAX_THREADS = 1024  # torch's intra-op threads: far more than any node's cores; 
 
 
 def scenario_default() -> dict[str, Any]:
-    """The paper's scenario as the mapping a config holds (conf/scenario/paper.yaml)."""
-    return PAPER.to_dict()
+    """Empty: the defaults list's scenario file (conf/scenario/paper.yaml unless `scenario=` names another) fills
+    the node whole. A schema default would merge its settings into every other file's parts (a maze's obstacles
+    would keep iid's `density`); an empty mapping reads as the paper's (`Scenario.from_dict`)."""
+    return {}
 
 
 def override_keys(overrides: list[str]) -> list[str]:

@@ -411,4 +411,4 @@ def test_one_controller_in_two_scenarios_is_shown_apart(tmp_path):
     _evaluate(tmp_path / "greedy_walls", "controller=greedy", "scenario=walls")
     episodes = load(tmp_path / "greedy", tmp_path / "greedy_walls")
     assert set(episodes.controller) == {"greedy@greedy", "greedy@greedy_walls"}
-    assert set(episodes.groupby("controller").scenario.unique().map(tuple)) == {("paper",), ("iid0.2",)}
+    assert set(episodes.groupby("controller").scenario.unique().map(tuple)) == {("paper",), ("iid0.2c",)}

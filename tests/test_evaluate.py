@@ -112,7 +112,7 @@ def test_one_override_chooses_the_scenario_for_a_heuristic_and_a_checkpoint(tmp_
     off = _evaluate(tmp_path / "off", "controller=greedy", "scenario=off_prior")
     assert (
         (paper.scenario == "paper").all()
-        and (walls.scenario == "iid0.2").all()
+        and (walls.scenario == "iid0.2c").all()
         and (off.scenario == "off_prior1").all()
     )
     assert (
@@ -127,7 +127,7 @@ def test_one_override_chooses_the_scenario_for_a_heuristic_and_a_checkpoint(tmp_
 
     model = _run(tmp_path / "run", ["+model=b", *TINY, "total_timesteps=256", "validation.every=0"])
     policy = _evaluate(tmp_path / "policy_walls", f"checkpoint={model}", "scenario=walls")
-    assert (policy.scenario == "iid0.2").all() and len(policy) == 18
+    assert (policy.scenario == "iid0.2c").all() and len(policy) == 18
 
 
 def test_a_folder_refuses_results_of_other_settings(tmp_path, capsys):

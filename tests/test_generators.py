@@ -114,7 +114,8 @@ def test_a_scenario_reads_and_writes_its_mapping_and_names_each_bad_value():
     assert Scenario(IidObstacles(0.0), PriorTargets()).label == "paper" and PAPER.targets_follow_prior
     bad = [
         ({"walls": {}}, "scenario.walls is not allowed"),
-        ({"obstacles": {"kind": "maze"}}, "scenario.obstacles.kind='maze' is not allowed: one of iid"),
+        ({"obstacles": {"kind": "caves"}},
+         "scenario.obstacles.kind='caves' is not allowed: one of iid, primal, maze, rooms"),
         ({"targets": {"kind": "prior", "severity": 1}}, "scenario.targets.severity=1 is not allowed"),
         ({"targets": {"kind": "off_prior", "density": 1}}, "scenario.targets.density=1 is not allowed"),
     ]
@@ -137,6 +138,6 @@ def test_a_scenario_checks_its_values_against_the_world(scenario, message):
 
 def test_obstacle_density_counts_against_room_for_agents_and_targets():
     # 5×5 at 50 % obstacles leaves int(12.5) = 12 free cells: 10 agents + 3 targets do not fit.
-    with pytest.raises(ConfigError, match=r"^scenario.obstacles.density=0.5 .* = 13 must fit the 12 free cells"):
+    with pytest.raises(ConfigError, match=r"^scenario.obstacles.density=0.5 .* = 13 must fit the about 12 free cells"):
         IidObstacles(0.5).check(WorldConfig(world_size=(5, 5), n_agents=10, n_targets=(1, 3)))
     IidObstacles(0.5).check(WorldConfig(world_size=(5, 5), n_agents=10, n_targets=(1, 2)))

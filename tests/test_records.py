@@ -46,7 +46,7 @@ def test_a_heuristics_record_names_it_its_settings_its_world_and_the_whole_grid(
     settings = evaluation_settings(cfg, "greedy", "c")
     assert list(settings) == ["controller", "model", "seed", "grid", "scenario", "controller_args", "world"]
     assert settings["scenario"] == {
-        "obstacles": {"kind": "iid", "density": 0.0},
+        "obstacles": {"kind": "iid", "density": 0.0, "connected": False},
         "prior": {"kind": "mixture", "variance_scale": None},
         "targets": {"kind": "prior"},
     }
@@ -66,10 +66,11 @@ def test_a_checkpoints_record_names_its_file_by_hash_and_how_it_acts(tmp_path):
     assert settings["checkpoint_sha256"] == hashlib.sha256(b"weights").hexdigest()
     assert settings["deterministic"] is True and "world" not in settings and "controller_args" not in settings
     assert option_defaults(cfg) == {"scenario.obstacles.kind": "iid", "scenario.obstacles.density": 0.0,
+                                    "scenario.obstacles.connected": False,
                                     "scenario.prior.kind": "mixture", "scenario.prior.variance_scale": None,
                                     "scenario.targets.kind": "prior", "grid.agents": None}  # fmt: skip
     walls = evaluation_settings(_cfg(f"checkpoint={model}", "scenario=walls"), "policy:run", "b")
-    assert walls["scenario"]["obstacles"] == {"kind": "iid", "density": 0.2}
+    assert walls["scenario"]["obstacles"] == {"kind": "iid", "density": 0.2, "connected": True}
 
 
 def test_a_record_made_before_scenarios_and_removed_options_still_matches_the_paper(tmp_path):

@@ -16,12 +16,13 @@ from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.state import WorldState
 
 # `world` names the sensing the episodes ran under (WorldConfig.sensing_label: "bayes" λk = 1, "paper" k = n),
-# `scenario` what their resets drew (Scenario.label: "paper", "iid0.2", "off_prior1", …).
-# The evaluation app (__main__) adds the map's search bound, searchrl/evaluate/bound.py's BOUND_COLUMNS.
+# `scenario` what their resets drew (Scenario.label: "paper", "iid0.2c", "var1+off_prior1", …), `family` its family
+# of prior error ("paper" when the prior is right), `severity` that family's, `variance_scale` the prior's sharpness
+# (the variance scale of p's Gaussians, the world's 10 unless the scenario sets it). The evaluation app (__main__) adds the map's search bound, searchrl/evaluate/bound.py's BOUND_COLUMNS.
 # `prior_quality` is how well the prior the agents start from points at the episode's targets (MapScore-like: 0 no
 # better than uniform, 1 every target on the prior's best cell; searchrl/world/truth.py).
-COLUMNS = ["controller", "model", "world", "scenario", "n", "N", "targets", "map_seed", "repeat", "found_fraction",
-           "L", "R", "F", "M_bar", "prior_quality"]  # fmt: skip
+COLUMNS = ["controller", "model", "world", "scenario", "family", "severity", "variance_scale", "n", "N", "targets",
+           "map_seed", "repeat", "found_fraction", "L", "R", "F", "M_bar", "prior_quality"]  # fmt: skip
 
 
 def cell_config(world: WorldConfig, cell: Cell) -> WorldConfig:
@@ -63,7 +64,7 @@ def run_cell(
     on_done: Callable[[WorldState, np.ndarray], None] | None = None,
     scenario: Scenario = PAPER,
 ) -> pd.DataFrame:
-    """One row per episode (COLUMNS minus controller, model, world and scenario). Every repeat of a map starts from
+    """One row per episode (COLUMNS from n on). Every repeat of a map starts from
     the same world (map, targets and start cells come from the map seed); repeats differ in the step draws and the
     controller's own randomness, each episode's from its own streams (`episode_keys`; `controller_factory(config,
     streams)` builds a controller drawing from them), so `budget_mb` changes how many worlds step together and

@@ -38,16 +38,18 @@ class SuiteConfig:
     severities: list[float] = field(default_factory=lambda: [0.25, 0.5, 1.0])  # each family's; 0 is run once
     # name -> the scenario parts the family sets ({targets: {kind: shifted}}); its severity set per point
     families: dict[str, Any] = field(default_factory=dict)
-    obstacles: dict[str, Any] | None = None  # the obstacles of every scenario (null: none)
+    obstacles: dict[str, Any] | None = None  # the obstacles of every family's scenario (null: none)
+    scenarios: list[Any] = field(default_factory=list)  # more scenarios, each a mapping as conf/scenario/ holds
 
 
 def suite_scenarios(suite: dict[str, Any]) -> list[Scenario]:
     """The suite's scenarios in order (`scenario_grid`): per variance scale, the prior right (severity 0, the
-    paper's placement), then each family at each severity. ConfigError naming a bad family or value."""
+    paper's placement), then each family at each severity; then its explicit `scenarios`. ConfigError naming a bad
+    family or value."""
     scenarios = scenario_grid(suite["families"], suite["severities"], suite["variance_scales"], suite.get("obstacles"))
+    scenarios += [Scenario.from_dict(values) for values in suite.get("scenarios") or []]
     labels = [s.label for s in scenarios]
-    need(len(set(labels)) == len(labels), "suite.families", sorted(suite["families"]),
-         f"families whose scenarios differ (labels {labels})")  # fmt: skip
+    need(len(set(labels)) == len(labels), "suite.scenarios", labels, "scenarios that differ (each its own label)")
     return scenarios
 
 

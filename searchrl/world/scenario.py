@@ -31,10 +31,9 @@ from typing import Any, ClassVar, Protocol
 import numpy as np
 
 from searchrl.world.config import ConfigError, WorldConfig, need
+from searchrl.world.obstacles import OBSTACLES, IidObstacles
 from searchrl.world.prior import PRIORS, MixturePrior, PriorDraw
 from searchrl.world.truth import PLACERS, PriorTargets, finite, keep_probability, place_targets  # noqa: F401 (imported from here too)
-
-_MAX_OBSTACLE_DRAWS = 100
 
 
 class ObstacleGenerator(Protocol):
@@ -78,43 +77,6 @@ class PriorGenerator(Protocol):
     def truth_is_prior(self) -> bool: ...
 
 
-@dataclass(frozen=True)
-class IidObstacles:
-    """Each cell an obstacle with probability `density`, independently (n × n uniforms); the draw is repeated until
-    `room` cells stay free (agents and targets need distinct free cells). Density 0 draws nothing."""
-
-    kind: ClassVar[str] = "iid"
-    density: float = 0.0
-
-    def __call__(self, n: int, room: int, rng: np.random.Generator) -> np.ndarray | None:
-        """(n, n) bool, True on obstacles, or None without obstacles."""
-        if self.density <= 0:
-            return None
-        for _ in range(_MAX_OBSTACLE_DRAWS):
-            obstacles = rng.random((n, n)) < self.density
-            if (~obstacles).sum() >= room:
-                return obstacles
-        raise RuntimeError(f"{_MAX_OBSTACLE_DRAWS} obstacle draws at density {self.density} left fewer than "
-                           f"{room} free cells of {n}x{n}")  # fmt: skip
-
-    def check(self, config: WorldConfig) -> None:
-        need(finite(self.density) and 0 <= self.density < 1, "scenario.obstacles.density", self.density,
-             "0 <= density < 1")  # fmt: skip
-        # Agents and targets need distinct free cells in the smallest world: checked at the expected density here,
-        # exactly at every reset (the draw repeats until they fit).
-        n = config.world_size[0]
-        free = int(n * n * (1.0 - self.density))
-        room = config.n_agents + config.n_targets[1]
-        need(room <= free, "scenario.obstacles.density", self.density,
-             f"agents and targets start on distinct cells: n_agents + max targets = {room} must fit the {free} free "
-             f"cells of the smallest world (n={n}) at this density")  # fmt: skip
-
-    @property
-    def label(self) -> str:
-        return f"iid{self.density:g}" if self.density > 0 else ""
-
-
-OBSTACLES: dict[str, type] = {cls.kind: cls for cls in (IidObstacles,)}
 TARGETS: dict[str, type] = PLACERS  # searchrl/world/truth.py
 
 
@@ -206,8 +168,8 @@ def scenario_grid(families: dict[str, dict], severities: list[float], variance_s
     family sets ({"targets": {"kind": "shifted"}}), each part's severity set per point. ConfigError naming a bad
     value under `name` (the suite's or the mix's key)."""
     severities = [float(s) for s in severities]
-    need(len(severities) > 0 and all(0 < s <= 1 for s in severities), f"{name}.severities", severities,
-         "severities in (0, 1] (severity 0, the prior right, comes once per sharpness)")  # fmt: skip
+    need((len(severities) > 0 or not families) and all(0 < s <= 1 for s in severities), f"{name}.severities",
+         severities, "severities in (0, 1] (severity 0, the prior right, comes once per sharpness)")  # fmt: skip
     need(len(variance_scales) > 0, f"{name}.variance_scales", variance_scales, "one or more (null: the world's)")
     scenarios = []
     for scale in variance_scales:
