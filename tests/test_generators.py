@@ -114,8 +114,10 @@ def test_a_scenario_reads_and_writes_its_mapping_and_names_each_bad_value():
     assert Scenario(IidObstacles(0.0), PriorTargets()).label == "paper" and PAPER.targets_follow_prior
     bad = [
         ({"walls": {}}, "scenario.walls is not allowed"),
-        ({"obstacles": {"kind": "caves"}},
-         "scenario.obstacles.kind='caves' is not allowed: one of iid, primal, maze, rooms"),
+        (
+            {"obstacles": {"kind": "caves"}},
+            "scenario.obstacles.kind='caves' is not allowed: one of iid, primal, maze, rooms",
+        ),
         ({"targets": {"kind": "prior", "severity": 1}}, "scenario.targets.severity=1 is not allowed"),
         ({"targets": {"kind": "off_prior", "density": 1}}, "scenario.targets.density=1 is not allowed"),
     ]

@@ -23,6 +23,7 @@ from searchrl.controllers.coverage import CoverageConfig, GeometricCoverage
 from searchrl.controllers.greedy import FootprintGreedy, GreedyConfig, GreedyTargetConfig
 from searchrl.controllers.surfing import InformationSurfing, SurfingConfig
 from searchrl.controllers.switch import EvidenceSwitch, SwitchConfig
+from searchrl.controllers.walls import PathGreedy, PathGreedyConfig, SweepConfig, SweepCoverage
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.streams import WorldStreams
 
@@ -49,6 +50,8 @@ HEURISTICS: dict[str, Heuristic] = {
     "greedy_target": Heuristic(FootprintGreedy, GreedyTargetConfig, "greedy"),
     "coverage": Heuristic(GeometricCoverage, CoverageConfig, "coverage"),
     "switch": Heuristic(EvidenceSwitch, SwitchConfig, "switch"),
+    "path_greedy": Heuristic(PathGreedy, PathGreedyConfig, "path_greedy"),
+    "sweep": Heuristic(SweepCoverage, SweepConfig, "sweep"),
     "random": Heuristic(RandomWalk, RandomConfig, "random"),
 }
 

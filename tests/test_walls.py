@@ -1,0 +1,68 @@
+"""Wall-aware heuristics (searchrl/controllers/walls.py): shortest paths around walls, every free cell of a maze
+reached eventually, and the rules' settings checked."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from searchrl.controllers.registry import make_controller
+from searchrl.controllers.switch import sweep_footprints
+from searchrl.controllers.walls import bfs
+from searchrl.world.config import WorldConfig
+from searchrl.world.engine import SearchWorld
+from searchrl.world.footprint import MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G
+from searchrl.world.scenario import Scenario
+
+MAZE = Scenario.from_dict({"obstacles": {"kind": "maze", "corridor": 1, "loops": 0.0}})
+
+
+def test_bfs_finds_shortest_paths_around_a_wall():
+    blocked = np.zeros((1, 7, 7), bool)
+    blocked[0, 0, :] = blocked[0, -1, :] = blocked[0, :, 0] = blocked[0, :, -1] = True  # the halo
+    blocked[0, 1:5, 3] = True  # a wall from the top, open at row 5
+    dist, first = np.full((7, 7), -1, np.int32), np.zeros((7, 7), np.int64)
+    queue = np.zeros((49, 2), np.int64)
+    reached = bfs(blocked, 0, 1, 1, -1, 5, dist, first, queue)
+    assert reached == 25 - 4
+    assert dist[1, 5] == 4 + 4 + 4  # down to row 5, across, up: around the wall, not through it
+    assert tuple(MOVES[first[1, 5]]) in {(1, 0), (0, 1)}  # south or east: both start a shortest path
+    assert dist[1, 2] == 1 and dist[3, 3] == -1
+
+
+@pytest.mark.parametrize("name", ["sweep", "path_greedy"])
+def test_a_lone_agent_reaches_every_free_cell_of_a_maze(name):
+    """Corridors one cell wide and no loops, so every dead end must be walked into. Sweep: every free cell ends at
+    least half sensed (Π (1 − Γ) <= 0.5 over the agent's footprints). Path-greedy: no free cell keeps more of
+    target-greedy's information than its walk's floor (a share of the prior's mean)."""
+    config = WorldConfig(world_size=(15, 15), n_targets=(1, 1), n_distributions=(2, 2), n_agents=1, max_steps=4000)
+    world = SearchWorld(config, 2, seed=3, scenario=MAZE, auto_reset=False)
+    world.reset()  # a finished world keeps stepping (unreset): its agent's moves are what the test follows
+    controller = make_controller(name, config, seed=0)
+    controller.reset(world.state, np.ones(2, bool))
+    state, h = world.state, world.state.halo
+    left = np.ones(state.p.shape)
+    maps, vector = world.observation
+    for _ in range(1500):
+        sweep_footprints(state.pos, h, left, SUPPORT_DR, SUPPORT_DC, SUPPORT_G)
+        transition = world.step(controller.act(state, maps, vector))
+        maps, vector = transition.maps, transition.vector
+    free = ~state.blocked
+    if name == "sweep":
+        assert (left[free] <= 0.5).all(), f"{(left[free] > 0.5).sum()} free cells less than half sensed"
+    else:
+        p_hat = state.belief[:, 0, 0] * state.obs_scale[:, 0, None, None]
+        u_hat = state.belief[:, 0, 1] * state.obs_scale[:, 1, None, None]
+        info = np.where(free, p_hat * np.maximum(0.0, 1.0 - u_hat), 0.0)
+        assert (info <= controller._floor[:, None, None] * (1 + 1e-6)).all()
+        assert (left[free] <= 0.5).mean() > 0.5  # it walked the maze, not a corner of it
+
+
+@pytest.mark.parametrize("name, settings, message", [
+    ("path_greedy", {"radius": 9}, "radius=9"),
+    ("path_greedy", {"worth": 0.0}, "worth=0.0"),
+    ("sweep", {"spacing": -1}, "spacing=-1"),
+])  # fmt: skip
+def test_bad_settings_are_named(name, settings, message):
+    with pytest.raises(ValueError, match=message):
+        make_controller(name, WorldConfig(), settings=settings)
