@@ -127,8 +127,9 @@ class PathGreedy(FootprintGreedy):
     def __init__(self, config: WorldConfig, radius: int = PathGreedyConfig.radius,
                  discount: float = PathGreedyConfig.discount, worth: float = PathGreedyConfig.worth,
                  w_p: float = PathGreedyConfig.w_p, w_u: float = PathGreedyConfig.w_u,
-                 w_t: float = PathGreedyConfig.w_t, reach: float = PathGreedyConfig.reach, seen: bool = PathGreedyConfig.seen,
-                 age: float = PathGreedyConfig.age, hedge: float = PathGreedyConfig.hedge,
+                 w_t: float = PathGreedyConfig.w_t, reach: float = PathGreedyConfig.reach,
+                 seen: bool = PathGreedyConfig.seen, age: float = PathGreedyConfig.age,
+                 hedge: float = PathGreedyConfig.hedge,
                  seed: int | WorldStreams = 0) -> None:  # fmt: skip
         if not 1 <= radius <= config.fov // 2:
             raise ValueError(f"radius={radius!r} is not allowed: 1 <= radius <= {config.fov // 2} (half the view)")
