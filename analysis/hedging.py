@@ -45,6 +45,7 @@ parser = cli.parser("Tune the hedging rules' knobs on tuning seeds", dirs=None)
 parser.add_argument("--maps", type=int, default=16, help="maps per cell (>= 2)")
 parser.add_argument("--checkpoint", action="append", default=[], help="label=path/model.zip: a policy to measure")
 parser.add_argument("--policies-only", action="store_true", help="measure the policies only, the rules read back")
+parser.add_argument("--only", action="append", default=[], help="with --policies-only: these rules measured too")
 args, _ = cli.parse(parser)
 if args.maps < 2:
     parser.error(f"--maps={args.maps} is not allowed: an integer >= 2")
@@ -67,9 +68,10 @@ with initialize_config_dir(str(CONF), version_base="1.3"):  # the world `+model=
 
 CANDIDATES = {
     "greedy": ("greedy_target", {"reach": 2.0}),
-    **{f"hedge{e:g}": ("greedy_target", {"reach": 2.0, "hedge": e}) for e in (0.1, 0.25, 0.5)},
+    **{f"hedge{e:g}": ("greedy_target", {"reach": 2.0, "hedge": e}) for e in (0.1, 0.25, 0.5, 1.0)},
     **{f"switch{t:g}": ("switch", {"threshold": t}) for t in (0.25, 0.5, 0.75)},
     "coverage": ("coverage", {}),
+    "sweep": ("sweep", {}),
 }
 
 
@@ -88,11 +90,13 @@ def measure(label, world, factory, needs_observation):
 
 
 rows = []
-if args.policies_only:  # the rows of an earlier run, but of the policies measured now
-    given = [c.partition("=")[0] for c in args.checkpoint]
+rules = CANDIDATES
+if args.policies_only:  # the rows of an earlier run, but of the policies and rules measured now
+    given = [c.partition("=")[0] for c in args.checkpoint] + args.only
     rows = pd.read_csv(OUT / "hedging.csv").query("rule not in @given").to_dict("records")
-else:
-    for label, (name, settings) in CANDIDATES.items():
+    rules = {label: CANDIDATES[label] for label in args.only}
+if rules:
+    for label, (name, settings) in rules.items():
 
         def factory(config, streams, name=name, settings=settings):
             return make_controller(name, config, seed=streams, settings=settings)

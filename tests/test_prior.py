@@ -3,6 +3,8 @@ modes and agents that know less, each family's law, and what the search bound ma
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -121,3 +123,26 @@ def test_labels_and_round_trip():
     assert scenario.label == "var1+misweighted0.5+off_prior0.25"
     assert Scenario.from_dict(scenario.to_dict()) == scenario
     assert Scenario.from_dict({"obstacles": {"kind": "iid"}, "targets": {"kind": "prior"}}) == PAPER  # old records
+
+
+def test_a_mix_picks_a_family_then_draws_that_scenarios_world():
+    import yaml
+
+    conf = Path(__file__).resolve().parents[1] / "conf" / "scenario"
+    mix = Scenario.from_dict(yaml.safe_load((conf / "mixed_priors.yaml").read_text()))
+    # per sharpness: the prior right (once per severity, so it is picked as often as a family) and 7 families x 3
+    assert len(mix.scenarios) == 2 * (3 + 7 * 3) and mix.family == "mix" and not mix.targets_follow_prior
+    assert sum(s.severity == 0 for s in mix.scenarios) == 6
+    for seed in range(4):  # one integer picks the scenario; the rest of the reset is that scenario's
+        rng = np.random.default_rng(seed)
+        picked = mix.scenarios[int(rng.integers(len(mix.scenarios)))]
+        want = allocate(CONFIG, 1)
+        reset_world(CONFIG, want, 0, rng, picked)
+        got = allocate(CONFIG, 1)
+        reset_world(CONFIG, got, 0, np.random.default_rng(seed), mix)
+        np.testing.assert_array_equal(got.target_pos, want.target_pos)
+        np.testing.assert_array_equal(got.p, want.p)
+    walls = Scenario.from_dict(yaml.safe_load((conf / "mixed_walls.yaml").read_text()))
+    assert [s.label for s in walls.scenarios] == ["paper", "iid0.2c", "primal", "maze3l0.1", "rooms12d3"]
+    with pytest.raises(ConfigError, match=r"scenario\.targets is not allowed with scenario\.mix"):
+        Scenario.from_dict({"mix": {"families": {}}, "targets": {"kind": "prior"}})

@@ -192,8 +192,9 @@ def scenario_grid(families: dict[str, dict], severities: list[float], variance_s
 @dataclass(frozen=True)
 class ScenarioMix:
     """A training distribution over scenarios (`scenario.mix`: families, severities, variance_scales, obstacles as
-    `scenario_grid` takes them): each reset draws one integer from the world's generator, before anything else,
-    to pick a family (the prior right counting as one) and a severity uniformly, then that scenario's world."""
+    `scenario_grid` takes them, and explicit `scenarios`): each reset draws one integer from the world's generator,
+    before anything else, to pick a family (the prior right and each explicit scenario counting as one) and a
+    severity uniformly, then that scenario's world."""
 
     scenarios: tuple[Scenario, ...]
     spec: tuple[tuple[str, Any], ...]  # the mapping it was made from, as `to_dict` gives it back
@@ -201,17 +202,21 @@ class ScenarioMix:
     @classmethod
     def from_spec(cls, spec: dict) -> ScenarioMix:
         spec = dict(spec)
-        unknown = sorted(set(spec) - {"families", "severities", "variance_scales", "obstacles"})
+        unknown = sorted(set(spec) - {"families", "severities", "variance_scales", "obstacles", "scenarios"})
         if unknown:
             raise ConfigError(f"scenario.mix.{unknown[0]} is not allowed: a mix has families, severities, "
-                              "variance_scales and obstacles")  # fmt: skip
+                              "variance_scales, obstacles and scenarios")  # fmt: skip
         severities = list(spec.get("severities") or [])
         grid = scenario_grid(dict(spec.get("families") or {}), severities, list(spec.get("variance_scales") or [None]),
                              spec.get("obstacles"), name="scenario.mix")  # fmt: skip
         per_scale = 1 + len(spec.get("families") or {}) * len(severities)
         weighted = []  # the right prior repeated once per severity: a family, picked as often as each other
         for start in range(0, len(grid), per_scale):
-            weighted += [grid[start]] * len(severities) + grid[start + 1 : start + per_scale]
+            weighted += [grid[start]] * max(1, len(severities)) + grid[start + 1 : start + per_scale]
+        # explicit scenarios (an obstacle kind each, say), each picked as often as a family
+        weighted += [
+            s for values in spec.get("scenarios") or [] for s in [Scenario.from_dict(values)] * max(1, len(severities))
+        ]
         return cls(tuple(weighted), tuple(sorted(spec.items())))
 
     def pick(self, rng: np.random.Generator) -> Scenario:
