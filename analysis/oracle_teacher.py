@@ -35,6 +35,7 @@ from searchrl.world.streams import WorldStreams
 from searchrl.world.truth import prior_quality
 
 
+# %%
 @dataclass
 class OracleSwitchConfig(ControllerConfig):
     name: str = "oracle_switch"
@@ -72,6 +73,7 @@ class OracleSwitch:
         return np.where(self.trust[:, None], greedy, self.coverage.act(state, maps, vector, active))
 
 
+# %% The teacher joins the registry for this process only: `imitation.teacher=oracle_switch`
 registry.HEURISTICS["oracle_switch"] = registry.Heuristic(OracleSwitch, OracleSwitchConfig, "oracle_switch")
 registry.TEACHERS = (*registry.TEACHERS, "oracle_switch")
 

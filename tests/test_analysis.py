@@ -57,6 +57,19 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
         args = ["--maps", "1", "--draws", "100", "--cache", str(out_dir / "cache"), "analysis/out/table3.csv"]
     if notebook == "prior_quality.py":  # worlds only, two maps per world size
         args = ["--maps", "2"]
+    if notebook == "hedging.py":  # two rules on one cell, two maps: the tuning as it runs, small
+        args = ["--maps", "2", "--cells", "n40_N1", "--rules", "greedy,coverage"]
+    if notebook == "suite.py":  # a small suite run as the shipped ones are, for two rules
+        from tests.test_suite import _run
+
+        for controller in ("coverage", "surfing"):
+            _run(out_dir / "suite" / controller, f"controller={controller}")
+        args = [str(out_dir / "suite"), "--focus", "coverage"]
+    if notebook == "oracle_teacher.py":  # the training app with the privileged teacher, a few rollouts
+        from tests.test_train import TINY
+
+        args = ["+model=b", *TINY, "total_timesteps=768", "imitation.teacher=oracle_switch", "imitation.epochs=0",
+                "imitation.rl_weight=0.5", f"hydra.run.dir={out_dir / 'run'}"]  # fmt: skip
     if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
         args = [str(eval_dirs[0].parent.parent), str(out_dir)]
     env = {
@@ -103,6 +116,12 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                            "calibration.md": ("# Which k: heuristics in four worlds beside the paper", 11)},
         "prior_quality.py": {"prior_quality.csv": (2 * 4 * 5 * 3, 9),
                              "prior_quality.md": ("Mean prior quality over 2 maps per n", 10)},
+        "hedging.py": {"hedging.csv": (2 * (1 + 7 * 2), 7),
+                       "hedging.md": ("Mean found fraction on tuning seeds (2 maps per cell; cells n40_N1", 4)},
+        "suite.py": {"family.md": ("Mean found fraction, 95 % CI over maps (8 maps", 4),
+                     "severity.md": ("| controller | family | 0 | 1 |", 6), "tail.md": ("Worst-10 % tail", 4),
+                     "compare.md": ("coverage minus each controller", None), "suite.png": (440, 770)},
+        "oracle_teacher.py": {},
         "shipped.py": {"shipped.md": ("| policy | RL agent-steps | RL hours (1 core) | policy found | paper |", 6)},
         "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
                      "sweep_curves.png": (780, 480)},
