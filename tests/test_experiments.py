@@ -18,6 +18,7 @@ from searchrl.controllers.registry import resolved
 from searchrl.train.__main__ import CONF_DIR
 from searchrl.train.plan import make_plan
 from searchrl.train.schema import TrainConfig, saved_config
+from searchrl.world.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "runs" / "reference"
@@ -84,7 +85,9 @@ def _composed(name: str, overrides: tuple[str, ...] | None = None) -> dict[str, 
 
 def _resolved(config: dict[str, Any]) -> dict[str, Any]:
     """`config` with its teacher written out (the registry's `resolved`): `greedy_target` with reach 2 and `greedy`
-    with target-greedy's settings and reach 2 are the same teacher."""
+    with target-greedy's settings and reach 2 are the same teacher; and its scenario as the run reads it
+    (`Scenario.from_dict`: a run made before scenarios, or before a part existed, drew the paper's)."""
+    config = {**config, "scenario": Scenario.from_dict(config.get("scenario")).to_dict()}
     imitation = config.get("imitation") or {}
     if imitation.get("teacher") is not None:
         teacher, args = resolved(imitation["teacher"], imitation.get("teacher_args"))

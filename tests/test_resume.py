@@ -179,6 +179,7 @@ def test_a_run_folder_made_before_scenarios_and_removed_options_resumes(tmp_path
     under the paper's scenario and its checkpoint evaluates."""
     from searchrl.policies.checkpoint import load_actor
     from searchrl.world.config import WorldConfig
+    from searchrl.world.scenario import PAPER
 
     run = tmp_path / "run"
     shutil.copytree(Path(__file__).resolve().parent / "golden" / "run_05d7673", run)
@@ -188,6 +189,6 @@ def test_a_run_folder_made_before_scenarios_and_removed_options_resumes(tmp_path
     assert RecurrentPPO.load(model).num_timesteps == 2048
     saved = OmegaConf.load(run / "config.yaml")
     assert "context" not in saved.env.world and "context_size" not in saved.network
-    assert saved.scenario == {"obstacles": {"kind": "iid", "density": 0.0}, "targets": {"kind": "prior"}}
+    assert saved.scenario == PAPER.to_dict()  # the paper's, every part written out
     world = WorldConfig.from_dict(OmegaConf.to_container(old.env.world))
     assert load_actor(run / "checkpoints" / "step_1024.zip", world).n_actions == 5

@@ -305,6 +305,10 @@ def test_a_run_trains_validates_and_records_its_scenario(tmp_path, monkeypatch):
     monkeypatch.setattr(reset, "reset_world", lambda *a, **k: seen.append(a[4].label) or original(*a, **k))
     _run(tmp_path, ["+model=b", *TINY, "total_timesteps=256", "scenario=walls", "scenario.obstacles.density=0.1",
                     "imitation.teacher=greedy_target", "imitation.episodes=1", "imitation.epochs=1"])  # fmt: skip
-    assert set(seen) == {"iid0.1"} and len(seen) > 2 * 8  # rollout, teacher and validation worlds
+    assert set(seen) == {"iid0.1c"} and len(seen) > 2 * 8  # rollout, teacher and validation worlds
     saved = OmegaConf.load(tmp_path / "config.yaml")
-    assert saved.scenario == {"obstacles": {"kind": "iid", "density": 0.1}, "targets": {"kind": "prior"}}
+    assert saved.scenario == {
+        "obstacles": {"kind": "iid", "density": 0.1, "connected": True},
+        "prior": {"kind": "mixture", "variance_scale": None},
+        "targets": {"kind": "prior"},
+    }

@@ -46,6 +46,7 @@ from searchrl.train.plan import Plan, make_plan
 from searchrl.train.schema import TrainConfig, register_configs, saved_config
 from searchrl.train.score import read_score, write_score
 from searchrl.world.config import ConfigError
+from searchrl.world.scenario import Scenario
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 register_configs()
@@ -234,6 +235,9 @@ def record_config(cfg: DictConfig, run_dir: Path) -> None:
     total_timesteps) but never what it resumes from."""
     record = copy.deepcopy(cfg)
     record.resume = None
+    # the scenario as the run draws it, every part written out (a run made before a part existed drew its default)
+    record.scenario = Scenario.from_dict(OmegaConf.to_container(record.scenario, resolve=True)
+                                         if "scenario" in record else None).to_dict()  # fmt: skip
     write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(record, resolve=True))
 
 
