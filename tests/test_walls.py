@@ -66,3 +66,23 @@ def test_a_lone_agent_reaches_every_free_cell_of_a_maze(name):
 def test_bad_settings_are_named(name, settings, message):
     with pytest.raises(ValueError, match=message):
         make_controller(name, WorldConfig(), settings=settings)
+
+
+def test_rows_record_how_often_moves_are_blocked():
+    """`blocked`, the share of a team's moves a wall or an agent stopped: a random walk in a maze runs into walls
+    often, path_greedy moves along free paths and almost never."""
+    from searchrl.evaluate.grid import Cell
+    from searchrl.evaluate.runner import run_cell
+
+    config = WorldConfig(world_size=(20, 20), n_targets=(4, 4), n_distributions=(4, 4), n_agents=1)
+    maze = Scenario.from_dict({"obstacles": {"kind": "maze", "corridor": 2, "loops": 0.1}})
+    blocked = {}
+    for name in ("random", "path_greedy"):
+
+        def factory(cfg, streams, name=name):
+            return make_controller(name, cfg, seed=streams)
+
+        frame = run_cell(factory, config, Cell(20, 2, 4, 4), 0, 4, 1, 11, needs_observation=False, scenario=maze)
+        assert frame["blocked"].between(0, 1).all()
+        blocked[name] = frame["blocked"].mean()
+    assert blocked["random"] > 0.1 and blocked["path_greedy"] < blocked["random"] / 4, blocked
