@@ -45,9 +45,12 @@ parser = cli.parser("Tune the hedging rules' knobs on tuning seeds", dirs=None)
 parser.add_argument("--maps", type=int, default=16, help="maps per cell (>= 2)")
 parser.add_argument("--checkpoint", action="append", default=[], help="label=path/model.zip: a policy to measure")
 parser.add_argument("--policies-only", action="store_true", help="measure the policies only, the rules read back")
-parser.add_argument("--only", action="append", default=[], help="with --policies-only: these rules measured too")
 parser.add_argument("--cells", default="n40_N1,n40_N4,n40_N16,n80_N1,n80_N4,n80_N16", help="n<n>_N<N>, comma-separated")
-parser.add_argument("--rules", default=None, help="rules to measure, comma-separated (default: every candidate)")
+parser.add_argument(
+    "--rules",
+    default=None,
+    help="rules to measure, comma-separated (default: every candidate; none with --policies-only)",
+)
 args, _ = cli.parse(parser)
 if args.maps < 2:
     parser.error(f"--maps={args.maps} is not allowed: an integer >= 2")
@@ -94,22 +97,23 @@ def measure(label, world, factory, needs_observation):
 
 
 rows = []
-chosen = list(CANDIDATES) if args.rules is None else args.rules.split(",")
-unknown = [label for label in chosen + args.only if label not in CANDIDATES]
+if args.rules:
+    chosen = args.rules.split(",")
+else:
+    chosen = [] if args.policies_only else list(CANDIDATES)
+unknown = [label for label in chosen if label not in CANDIDATES]
 if unknown:
     parser.error(f"rule {unknown[0]!r} is not allowed: one of {', '.join(CANDIDATES)}")
 rules = {label: CANDIDATES[label] for label in chosen}
 if args.policies_only:  # the rows of an earlier run, but of the policies and rules measured now
-    given = [c.partition("=")[0] for c in args.checkpoint] + args.only
+    given = [c.partition("=")[0] for c in args.checkpoint] + chosen
     rows = pd.read_csv(OUT / "hedging.csv").query("rule not in @given").to_dict("records")
-    rules = {label: CANDIDATES[label] for label in args.only}
-if rules:
-    for label, (name, settings) in rules.items():
+for label, (name, settings) in rules.items():
 
-        def factory(config, streams, name=name, settings=settings):
-            return make_controller(name, config, seed=streams, settings=settings)
+    def factory(config, streams, name=name, settings=settings):
+        return make_controller(name, config, seed=streams, settings=settings)
 
-        rows += measure(label, world, factory, False)
+    rows += measure(label, world, factory, False)
 for given in args.checkpoint:
     label, _, path = given.partition("=")
     world_dict, _, _ = checkpoint_config(path)

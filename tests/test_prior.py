@@ -98,7 +98,6 @@ def test_misweighted_truth_is_the_priors_gaussians_reweighted():
 
     rng = np.random.default_rng(3)
     densities = gaussian_components(40, 6, config.prob_variance_scale * 40, config.variance_floor, config.rho_max, rng)
-    rng.random()  # u's draws come between: check the combination, not the stream
     truth = MisweightedPrior(severity=1.0)(config, 40, 6, np.random.default_rng(3)).truth_p
     mixture = (truth - config.eta / 1600) / (1 - config.eta)  # eq. 7 undone: Σ w_i G_i / Σ w_i G_i's total
     weights, *_ = np.linalg.lstsq(densities.reshape(6, -1).T, mixture.ravel(), rcond=None)

@@ -5,7 +5,7 @@ A team that trusts a wrong prior keeps sweeping the prior's peaks, where no targ
 and loses when it is right. The switch reads the evidence each step: where the team has swept, the prior expected
 e = j · Σ_c t(c)·(1 − left(c)) / Σ_c t(c) detections, t = p·(1 − u/max u) the prior's density of targets
 (§4.1.4's placement) and left(c) = Π (1 − Γ) over every footprint the team has put on c (what λk = 1 sensing leaves
-of a cell). Once e ≥ `min_expected` and (found + 1) / (e + 1) < `threshold`, the world's agents leave the prior
+of a cell). Once e ≥ MIN_EXPECTED (2) and (found + 1) / (e + 1) < `threshold`, the world's agents leave the prior
 for good and sweep by geometric coverage (searchrl/controllers/coverage.py), each its own block.
 
 What it reads: the team's found count and every agent's path, known to the whole team (in B they merge beliefs;
@@ -39,6 +39,9 @@ def sweep_footprints(pos, halo, left, dr, dc, g):
                 left[k, r + dr[s], c + dc[s]] *= 1.0 - g[s]
 
 
+MIN_EXPECTED = 2.0  # the rule judges only once the prior expected this many detections where the team swept
+
+
 @dataclass
 class SwitchConfig(ControllerConfig):
     """Settings of `controller=switch` (EvidenceSwitch's keyword arguments)."""
@@ -46,26 +49,18 @@ class SwitchConfig(ControllerConfig):
     name: str = "switch"
     # Leave the prior once (found + 1) / (expected + 1) falls below this (0: never, the greedy alone).
     threshold: float = 0.5
-    # Judge only once the prior expected this many detections where the team swept.
-    min_expected: float = 2.0
-    # Target-greedy's settings while it trusts the prior (the shipped policies' teacher: reach 2).
-    reach: float = 2.0
-    hedge: float = 0.0
 
 
 class EvidenceSwitch:
-    """Batched evidence switch (module docstring); per world, target-greedy until the evidence turns, then coverage."""
+    """Batched evidence switch (module docstring); per world, target-greedy (reach 2, the shipped policies' teacher)
+    until the evidence turns, then coverage."""
 
     def __init__(self, config: WorldConfig, threshold: float = SwitchConfig.threshold,
-                 min_expected: float = SwitchConfig.min_expected, reach: float = SwitchConfig.reach,
-                 hedge: float = SwitchConfig.hedge, seed: int | WorldStreams = 0) -> None:  # fmt: skip
+                 seed: int | WorldStreams = 0) -> None:  # fmt: skip
         if not 0 <= threshold <= 1:
             raise ValueError(f"threshold={threshold!r} is not allowed: 0 <= threshold <= 1 (0: never switch)")
-        if not 0 <= min_expected < 1e6:
-            raise ValueError(f"min_expected={min_expected!r} is not allowed: 0 <= min_expected (detections)")
-        self.config, self.threshold, self.min_expected = config, float(threshold), float(min_expected)
-        self.greedy = FootprintGreedy(config, horizon=3, w_p=0.0, w_u=0.0, w_t=1.0, reach=reach, hedge=hedge,
-                                      seed=seed)  # fmt: skip
+        self.config, self.threshold = config, float(threshold)
+        self.greedy = FootprintGreedy(config, horizon=3, w_p=0.0, w_u=0.0, w_t=1.0, reach=2.0, seed=seed)
         self.coverage = GeometricCoverage(config)
         self.left = np.ones((0, 0, 0))  # (K, S, S) float64: what the team's footprints left of each cell
         self.density = np.zeros((0, 0, 0))  # (K, S, S) float64: the prior's density of targets, summing to 1
@@ -95,7 +90,7 @@ class EvidenceSwitch:
         sweep_footprints(state.pos, state.halo, self.left, SUPPORT_DR, SUPPORT_DC, SUPPORT_G)
         expected = state.n_targets * self.expected()
         behind = (state.n_found + 1.0) / (expected + 1.0) < self.threshold
-        self.switched |= (expected >= self.min_expected) & behind
+        self.switched |= (expected >= MIN_EXPECTED) & behind
         actions = self.greedy.act(state, maps, vector, active)
         if self.switched.any():  # coverage keeps its own plan; its actions are cheap next to greedy's
             actions = np.where(self.switched[:, None], self.coverage.act(state, maps, vector, active), actions)

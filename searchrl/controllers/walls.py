@@ -66,11 +66,12 @@ def path_greedy_actions(w, params, memory, radius, floor, fallback, out, dist, f
     pos, occupant, h, n_actions = w.pos, w.occupant, w.halo, params.n_actions
     sp_all, su_all, rate_all, now_all = w.obs_scale, w.obs_scale, memory.rates, w.t
     others = np.empty((1, 2), np.int64)
+    best = np.zeros(n_actions)  # the best value of a cell each first move leads to
     for k in range(pos.shape[0]):
         for i in range(pos.shape[1]):
             r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
             reached = bfs(w.blocked, k, r0, c0, radius, n_actions, dist, first, queue)
-            best = np.zeros(n_actions)
+            best[:] = 0.0
             for q in range(1, reached):
                 r, c = queue[q, 0], queue[q, 1]
                 value = _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, 0)
@@ -104,39 +105,27 @@ def path_greedy_actions(w, params, memory, radius, floor, fallback, out, dist, f
 
 @dataclass
 class PathGreedyConfig(ControllerConfig):
-    """Settings of `controller=path_greedy`: target-greedy's information (greedy's w_p, w_u, w_t, reach, seen, age,
-    hedge; searchrl/controllers/greedy.py), cells scored along shortest paths within `radius` moves, later ones
-    weighted by `discount` per move, and a walk to the nearest cell worth `worth` × the prior's mean."""
+    """Settings of `controller=path_greedy`: cells scored along shortest paths within `radius` moves by target-greedy's
+    information (reach 2, the shipped policies' teacher; searchrl/controllers/greedy.py), each move further weighted
+    by `discount`, and a walk to the nearest cell worth `worth` × the prior's mean."""
 
     name: str = "path_greedy"
     radius: int = 5  # moves searched each step: half the field of view, what the agent sees
     discount: float = 0.7
     worth: float = 0.05
-    w_p: float = 0.0
-    w_u: float = 0.0
-    w_t: float = 1.0
-    reach: float = 2.0  # the shipped policies' teacher's
-    seen: bool = False
-    age: float = 0.0
-    hedge: float = 0.0
 
 
 class PathGreedy(FootprintGreedy):
-    """Batched PathGreedy (module docstring); its information is footprint-greedy's with the same settings."""
+    """Batched PathGreedy (module docstring); its information is target-greedy's (w_t = 1, reach 2)."""
 
     def __init__(self, config: WorldConfig, radius: int = PathGreedyConfig.radius,
                  discount: float = PathGreedyConfig.discount, worth: float = PathGreedyConfig.worth,
-                 w_p: float = PathGreedyConfig.w_p, w_u: float = PathGreedyConfig.w_u,
-                 w_t: float = PathGreedyConfig.w_t, reach: float = PathGreedyConfig.reach,
-                 seen: bool = PathGreedyConfig.seen, age: float = PathGreedyConfig.age,
-                 hedge: float = PathGreedyConfig.hedge,
                  seed: int | WorldStreams = 0) -> None:  # fmt: skip
         if not 1 <= radius <= config.fov // 2:
             raise ValueError(f"radius={radius!r} is not allowed: 1 <= radius <= {config.fov // 2} (half the view)")
         if not 0 < worth <= 1:
             raise ValueError(f"worth={worth!r} is not allowed: 0 < worth <= 1 (a share of the prior's mean)")
-        super().__init__(config, horizon=1, discount=discount, w_p=w_p, w_u=w_u, w_t=w_t, reach=reach, seen=seen,
-                         age=age, hedge=hedge, seed=seed)  # fmt: skip
+        super().__init__(config, horizon=1, discount=discount, w_p=0.0, w_u=0.0, w_t=1.0, reach=2.0, seed=seed)
         self.radius, self.worth = int(radius), float(worth)
         self._floor, self._scratch = np.zeros(0), None
 
