@@ -1,6 +1,7 @@
 """Recorded outputs that every refactor must reproduce bit for bit: each shipped policy and each kept heuristic on a
-small slice of the grid, through `run_cell` (the evaluation's episode loop). The file was written at 05d7673, before
-scenarios, the episode runner and the removal of the negative experiments.
+small slice of the grid, through `run_cell` (the evaluation's episode loop). The episodes were recorded at
+05d7673, before scenarios, the episode runner and the removal of the negative experiments; columns added since
+were written in later (docs/log.md).
 
 `python -m tests.golden_slice --write` rewrites tests/golden/slice.parquet; do that only for a change that is meant
 to change episodes, and say which in docs/log.md. tests/test_golden.py compares a fresh run with the file.

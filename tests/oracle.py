@@ -122,6 +122,20 @@ def _sense(config: WorldConfig, state: WorldState, k: int) -> tuple[list[float],
     return m_p, m_u
 
 
+def _sweep(state: WorldState, k: int) -> list[bool]:
+    """SPEC step 3, *Swept*: per agent, whether its footprint held no free cell the team had not swept before
+    this step; then the footprints are swept."""
+    h = state.halo
+    cells = [{(int(state.pos[k, i, 0]) + dr + h, int(state.pos[k, i, 1]) + dc + h)
+              for dr in range(-2, 3) for dc in range(-2, 3) if GAMMA[dr + 2, dc + 2] > 0}
+             for i in range(state.n_agents)]  # fmt: skip
+    stale = [all(state.swept[k, r, c] or state.blocked[k, r, c] for r, c in mine) for mine in cells]
+    for mine in cells:
+        for r, c in mine:
+            state.swept[k, r, c] = True
+    return stale
+
+
 def _refresh_beliefs(config: WorldConfig, state: WorldState, k: int) -> None:
     """SPEC step 4: the explicit area Φ of §3.2.1 shows the true maps."""
     r_phi, h = config.explicit_area // 2, state.halo
@@ -206,6 +220,7 @@ def oracle_step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng
         blocked = _move(state, k, actions, priority)
         credited = _detect(state, k, detect)
         m_p, m_u = _sense(config, state, k)
+        stale = _sweep(state, k)
         _refresh_beliefs(config, state, k)
         if config.belief_seen:
             _see_neighbours(config, state, k)
@@ -232,6 +247,7 @@ def oracle_step(config: WorldConfig, state: WorldState, actions: np.ndarray, rng
         state.ep_return[k] += team_return
         state.ep_info[k] += sum(m_p) + sum(m_u)
         state.ep_collisions[k] += sum(blocked)
+        state.ep_stale[k] += sum(stale)
         state.ep_comm_pairs[k] += pairs
     return res
 

@@ -269,5 +269,7 @@ def test_run_cell_lets_a_policy_act_in_every_running_world_and_keeps_each_column
     assert frame.dtypes.astype(str).to_dict() == {"n": "int64", "N": "int64", "targets": "int64", "map_seed": "int64",
                                                   "repeat": "int64", "found_fraction": "float64", "L": "int64",
                                                   "R": "float64", "F": "int64", "M_bar": "float64",
-                                                  "prior_quality": "float64", "blocked": "float64"}  # fmt: skip
+                                                  "prior_quality": "float64", "blocked": "float64",
+                                                  "stale": "float64"}  # fmt: skip
     assert frame.prior_quality.between(-1, 1).all() and frame.blocked.between(0, 1).all()
+    assert frame.stale.between(0, 1).all()

@@ -86,3 +86,47 @@ def test_rows_record_how_often_moves_are_blocked():
         assert frame["blocked"].between(0, 1).all()
         blocked[name] = frame["blocked"].mean()
     assert blocked["random"] > 0.1 and blocked["path_greedy"] < blocked["random"] / 4, blocked
+
+
+def test_rows_record_how_often_agents_sweep_nothing_new():
+    """`stale`, the share of agent-steps whose footprint swept no free cell new to the team: in a maze, geometric
+    coverage stands at a wall (stale, never blocked: it does not try the move), sweep keeps finding new cells."""
+    from searchrl.evaluate.grid import Cell
+    from searchrl.evaluate.runner import run_cell
+
+    config = WorldConfig(world_size=(20, 20), n_targets=(4, 4), n_distributions=(4, 4), n_agents=1)
+    maze = Scenario.from_dict({"obstacles": {"kind": "maze", "corridor": 2, "loops": 0.1}})
+    frames = {}
+    for name in ("coverage", "sweep"):
+
+        def factory(cfg, streams, name=name):
+            return make_controller(name, cfg, seed=streams)
+
+        frames[name] = run_cell(factory, config, Cell(20, 2, 4, 4), 0, 4, 1, 11, needs_observation=False, scenario=maze)
+        assert frames[name]["stale"].between(0, 1).all()
+    assert frames["coverage"]["stale"].mean() > 0.8 and frames["coverage"]["blocked"].mean() < 0.05
+    assert frames["sweep"]["stale"].mean() < 0.4
+
+
+def test_a_step_is_stale_when_the_footprint_holds_nothing_new():
+    """SPEC step 3, *Swept*: the first step senses new cells; standing still afterwards senses none; an agent
+    whose footprint reaches one unswept free cell is not stale."""
+    import numpy as np
+
+    from searchrl.world.reset import reset_worlds
+    from searchrl.world.state import allocate
+    from searchrl.world.step import step
+
+    config = WorldConfig(world_size=(12, 12), n_agents=1, n_targets=(1, 1), n_distributions=(1, 1))
+    state = allocate(config, 1)
+    reset_worlds(config, state, np.ones(1, bool), np.random.default_rng(0))
+    rng = np.random.default_rng(1)
+    stay = np.zeros((1, 1), np.int64)
+    step(config, state, stay, rng)
+    assert state.ep_stale[0] == 0 and state.swept[0].sum() > 0
+    step(config, state, stay, rng)
+    assert state.ep_stale[0] == 1
+    row, col = state.pos[0, 0] + state.halo
+    state.swept[0, row + 2, col] = False  # one cell of its footprint unswept again
+    step(config, state, stay, rng)
+    assert state.ep_stale[0] == 1 + (state.blocked[0, row + 2, col])

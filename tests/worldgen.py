@@ -13,7 +13,7 @@ from searchrl.world.truth import OffPriorTargets
 # Discrete state (positions, occupancy, targets, counters) must be bit-exact between engine and oracle.
 DISCRETE_FIELDS = (
     "size", "t", "pos", "occupant", "blocked", "target_pos", "target_valid", "target_found", "found_grid",
-    "n_targets", "n_found", "ep_comm_pairs", "ep_collisions", "belief_time",
+    "n_targets", "n_found", "ep_comm_pairs", "ep_collisions", "belief_time", "swept", "ep_stale",
 )  # fmt: skip
 # Float state: SPEC fixes the order of the products, but sums over cells and agents may be taken in any order,
 # so floats are compared to float32 rounding (rtol 1e-5) rather than bit for bit.

@@ -22,9 +22,11 @@ from searchrl.world.state import WorldState
 # (__main__) adds the map's search bound, searchrl/evaluate/bound.py's BOUND_COLUMNS.
 # `prior_quality` is how well the prior the agents start from points at the episode's targets (MapScore-like: 0 no
 # better than uniform, 1 every target on the prior's best cell; searchrl/world/truth.py). `blocked` is the share of
-# the team's moves that a wall or another agent stopped (the world's collisions per agent-step of the episode).
+# the team's moves that a wall or another agent stopped (the world's collisions per agent-step of the episode),
+# `stale` the share of its agent-steps whose footprint swept no free cell new to the team (searchrl/world/swept.py).
 COLUMNS = ["controller", "model", "world", "scenario", "family", "severity", "variance_scale", "n", "N", "targets",
-           "map_seed", "repeat", "found_fraction", "L", "R", "F", "M_bar", "prior_quality", "blocked"]  # fmt: skip
+           "map_seed", "repeat", "found_fraction", "L", "R", "F", "M_bar", "prior_quality", "blocked",
+           "stale"]  # fmt: skip
 
 
 def cell_config(world: WorldConfig, cell: Cell) -> WorldConfig:
@@ -91,6 +93,7 @@ def run_cell(
             rows.append(
                 {"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "map_seed": seeds[w], "repeat": r,
                  **{name: final[name][w] for name in ("found_fraction", "L", "R", "F", "M_bar", "prior_quality")},
-                 "blocked": final["collisions"][w] / max(1, final["L"][w] * cell.n_agents)}
+                 "blocked": final["collisions"][w] / max(1, final["L"][w] * cell.n_agents),
+                 "stale": final["stale"][w] / max(1, final["L"][w] * cell.n_agents)}
             )  # fmt: skip
     return pd.DataFrame(rows)

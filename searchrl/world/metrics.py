@@ -10,7 +10,7 @@ from searchrl.world.state import WorldState
 def episode_metrics(state: WorldState) -> dict[str, np.ndarray]:
     """Per world (K,): search time L (steps taken; equals max_steps when targets remain), team return R,
     communication count F (neighbour pairs summed over steps), information collected per step M̄
-    (team Σ(M_p + M_u) / L), found fraction, and blocked moves."""
+    (team Σ(M_p + M_u) / L), found fraction, blocked moves, and stale agent-steps (no new cell swept)."""
     steps = np.maximum(state.t, 1)
     return {
         "L": state.t.copy(),
@@ -19,4 +19,5 @@ def episode_metrics(state: WorldState) -> dict[str, np.ndarray]:
         "M_bar": state.ep_info / steps,
         "found_fraction": state.n_found / np.maximum(state.n_targets, 1),
         "collisions": state.ep_collisions.copy(),
+        "stale": state.ep_stale.copy(),
     }

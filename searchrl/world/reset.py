@@ -77,6 +77,7 @@ def reset_world(
     state.target_pos[k] = 0
     state.target_pos[k, :j] = targets
     state.found_grid[k] = False
+    state.swept[k] = False
     state.n_targets[k] = j
     state.n_found[k] = 0
     state.obs_scale[k] = (_unit_scale(state.p[inner].max()), _unit_scale(state.u[inner].max()))
@@ -84,6 +85,7 @@ def reset_world(
     state.ep_comm_pairs[k] = 0
     state.ep_info[k] = 0.0
     state.ep_collisions[k] = 0
+    state.ep_stale[k] = 0
 
 
 def reset_worlds(config: WorldConfig, state: WorldState, mask: np.ndarray, rng: np.random.Generator,

@@ -49,6 +49,7 @@ class WorldState:
     target_valid: np.ndarray  # (K, T) bool, slot holds a target this episode
     target_found: np.ndarray  # (K, T) bool
     found_grid: np.ndarray  # (K, S, S) bool, cells holding a found target
+    swept: np.ndarray  # (K, S, S) bool, cells under any footprint since the reset (searchrl/world/swept.py)
     n_targets: np.ndarray  # (K,) int64
     n_found: np.ndarray  # (K,) int64
     obs_scale: np.ndarray  # (K, 2) float32, 1 / max of the prior p and u (observation scaling)
@@ -57,6 +58,7 @@ class WorldState:
     ep_comm_pairs: np.ndarray  # (K,) int64, F: neighbour pairs summed over steps
     ep_info: np.ndarray  # (K,) float64, Σ over steps and agents of M_p + M_u
     ep_collisions: np.ndarray  # (K,) int64, blocked moves
+    ep_stale: np.ndarray  # (K,) int64, agent-steps whose footprint swept no new free cell
     halo: int  # padding h on each side of every map
 
     @property
@@ -160,6 +162,7 @@ def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
         target_valid=np.zeros((k, t_max), bool),
         target_found=np.zeros((k, t_max), bool),
         found_grid=np.zeros((k, side, side), bool),
+        swept=np.zeros((k, side, side), bool),
         n_targets=np.zeros(k, np.int64),
         n_found=np.zeros(k, np.int64),
         obs_scale=np.ones((k, 2), np.float32),
@@ -167,6 +170,7 @@ def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
         ep_comm_pairs=np.zeros(k, np.int64),
         ep_info=np.zeros(k, np.float64),
         ep_collisions=np.zeros(k, np.int64),
+        ep_stale=np.zeros(k, np.int64),
         halo=h,
     )
     return state

@@ -12,6 +12,7 @@ from searchrl.world.footprint import MOVES, SUPPORT
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
+from searchrl.world.swept import sweep
 
 
 @dataclass
@@ -67,6 +68,8 @@ def step(
 
     info = np.empty((k, n), np.float64)
     kernels.sense(w, SUPPORT, config.sensing_rate(state.size), scratch, info)
+    stale = np.empty((k, n), np.bool_)
+    sweep(w, SUPPORT, stale)
 
     kernels.refresh_beliefs(w, config.explicit_area // 2)
 
@@ -89,6 +92,7 @@ def step(
     state.ep_info += info.sum(axis=1)
     state.ep_comm_pairs += comm_pairs
     state.ep_collisions += collided.sum(axis=1)
+    state.ep_stale += stale.sum(axis=1)
     return StepResult(
         reward=reward64.astype(np.float32),
         terminated=terminated,
