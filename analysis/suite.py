@@ -5,20 +5,25 @@
 # ---
 
 # %% [markdown]
-# # A suite's tables and figure: found fraction per family of prior error, severity and controller
+# # A suite's tables and figure: found fraction per family of prior error (or scenario), severity and controller
 #
 # Reads every controller's folders of a suite (`python -m searchrl.evaluate suite=prior_error ...` writes
 # `runs/suite/prior_error/<controller>/<scenario>/`) and writes, with 95 % bootstrap CIs over maps (a map is a cell
-# and map seed; its prior is the same under every scenario of the suite):
-# - `family.md`: per controller, the mean found fraction of each family over its severities (0.25, 0.5, 1) and
-#   the suite's cells, and at severity 0 (the prior right) and over the whole suite;
-# - `severity.md`: the same per severity;
-# - `tail.md`: the worst-10 % tail: per family and cell, the mean of a controller's worst tenth of maps, averaged
+# and map seed; its prior is the same under every scenario of the suite). A suite's groups are its families of prior
+# error (prior_error: each over its severities), or its scenarios where it has none (obstacles: iid0.1c, maze3, ...):
+# - `family.md` (`scenario.md`): per controller, the mean found fraction of each group over the suite's cells, with
+#   the prior right (the open grid) and the whole suite;
+# - `severity.md` (families only): the same per severity;
+# - `tail.md`: the worst-10 % tail: per group and cell, the mean of a controller's worst tenth of maps, averaged
 #   over the cells (how badly it can fail, where Search-TTA reports its gains);
-# - `compare.md` (with `--focus LABEL`): that controller against every other, per family, paired over maps;
-# - `suite.png`: found fraction against severity, a panel per family, a line per controller, CI bands.
+# - `moves.md`: per controller and group, the share of moves a wall or agent blocked and the share of agent-steps
+#   that swept no new cell (`blocked`, `stale`: how a rule fails among walls);
+# - `compare.md` (with `--focus LABEL`): that controller against every other, per group, paired over maps;
+# - `suite.png`: found fraction against severity, a panel per family, a line per controller, CI bands (a suite of
+#   scenarios: found fraction per scenario).
 #
 #     python analysis/suite.py runs/suite/prior_error [--focus policy:reference/robust/b] [--out DIR]
+#     python analysis/suite.py runs/suite/obstacles --focus path_greedy
 
 # %%
 from pathlib import Path
@@ -51,7 +56,8 @@ OUT.mkdir(parents=True, exist_ok=True)
 episodes = pd.concat([load(f) for f in folders], ignore_index=True)
 episodes["map"] = episodes["n"].astype(str) + "_" + episodes["N"].astype(str) + "_" + episodes["map_seed"].astype(str)
 controllers = sorted(episodes["controller"].unique())
-families = sorted(set(episodes["family"]) - {"paper"})
+GROUP = "family" if set(episodes["family"]) - {"paper"} else "scenario"  # a suite of scenarios has no family
+families = sorted(set(episodes[GROUP]) - {"paper"})
 
 
 # %%
@@ -71,27 +77,30 @@ def table(rows: dict[str, dict[str, str]], first: str) -> str:
     return "\n".join(lines + [f"| {k} | " + " | ".join(v[c] for c in columns) + " |" for k, v in rows.items()])
 
 
-right = episodes[episodes["family"] == "paper"]
-wrong = episodes[episodes["family"] != "paper"]
+right = episodes[episodes[GROUP] == "paper"]
+wrong = episodes[episodes[GROUP] != "paper"]
+first = "prior right" if GROUP == "family" else "open"
 family_rows = {}
 for c in controllers:
     mine = episodes[episodes["controller"] == c]
-    row = {"prior right": ci(per_map(mine[mine["family"] == "paper"]))}
-    row |= {f: ci(per_map(mine[mine["family"] == f])) for f in families}
+    row = {first: ci(per_map(mine[mine[GROUP] == "paper"]))} if (mine[GROUP] == "paper").any() else {}
+    row |= {f: ci(per_map(mine[mine[GROUP] == f])) for f in families}
     row["whole suite"] = ci(per_map(mine))
     family_rows[c] = row
-text = (f"Mean found fraction, 95 % CI over maps ({episodes['map'].nunique()} maps: cells x map seeds); a family's "
-        "column averages its severities 0.25, 0.5 and 1\n\n" + table(family_rows, "controller"))  # fmt: skip
-write_text_atomic(OUT / "family.md", text + "\n")
+note = "a family's column averages its severities 0.25, 0.5 and 1" if GROUP == "family" else "a column per scenario"
+text = (f"Mean found fraction, 95 % CI over maps ({episodes['map'].nunique()} maps: cells x map seeds); "
+        f"{note}\n\n" + table(family_rows, "controller"))  # fmt: skip
+write_text_atomic(OUT / f"{GROUP}.md", text + "\n")
 print(text)
 
 # %%
-severity_rows = {}
-for (c, f), block in wrong.groupby(["controller", "family"]):
-    severity_rows[f"{c} | {f}"] = {"0": ci(per_map(right[right["controller"] == c]))} | {
-        f"{s:g}": ci(per_map(part)) for s, part in block.groupby("severity")
-    }
-write_text_atomic(OUT / "severity.md", table(severity_rows, "controller | family") + "\n")
+if GROUP == "family":
+    severity_rows = {}
+    for (c, f), block in wrong.groupby(["controller", "family"]):
+        severity_rows[f"{c} | {f}"] = {"0": ci(per_map(right[right["controller"] == c]))} | {
+            f"{s:g}": ci(per_map(part)) for s, part in block.groupby("severity")
+        }
+    write_text_atomic(OUT / "severity.md", table(severity_rows, "controller | family") + "\n")
 
 
 # %%
@@ -104,10 +113,19 @@ def worst_tenth(frame: pd.DataFrame) -> float:
     return float(np.mean(tails))
 
 
-tail_rows = {c: {f: f"{worst_tenth(episodes[(episodes['controller'] == c) & (episodes['family'] == f)]):.3f}"
-                 for f in ["paper", *families]} for c in controllers}  # fmt: skip
-write_text_atomic(OUT / "tail.md", "Worst-10 % tail: per family and cell the mean of a controller's worst tenth of "
+groups = (["paper"] if (episodes[GROUP] == "paper").any() else []) + families
+tail_rows = {c: {f: f"{worst_tenth(episodes[(episodes['controller'] == c) & (episodes[GROUP] == f)]):.3f}"
+                 for f in groups} for c in controllers}  # fmt: skip
+write_text_atomic(OUT / "tail.md", f"Worst-10 % tail: per {GROUP} and cell the mean of a controller's worst tenth of "
                   "maps, averaged over the cells\n\n" + table(tail_rows, "controller") + "\n")  # fmt: skip
+
+# %%
+moves = {c: {f: " / ".join(f"{episodes[(episodes['controller'] == c) & (episodes[GROUP] == f)][m].mean():.3f}"
+                           if m in episodes else "–" for m in ("blocked", "stale")) for f in groups}
+         for c in controllers}  # fmt: skip
+write_text_atomic(OUT / "moves.md", f"Blocked / stale: per {GROUP}, the mean share of a team's moves a wall or agent "
+                  "stopped / of its agent-steps that swept no cell new to the team (– where the rows predate the "
+                  "column)\n\n" + table(moves, "controller") + "\n")  # fmt: skip
 
 # %%
 if args.focus:
@@ -116,19 +134,37 @@ if args.focus:
     lines = [f"{args.focus} minus each controller, paired over maps, mean [95 % CI]; verdict better / tie / worse", ""]
     for other in [c for c in controllers if c != args.focus]:
         verdicts, cells = [], []
-        for f in ["paper", *families]:
-            a = per_map(episodes[(episodes["controller"] == args.focus) & (episodes["family"] == f)])
-            b = per_map(episodes[(episodes["controller"] == other) & (episodes["family"] == f)])
+        for f in groups:
+            a = per_map(episodes[(episodes["controller"] == args.focus) & (episodes[GROUP] == f)])
+            b = per_map(episodes[(episodes["controller"] == other) & (episodes[GROUP] == f)])
             diff = (a - b).dropna()
             mean, low, high = bootstrap_mean_ci(diff.to_numpy())
             verdicts.append("better" if low > 0 else "worse" if high < 0 else "tie")
             cells.append(f"{f}: {mean:+.3f} [{low:+.3f}, {high:+.3f}] {verdicts[-1]}")
         count = {v: verdicts.count(v) for v in ("better", "tie", "worse")}
         lines += [f"## {args.focus} − {other}", "", f"better {count['better']}, tie {count['tie']}, worse "
-                  f"{count['worse']} of {len(verdicts)} families (prior right included)", "", *cells, ""]  # fmt: skip
+                  f"{count['worse']} of {len(verdicts)} {GROUP} groups (the open or right one included)", "", *cells,
+                  ""]  # fmt: skip
     write_text_atomic(OUT / "compare.md", "\n".join(lines))
 
 # %%
+if GROUP == "scenario":  # one panel: found fraction per scenario, a line per controller, CI bars
+    fig, ax = plt.subplots(figsize=(1.2 * len(groups) + 3, 4))
+    for c in controllers:
+        stats = np.array(
+            [
+                bootstrap_mean_ci(per_map(episodes[(episodes["controller"] == c) & (episodes[GROUP] == g)]).to_numpy())
+                for g in groups
+            ]
+        )
+        ax.errorbar(range(len(groups)), stats[:, 0], yerr=[stats[:, 0] - stats[:, 1], stats[:, 2] - stats[:, 0]],
+                    marker="o", capsize=3, label=c)  # fmt: skip
+    ax.set_xticks(range(len(groups)), ["open" if g == "paper" else g for g in groups], rotation=30)
+    ax.set_ylabel("found fraction")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    write_atomic(OUT / "suite.png", lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+    raise SystemExit
 fig, axes = plt.subplots(2, (len(families) + 1) // 2, figsize=(4 * ((len(families) + 1) // 2), 7), sharey=True)
 for ax, f in zip(np.ravel(axes), families, strict=False):
     for c in controllers:

@@ -120,7 +120,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                        "hedging.md": ("Mean found fraction on tuning seeds (2 maps per cell; cells n40_N1", 4)},
         "suite.py": {"family.md": ("Mean found fraction, 95 % CI over maps (8 maps", 4),
                      "severity.md": ("| controller | family | 0 | 1 |", 6), "tail.md": ("Worst-10 % tail", 4),
-                     "compare.md": ("coverage minus each controller", None), "suite.png": (440, 770)},
+                     "compare.md": ("coverage minus each controller", None), "suite.png": (440, 770),
+                     "moves.md": ("Blocked / stale: per family, the mean share of a team's moves a wall or agent", 4)},
         "oracle_teacher.py": {},
         "shipped.py": {"shipped.md": ("| policy | RL agent-steps | RL hours (1 core) | policy found | paper |", 6)},
         "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
@@ -431,3 +432,22 @@ def test_one_controller_in_two_scenarios_is_shown_apart(tmp_path):
     episodes = load(tmp_path / "greedy", tmp_path / "greedy_walls")
     assert set(episodes.controller) == {"greedy@greedy", "greedy@greedy_walls"}
     assert set(episodes.groupby("controller").scenario.unique().map(tuple)) == {("paper",), ("iid0.2c",)}
+
+
+def test_a_suite_of_scenarios_is_tabulated_per_scenario(tmp_path):
+    """A suite without families of prior error (obstacles): a column per scenario, the open grid first, no severity
+    table, blocked and stale per scenario, and the figure's one panel."""
+    from tests.test_suite import TINY, _run
+
+    walls = {**TINY, "severities": [], "families": {}, "variance_scales": [None],
+             "scenarios": [{"obstacles": {"kind": "maze", "corridor": 2, "loops": 0.1}}]}  # fmt: skip
+    for controller in ("coverage", "sweep"):
+        _run(tmp_path / "suite" / controller, f"controller={controller}", suite=walls)
+    out = _script("suite.py", str(tmp_path / "suite"), "--focus", "sweep", "--out", str(tmp_path / "out"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.*")) == ["compare.md", "moves.md", "scenario.md",
+                                                                       "suite.png", "tail.md"]  # fmt: skip
+    header = (tmp_path / "out" / "scenario.md").read_text().splitlines()[2]
+    assert header.startswith("| controller | open | maze2") and header.endswith("| whole suite |")
+    moves = (tmp_path / "out" / "moves.md").read_text()
+    assert "| coverage |" in moves and "| sweep |" in moves
