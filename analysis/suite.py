@@ -18,6 +18,9 @@
 #   over the cells (how badly it can fail, where Search-TTA reports its gains);
 # - `moves.md`: per controller and group, the share of moves a wall or agent blocked and the share of agent-steps
 #   that swept no new cell (`blocked`, `stale`: how a rule fails among walls);
+# - `quality.md`: per bin of prior quality (how well the prior the agents hold points at the episode's targets,
+#   searchrl/world/truth.py), each controller's mean found fraction over the same episodes, and the best: which
+#   controller to use at which prior quality;
 # - `compare.md` (with `--focus LABEL`): that controller against every other, per group, paired over maps;
 # - `suite.png`: found fraction against severity, a panel per family, a line per controller, CI bands (a suite of
 #   scenarios: found fraction per scenario).
@@ -126,6 +129,20 @@ moves = {c: {f: " / ".join(f"{episodes[(episodes['controller'] == c) & (episodes
 write_text_atomic(OUT / "moves.md", f"Blocked / stale: per {GROUP}, the mean share of a team's moves a wall or agent "
                   "stopped / of its agent-steps that swept no cell new to the team (– where the rows predate the "
                   "column)\n\n" + table(moves, "controller") + "\n")  # fmt: skip
+
+# %%
+EDGES = [-1.0, 0.0, 0.2, 0.4, 0.6, 1.0]  # prior quality: 0 no better than uniform, 1 every target on the best cell
+BINS = ["<= 0", "0 to 0.2", "0.2 to 0.4", "0.4 to 0.6", "> 0.6"]
+binned = episodes.assign(quality=pd.cut(episodes["prior_quality"], EDGES, labels=BINS, include_lowest=True))
+by_bin = binned.pivot_table(index="quality", columns="controller", values="found_fraction", aggfunc="mean",
+                            observed=True)  # fmt: skip
+count = binned[binned["controller"] == controllers[0]].groupby("quality", observed=True).size()
+quality_rows = {str(b): {"episodes": str(count.get(b, 0)), **{c: f"{row[c]:.3f}" for c in controllers},
+                         "best (lead)": f"{row.idxmax()} ({row.max() - row.drop(row.idxmax()).max():+.3f})"
+                         if len(row) > 1 else row.idxmax()} for b, row in by_bin.iterrows()}  # fmt: skip
+write_text_atomic(OUT / "quality.md", "Mean found fraction per bin of prior quality (the same episodes for every "
+                  "controller; 0 = the prior no better than uniform at the targets)\n\n"
+                  + table(quality_rows, "prior quality") + "\n")  # fmt: skip
 
 # %%
 if args.focus:

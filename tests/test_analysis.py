@@ -121,7 +121,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "suite.py": {"family.md": ("Mean found fraction, 95 % CI over maps (8 maps", 4),
                      "severity.md": ("| controller | family | 0 | 1 |", 6), "tail.md": ("Worst-10 % tail", 4),
                      "compare.md": ("coverage minus each controller", None), "suite.png": (440, 770),
-                     "moves.md": ("Blocked / stale: per family, the mean share of a team's moves a wall or agent", 4)},
+                     "moves.md": ("Blocked / stale: per family, the mean share of a team's moves a wall or agent", 4),
+                     "quality.md": ("Mean found fraction per bin of prior quality (the same episodes for every", None)},
         "oracle_teacher.py": {},
         "shipped.py": {"shipped.md": ("| policy | RL agent-steps | RL hours (1 core) | policy found | paper |", 6)},
         "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
@@ -445,8 +446,8 @@ def test_a_suite_of_scenarios_is_tabulated_per_scenario(tmp_path):
         _run(tmp_path / "suite" / controller, f"controller={controller}", suite=walls)
     out = _script("suite.py", str(tmp_path / "suite"), "--focus", "sweep", "--out", str(tmp_path / "out"))
     assert out.returncode == 0, out.stderr[-3000:]
-    assert sorted(p.name for p in (tmp_path / "out").glob("*.*")) == ["compare.md", "moves.md", "scenario.md",
-                                                                       "suite.png", "tail.md"]  # fmt: skip
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.*")) == ["compare.md", "moves.md", "quality.md",
+                                                                       "scenario.md", "suite.png", "tail.md"]  # fmt: skip
     header = (tmp_path / "out" / "scenario.md").read_text().splitlines()[2]
     assert header.startswith("| controller | open | maze2") and header.endswith("| whole suite |")
     moves = (tmp_path / "out" / "moves.md").read_text()
