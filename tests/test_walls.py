@@ -68,43 +68,27 @@ def test_bad_settings_are_named(name, settings, message):
         make_controller(name, WorldConfig(), settings=settings)
 
 
-def test_rows_record_how_often_moves_are_blocked():
-    """`blocked`, the share of a team's moves a wall or an agent stopped: a random walk in a maze runs into walls
-    often, path_greedy moves along free paths and almost never."""
-    from searchrl.evaluate.grid import Cell
-    from searchrl.evaluate.runner import run_cell
-
-    config = WorldConfig(world_size=(20, 20), n_targets=(4, 4), n_distributions=(4, 4), n_agents=1)
-    maze = Scenario.from_dict({"obstacles": {"kind": "maze", "corridor": 2, "loops": 0.1}})
-    blocked = {}
-    for name in ("random", "path_greedy"):
-
-        def factory(cfg, streams, name=name):
-            return make_controller(name, cfg, seed=streams)
-
-        frame = run_cell(factory, config, Cell(20, 2, 4, 4), 0, 4, 1, 11, needs_observation=False, scenario=maze)
-        assert frame["blocked"].between(0, 1).all()
-        blocked[name] = frame["blocked"].mean()
-    assert blocked["random"] > 0.1 and blocked["path_greedy"] < blocked["random"] / 4, blocked
-
-
-def test_rows_record_how_often_agents_sweep_nothing_new():
-    """`stale`, the share of agent-steps whose footprint swept no free cell new to the team: in a maze, geometric
-    coverage stands at a wall (stale, never blocked: it does not try the move), sweep keeps finding new cells."""
+def test_rows_record_how_often_moves_are_blocked_and_agents_sweep_nothing_new():
+    """In a maze: `blocked`, the share of a team's moves a wall or an agent stopped: a random walk runs into walls
+    often, path_greedy moves along free paths and almost never. `stale`, the share of agent-steps whose footprint
+    swept no free cell new to the team: geometric coverage stands at a wall (stale, never blocked: it does not try
+    the move), sweep keeps finding new cells."""
     from searchrl.evaluate.grid import Cell
     from searchrl.evaluate.runner import run_cell
 
     config = WorldConfig(world_size=(20, 20), n_targets=(4, 4), n_distributions=(4, 4), n_agents=1)
     maze = Scenario.from_dict({"obstacles": {"kind": "maze", "corridor": 2, "loops": 0.1}})
     frames = {}
-    for name in ("coverage", "sweep"):
+    for name in ("random", "path_greedy", "coverage", "sweep"):
 
         def factory(cfg, streams, name=name):
             return make_controller(name, cfg, seed=streams)
 
         frames[name] = run_cell(factory, config, Cell(20, 2, 4, 4), 0, 4, 1, 11, needs_observation=False, scenario=maze)
-        assert frames[name]["stale"].between(0, 1).all()
-    assert frames["coverage"]["stale"].mean() > 0.8 and frames["coverage"]["blocked"].mean() < 0.05
+        assert frames[name]["blocked"].between(0, 1).all() and frames[name]["stale"].between(0, 1).all()
+    blocked = {name: frame["blocked"].mean() for name, frame in frames.items()}
+    assert blocked["random"] > 0.1 and blocked["path_greedy"] < blocked["random"] / 4, blocked
+    assert frames["coverage"]["stale"].mean() > 0.8 and blocked["coverage"] < 0.05
     assert frames["sweep"]["stale"].mean() < 0.4
 
 
