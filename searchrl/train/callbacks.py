@@ -23,7 +23,7 @@ CHECKPOINT_RE = re.compile(r"^step_(\d+)\.zip$")
 
 
 class TeamMetricsCallback(BaseCallback):
-    """Logs the mean of each team metric (L, R, F, M̄, found fraction, collisions) over the world episodes that
+    """Logs the mean of each team metric (L, R, F, M̄, found fraction, collisions, stale) over the world episodes that
     ended during a rollout, as `team/<name>`, once per world episode (the VecEnv reports each on one slot)."""
 
     def _on_rollout_start(self) -> None:
