@@ -164,39 +164,43 @@ if args.focus:
                   ""]  # fmt: skip
     write_text_atomic(OUT / "compare.md", "\n".join(lines))
 
+
 # %%
-if GROUP == "scenario":  # one panel: found fraction per scenario, a line per controller, CI bars
+def scenario_figure():
+    """One panel: found fraction per scenario, a line per controller, CI bars (a suite without families)."""
     fig, ax = plt.subplots(figsize=(1.2 * len(groups) + 3, 4))
     for c in controllers:
-        stats = np.array(
-            [
-                bootstrap_mean_ci(per_map(episodes[(episodes["controller"] == c) & (episodes[GROUP] == g)]).to_numpy())
-                for g in groups
-            ]
-        )
+        mine = episodes[episodes["controller"] == c]
+        stats = np.array([bootstrap_mean_ci(per_map(mine[mine[GROUP] == g]).to_numpy()) for g in groups])
         ax.errorbar(range(len(groups)), stats[:, 0], yerr=[stats[:, 0] - stats[:, 1], stats[:, 2] - stats[:, 0]],
                     marker="o", capsize=3, label=c)  # fmt: skip
     ax.set_xticks(range(len(groups)), ["open" if g == "paper" else g for g in groups], rotation=30)
     ax.set_ylabel("found fraction")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    write_atomic(OUT / "suite.png", lambda tmp: fig.savefig(tmp, format="png", dpi=110))
-    raise SystemExit
-fig, axes = plt.subplots(2, (len(families) + 1) // 2, figsize=(4 * ((len(families) + 1) // 2), 7), sharey=True)
-for ax, f in zip(np.ravel(axes), families, strict=False):
-    for c in controllers:
-        points = [(0.0, right[right["controller"] == c])] + [
-            (s, part) for s, part in wrong[(wrong["controller"] == c) & (wrong["family"] == f)].groupby("severity")
-        ]
-        stats = np.array([bootstrap_mean_ci(per_map(p).to_numpy()) for _, p in points])
-        xs = [s for s, _ in points]
-        ax.plot(xs, stats[:, 0], marker="o", label=c)
-        ax.fill_between(xs, stats[:, 1], stats[:, 2], alpha=0.2)
-    ax.set_title(f)
-    ax.set_xlabel("severity")
-np.ravel(axes)[0].set_ylabel("found fraction")
-for ax in np.ravel(axes)[len(families) :]:
-    ax.axis("off")
-np.ravel(axes)[0].legend(fontsize=7)
+    return fig
+
+
+def family_figure():
+    """Found fraction against severity, a panel per family, a line per controller, CI bands."""
+    fig, axes = plt.subplots(2, (len(families) + 1) // 2, figsize=(4 * ((len(families) + 1) // 2), 7), sharey=True)
+    for ax, f in zip(np.ravel(axes), families, strict=False):
+        for c in controllers:
+            points = [(0.0, right[right["controller"] == c])] + [
+                (s, part) for s, part in wrong[(wrong["controller"] == c) & (wrong["family"] == f)].groupby("severity")
+            ]
+            stats = np.array([bootstrap_mean_ci(per_map(p).to_numpy()) for _, p in points])
+            xs = [s for s, _ in points]
+            ax.plot(xs, stats[:, 0], marker="o", label=c)
+            ax.fill_between(xs, stats[:, 1], stats[:, 2], alpha=0.2)
+        ax.set_title(f)
+        ax.set_xlabel("severity")
+    np.ravel(axes)[0].set_ylabel("found fraction")
+    for ax in np.ravel(axes)[len(families) :]:
+        ax.axis("off")
+    np.ravel(axes)[0].legend(fontsize=7)
+    return fig
+
+
+fig = family_figure() if GROUP == "family" else scenario_figure()
 fig.tight_layout()
 write_atomic(OUT / "suite.png", lambda tmp: fig.savefig(tmp, format="png", dpi=110))
