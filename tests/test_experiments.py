@@ -38,6 +38,9 @@ EXPERIMENTS = {
     "rl_term_c": "term/c",
     "rl_term_diagonal": "term/diagonal",
     "rl_term_linear_b": "ablations/b_term_linear",
+    "walls_term_b": "walls/term_b",
+    "walls_b": "walls/b",
+    "robust_b": "robust/b",
 }
 # Settings that do not decide what is trained, so a rerun may change them: speed and place (threads, device),
 # display (progress_bar, log_interval: rows of the log, not updates), what is kept on disk (checkpoint_every,
