@@ -8,9 +8,10 @@
 # # A suite's tables and figure: found fraction per family of prior error (or scenario), severity and controller
 #
 # Reads every controller's folders of a suite (`python -m searchrl.evaluate suite=prior_error ...` writes
-# `runs/suite/prior_error/<controller>/<scenario>/`) and writes, with 95 % bootstrap CIs over maps (a map is a cell
-# and map seed; its prior is the same under every scenario of the suite). A suite's groups are its families of prior
-# error (prior_error: each over its severities), or its scenarios where it has none (obstacles: iid0.1c, maze3, ...):
+# `runs/suite/prior_error/<controller>/<scenario>/`; a controller is named by its folder, so `greedy_target` and
+# `hedge0.1` stay apart though their rows both say `greedy`) and writes, with 95 % bootstrap CIs over maps (a map is
+# a cell and map seed; its prior is the same under every scenario of the suite). A suite's groups are its families of
+# prior error (prior_error: each over its severities), or its scenarios where it has none (obstacles: iid0.1c, ...):
 # - `family.md` (`scenario.md`): per controller, the mean found fraction of each group over the suite's cells, with
 #   the prior right (the open grid) and the whole suite;
 # - `severity.md` (families only): the same per severity;
@@ -49,14 +50,26 @@ args, _ = cli.parse(parser)
 if not args.dirs:
     parser.error("give a suite's folder, e.g. runs/suite/prior_error")
 roots = [Path(d) for d in args.dirs]
-folders = sorted({f.parent.parent for root in roots for f in root.rglob("cells/*.parquet")})
-folders = [f for f in folders if cell_files(f)]
+folders = {f.parent.parent: root for root in roots for f in root.rglob("cells/*.parquet")}
+folders = {f: root for f, root in sorted(folders.items()) if cell_files(f)}
 if not folders:
     cli.stop(f"no results under {[str(r) for r in roots]}: run the suite first (docs/evaluation.md, Suites)")
 OUT = cli.out_dir(args.out, Path.cwd() / "analysis" / "out" / f"suite_{roots[0].name}")
 OUT.mkdir(parents=True, exist_ok=True)
-# One folder per scenario: loaded one by one, since `load` would name a controller apart per folder
-episodes = pd.concat([load(f) for f in folders], ignore_index=True)
+
+
+def labelled(folder: Path, root: Path) -> pd.DataFrame:
+    """A scenario folder's rows, named by their controller's folder under the suite (`greedy_target`, `hedge0.1`,
+    `policy:reference/b` for policy/reference/b): one controller run with two settings (target-greedy hedged or
+    not, both recorded as `greedy`) stays two. The rows' own label where the root is the controller's folder."""
+    rows = load(folder)  # one folder per scenario, so `load` names nothing apart
+    parts = folder.parent.relative_to(root).parts
+    if parts:
+        rows["controller"] = "policy:" + "/".join(parts[1:]) if parts[0] == "policy" else "/".join(parts)
+    return rows
+
+
+episodes = pd.concat([labelled(f, root) for f, root in folders.items()], ignore_index=True)
 episodes["map"] = episodes["n"].astype(str) + "_" + episodes["N"].astype(str) + "_" + episodes["map_seed"].astype(str)
 controllers = sorted(episodes["controller"].unique())
 GROUP = "family" if set(episodes["family"]) - {"paper"} else "scenario"  # a suite of scenarios has no family

@@ -444,6 +444,8 @@ def test_a_suite_of_scenarios_is_tabulated_per_scenario(tmp_path):
              "scenarios": [{"obstacles": {"kind": "maze", "corridor": 2, "loops": 0.1}}]}  # fmt: skip
     for controller in ("coverage", "sweep"):
         _run(tmp_path / "suite" / controller, f"controller={controller}", suite=walls)
+    # One controller in a second folder (as hedged target-greedy beside target-greedy): named by its folder
+    _run(tmp_path / "suite" / "sweep_again", "controller=sweep", suite=walls)
     out = _script("suite.py", str(tmp_path / "suite"), "--focus", "sweep", "--out", str(tmp_path / "out"))
     assert out.returncode == 0, out.stderr[-3000:]
     written = sorted(p.name for p in (tmp_path / "out").glob("*.*"))
@@ -451,4 +453,5 @@ def test_a_suite_of_scenarios_is_tabulated_per_scenario(tmp_path):
     header = (tmp_path / "out" / "scenario.md").read_text().splitlines()[2]
     assert header.startswith("| controller | open | maze2") and header.endswith("| whole suite |")
     moves = (tmp_path / "out" / "moves.md").read_text()
-    assert "| coverage |" in moves and "| sweep |" in moves
+    assert "| coverage |" in moves and "| sweep |" in moves and "| sweep_again |" in moves
+    assert "## sweep − sweep_again" in (tmp_path / "out" / "compare.md").read_text()
