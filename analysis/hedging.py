@@ -21,6 +21,7 @@
 #
 #     python analysis/hedging.py [--maps 16] [--out DIR]   # -> hedging.csv, hedging.md
 #     python analysis/hedging.py --policies-only --checkpoint term_b=runs/reference/term/b/model.zip
+#     python analysis/hedging.py --policies-only --switch-policy term_b_switch0.25=runs/reference/term/b/model.zip@0.25
 
 # %%
 from pathlib import Path
@@ -34,6 +35,7 @@ from searchrl.analysis import cli
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import make_controller
+from searchrl.controllers.switch import EvidenceSwitch
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
 from searchrl.evaluate.schema import register_configs
@@ -44,6 +46,12 @@ from searchrl.world.config import WorldConfig
 parser = cli.parser("Tune the hedging rules' knobs on tuning seeds", dirs=None)
 parser.add_argument("--maps", type=int, default=16, help="maps per cell (>= 2)")
 parser.add_argument("--checkpoint", action="append", default=[], help="label=path/model.zip: a policy to measure")
+parser.add_argument(
+    "--switch-policy",
+    action="append",
+    default=[],
+    help="label=path/model.zip@θ: the evidence switch with that policy in place of target-greedy (threshold θ)",
+)
 parser.add_argument("--policies-only", action="store_true", help="measure the policies only, the rules read back")
 parser.add_argument("--cells", default="n40_N1,n40_N4,n40_N16,n80_N1,n80_N4,n80_N16", help="n<n>_N<N>, comma-separated")
 parser.add_argument(
@@ -106,7 +114,7 @@ if unknown:
     parser.error(f"rule {unknown[0]!r} is not allowed: one of {', '.join(CANDIDATES)}")
 rules = {label: CANDIDATES[label] for label in chosen}
 if args.policies_only:  # the rows of an earlier run, but of the policies and rules measured now
-    given = [c.partition("=")[0] for c in args.checkpoint] + chosen
+    given = [c.partition("=")[0] for c in args.checkpoint + args.switch_policy] + chosen
     rows = pd.read_csv(OUT / "hedging.csv").query("rule not in @given").to_dict("records")
 for label, (name, settings) in rules.items():
 
@@ -124,6 +132,28 @@ for given in args.checkpoint:
         return PolicyController(actor, config, seed=streams)
 
     rows += measure(label, policy_world, policy, True)
+
+
+class PolicySwitch(EvidenceSwitch):
+    """The evidence switch (searchrl/controllers/switch.py) with a policy where it runs target-greedy: the policy
+    while the team finds what the prior promised where it swept, geometric coverage once the finds fall behind."""
+
+    def __init__(self, actor, config, threshold, seed):
+        super().__init__(config, threshold, seed)
+        self.greedy = PolicyController(actor, config, seed=seed)
+
+
+for given in args.switch_policy:
+    label, _, rest = given.partition("=")
+    path, _, threshold = rest.rpartition("@")
+    world_dict, _, _ = checkpoint_config(path)
+    policy_world = WorldConfig.from_dict(world_dict)
+    actor = load_actor(path, policy_world)
+
+    def switched(config, streams, actor=actor, threshold=float(threshold)):
+        return PolicySwitch(actor, config, threshold, streams)
+
+    rows += measure(label, policy_world, switched, True)
 table = pd.DataFrame(rows)
 write_atomic(OUT / "hedging.csv", lambda tmp: table.to_csv(tmp, index=False))
 

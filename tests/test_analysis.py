@@ -57,8 +57,9 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
         args = ["--maps", "1", "--draws", "100", "--cache", str(out_dir / "cache"), "analysis/out/table3.csv"]
     if notebook == "prior_quality.py":  # worlds only, two maps per world size
         args = ["--maps", "2"]
-    if notebook == "hedging.py":  # two rules on one cell, two maps: the tuning as it runs, small
-        args = ["--maps", "2", "--cells", "n40_N1", "--rules", "greedy,coverage"]
+    if notebook == "hedging.py":  # two rules and a policy under the switch on one cell, two maps: small
+        args = ["--maps", "2", "--cells", "n40_N1", "--rules", "greedy,coverage",
+                "--switch-policy", "term_b_switch=runs/reference/term/b/model.zip@0.5"]  # fmt: skip
     if notebook == "suite.py":  # a small suite run as the shipped ones are, for two rules
         from tests.test_suite import _run
 
@@ -116,7 +117,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                            "calibration.md": ("# Which k: heuristics in four worlds beside the paper", 11)},
         "prior_quality.py": {"prior_quality.csv": (2 * 4 * 5 * 3, 9),
                              "prior_quality.md": ("Mean prior quality over 2 maps per n", 10)},
-        "hedging.py": {"hedging.csv": (2 * (1 + 7 * 2), 7),
+        "hedging.py": {"hedging.csv": (3 * (1 + 7 * 2), 7),
                        "hedging.md": ("Mean found fraction on tuning seeds (2 maps per cell; cells n40_N1", 4)},
         "suite.py": {"family.md": ("Mean found fraction, 95 % CI over maps (8 maps", 4),
                      "severity.md": ("| controller | family | 0 | 1 |", 6), "tail.md": ("Worst-10 % tail", 4),
