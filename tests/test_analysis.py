@@ -118,7 +118,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "prior_quality.py": {"prior_quality.csv": (2 * 4 * 5 * 3, 9),
                              "prior_quality.md": ("Mean prior quality over 2 maps per n", 10)},
         "hedging.py": {"hedging.csv": (3 * (1 + 7 * 2), 7),
-                       "hedging.md": ("Mean found fraction on tuning seeds (2 maps per cell; cells n40_N1", 4)},
+                       "hedging.md": ("Mean found fraction on tuning seeds (2 maps per cell; cells n40_N1", 5)},
         "suite.py": {"family.md": ("Mean found fraction, 95 % CI over maps (8 maps", 4),
                      "severity.md": ("| controller | family | 0 | 1 |", 6), "tail.md": ("Worst-10 % tail", 4),
                      "compare.md": ("coverage minus each controller", None), "suite.png": (440, 770),
