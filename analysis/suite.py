@@ -179,6 +179,9 @@ if args.focus:
 
 
 # %%
+plt.rcParams["axes.prop_cycle"] = plt.cycler(color=plt.cm.tab20.colors)  # 20 colours: a suite holds over 10 controllers
+
+
 def scenario_figure():
     """One panel: found fraction per scenario, a line per controller, CI bars (a suite without families)."""
     fig, ax = plt.subplots(figsize=(1.2 * len(groups) + 3, 4))
