@@ -62,6 +62,22 @@ parser.add_argument(
 args, _ = cli.parse(parser)
 if args.maps < 2:
     parser.error(f"--maps={args.maps} is not allowed: an integer >= 2")
+
+
+def switch_policy(given: str) -> tuple[str, str, float]:
+    """label, model.zip, θ from `label=path/model.zip@θ`; one line naming the value where it is not that."""
+    label, _, rest = given.partition("=")
+    path, _, threshold = rest.rpartition("@")
+    try:
+        theta = float(threshold)
+    except ValueError:
+        theta = -1.0
+    if not label or not Path(path).is_file() or not 0 <= theta <= 1:
+        parser.error(f"--switch-policy={given!r} is not allowed: label=path/model.zip@θ, an existing file, 0 <= θ <= 1")
+    return label, path, theta
+
+
+switch_policies = [switch_policy(given) for given in args.switch_policy]
 OUT = cli.out_dir(args.out, Path.cwd() / "analysis" / "out" / "hedging")
 OUT.mkdir(parents=True, exist_ok=True)
 TUNING_SEED = 3_000_000  # apart from training (small), validation (10⁶) and evaluation (7·10⁶) seeds
@@ -143,14 +159,12 @@ class PolicySwitch(EvidenceSwitch):
         self.greedy = PolicyController(actor, config, seed=seed)
 
 
-for given in args.switch_policy:
-    label, _, rest = given.partition("=")
-    path, _, threshold = rest.rpartition("@")
+for label, path, threshold in switch_policies:
     world_dict, _, _ = checkpoint_config(path)
     policy_world = WorldConfig.from_dict(world_dict)
     actor = load_actor(path, policy_world)
 
-    def switched(config, streams, actor=actor, threshold=float(threshold)):
+    def switched(config, streams, actor=actor, threshold=threshold):
         return PolicySwitch(actor, config, threshold, streams)
 
     rows += measure(label, policy_world, switched, True)

@@ -456,3 +456,12 @@ def test_a_suite_of_scenarios_is_tabulated_per_scenario(tmp_path):
     moves = (tmp_path / "out" / "moves.md").read_text()
     assert "| coverage |" in moves and "| sweep |" in moves and "| sweep_again |" in moves
     assert "## sweep − sweep_again" in (tmp_path / "out" / "compare.md").read_text()
+
+
+@pytest.mark.parametrize(
+    "given", ["x=runs/reference/term/b/model.zip", "x=nope.zip@0.5", "=runs/reference/term/b/model.zip@2"]
+)
+def test_hedging_refuses_a_bad_switch_policy_before_any_work(given, tmp_path):
+    out = _script("hedging.py", "--policies-only", "--switch-policy", given, "--out", str(tmp_path / "out"))
+    assert out.returncode == 2 and f"--switch-policy={given!r} is not allowed: label=path/model.zip@θ" in out.stderr
+    assert not (tmp_path / "out").exists()
