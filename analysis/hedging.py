@@ -138,11 +138,18 @@ for label, (name, settings) in rules.items():
         return make_controller(name, config, seed=streams, settings=settings)
 
     rows += measure(label, world, factory, False)
-for given in args.checkpoint:
-    label, _, path = given.partition("=")
+
+
+def load_policy(path: str) -> tuple[WorldConfig, object]:
+    """The world a checkpoint was trained in and its actor."""
     world_dict, _, _ = checkpoint_config(path)
     policy_world = WorldConfig.from_dict(world_dict)
-    actor = load_actor(path, policy_world)
+    return policy_world, load_actor(path, policy_world)
+
+
+for given in args.checkpoint:
+    label, _, path = given.partition("=")
+    policy_world, actor = load_policy(path)
 
     def policy(config, streams, actor=actor):
         return PolicyController(actor, config, seed=streams)
@@ -160,9 +167,7 @@ class PolicySwitch(EvidenceSwitch):
 
 
 for label, path, threshold in switch_policies:
-    world_dict, _, _ = checkpoint_config(path)
-    policy_world = WorldConfig.from_dict(world_dict)
-    actor = load_actor(path, policy_world)
+    policy_world, actor = load_policy(path)
 
     def switched(config, streams, actor=actor, threshold=threshold):
         return PolicySwitch(actor, config, threshold, streams)
