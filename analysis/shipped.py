@@ -49,7 +49,7 @@ for model in MODELS:
         "policy": f"runs/reference/term/{model}",
         "RL agent-steps": f"{clock['time/total_timesteps'].iloc[-1] / 1e6:.1f}M",
         "RL hours (1 core)": f"{hours:.1f}",
-        "policy found": means[f"policy:{model}"],
+        "policy found": means[f"policy:reference/term/{model}"],
         "paper": hard["paper"].mean(),
         "teacher": means["greedy"],
         "surfing": means["surfing"],
