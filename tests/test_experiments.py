@@ -15,7 +15,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from searchrl.controllers.registry import resolved
-from searchrl.evaluate.record import file_sha256
+from searchrl.policies.slim import weights_sha256
 from searchrl.train.__main__ import CONF_DIR
 from searchrl.train.plan import make_plan
 from searchrl.train.schema import TrainConfig, saved_config
@@ -67,12 +67,13 @@ ADDED_LATER = {
     "init": "null: fresh weights, the only start before the field",
     "scenario": "the paper's: no obstacle, targets placed from the prior, every world drawn before scenarios",
 }
-# Shipped start weights that moved after a run recorded their path: {recorded `init`: (where the same file is now,
-# its sha256, why it moved)}. A recorded `init` is read through this table, and the file there must be those bytes.
+# Shipped start weights that moved after a run recorded their path: {recorded `init`: (where the same weights are
+# now, the sha256 of their `policy.pth`, why they moved)}. A recorded `init` is read through this table, and the
+# checkpoint there must hold those weights (the shipped files were slimmed since: searchrl/policies/slim.py).
 MOVED = {
     "runs/reference/term/b/model.zip": (
         "runs/reference/ablations/b_term_epochs4/model.zip",
-        "71de0257b2c8e20098204d007c4e8511badd1ad010f3f5eed0b80cb24349fe7a",
+        "7847b0ef71d7a81831a7ed9823273cd5351be432f15294ca3393c084e3c203dd",
         "B's four-epoch RL policy, the start of walls/term_b and robust/b; term/b is the two-epoch recipe's since",
     ),
 }
@@ -150,9 +151,9 @@ def test_experiment_composes_to_the_shipped_config(name):
 
 
 @pytest.mark.parametrize("recorded", sorted(MOVED))
-def test_a_moved_start_is_the_same_file(recorded):
+def test_a_moved_start_holds_the_same_weights(recorded):
     now, sha256, _ = MOVED[recorded]
-    assert file_sha256(ROOT / now) == sha256, f"{now} is not the file the runs recorded as {recorded}"
+    assert weights_sha256(ROOT / now) == sha256, f"{now} does not hold the weights the runs recorded as {recorded}"
 
 
 def _added_later(key: str, recorded: dict[str, Any]) -> bool:

@@ -1,0 +1,53 @@
+"""Shipped checkpoints without optimiser moments or last rollout: the same weights, loadable as they are, and every
+shipped `model.zip` slim (a folder of 1.6 MB files, not 6 MB ones)."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import pytest
+import torch
+
+from searchrl.policies.checkpoint import load_checkpoint
+from searchrl.policies.slim import is_slim, main, slim_checkpoint, weights_sha256
+
+ROOT = Path(__file__).resolve().parents[1]
+SHIPPED = sorted((ROOT / "runs" / "reference").rglob("model.zip"))
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A tiny RecurrentPPO after one update: optimiser moments and a last rollout in its zip."""
+    from tests.test_teacher_term import WORLD, _model
+    from searchrl.envs.vec_env import SearchVecEnv
+    from sb3_contrib import RecurrentPPO
+
+    model = _model(RecurrentPPO, SearchVecEnv(WORLD, n_worlds=2, seed=0))
+    model.learn(48)
+    path = tmp_path_factory.mktemp("run") / "model.zip"
+    model.save(path)
+    return path
+
+
+def test_slimming_keeps_the_weights_and_the_file_loads(trained, tmp_path):
+    out = slim_checkpoint(trained, tmp_path / "slim.zip")
+    assert not is_slim(trained) and is_slim(out)
+    assert weights_sha256(out) == weights_sha256(trained)
+    assert out.stat().st_size < trained.stat().st_size
+    full, slim = (load_checkpoint(p, "recurrent_ppo", device="cpu") for p in (trained, out))
+    for name, value in full.policy.state_dict().items():
+        assert torch.equal(slim.policy.state_dict()[name], value), name
+    assert slim.num_timesteps == full.num_timesteps and not slim.policy.optimizer.state
+    with zipfile.ZipFile(out) as a, zipfile.ZipFile(trained) as b:
+        assert a.namelist() == b.namelist()
+
+
+def test_the_command_refuses_a_missing_path_in_one_line(tmp_path, capsys):
+    assert main([str(tmp_path / "nope.zip")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=[str(p.parent.relative_to(ROOT / "runs" / "reference")) for p in SHIPPED])
+def test_every_shipped_checkpoint_is_slim(path):
+    assert is_slim(path), f"{path} holds optimiser state or a last rollout: python -m searchrl.policies.slim {path}"
