@@ -1,4 +1,4 @@
-"""`python -m searchrl.render [--controller NAME | --checkpoint model.zip] [--out episode.gif]`
+"""`python -m searchrl.render [--controller NAME | --checkpoint model.zip [--device cuda]] [--out episode.gif]`
 
 NAME: a heuristic of searchrl/controllers/registry.py (surfing, greedy, greedy_target, coverage, random).
 
@@ -72,6 +72,8 @@ def main(argv: list[str] | None = None) -> int:
         "--fps", type=float, default=10.0, help="frames per second, 0.01 to 100 (GIF delays are whole 1/100 s)"
     )
     p.add_argument("--out", default="runs/render/episode.gif")
+    p.add_argument("--device", default="cpu",
+                   help="torch device of a --checkpoint's network: cpu, cuda, cuda:<index>, mps or auto")  # fmt: skip
     args = p.parse_args(argv)
     if args.checkpoint and (args.controller or args.model):
         given = " and ".join(f"--{k}" for k in ("controller", "model") if getattr(args, k))
@@ -87,6 +89,16 @@ def main(argv: list[str] | None = None) -> int:
     for ok, name, value, allowed in checks:
         if not ok:
             p.error(f"{name}={value!r} is not allowed: {allowed}")
+    device = "cpu"
+    if args.checkpoint or args.device != "cpu":  # torch is imported only where a policy runs or a device is named
+        from searchrl.policies.device import resolve_device
+
+        try:
+            device = resolve_device(args.device, "--device")
+        except ConfigError as err:
+            p.error(str(err))
+        if not args.checkpoint and args.device != "auto":
+            p.error(f"--device={args.device!r} is not allowed: cpu without --checkpoint (a heuristic runs on the CPU)")
     try:
         check_writable(args.out, "--out")
     except ValueError as err:
@@ -105,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         scenario = Scenario.from_dict(OmegaConf.to_container(OmegaConf.load(SCENARIOS / f"{args.scenario}.yaml")))
         scenario.check(config)
         if args.checkpoint:
-            actor = load_actor(args.checkpoint, config)
+            actor = load_actor(args.checkpoint, config, device=device)
 
             def factory(config: WorldConfig, streams: object) -> PolicyController:
                 return PolicyController(actor, config, seed=streams)

@@ -50,6 +50,9 @@ class EnvConfig:
     # 'env.extra_teams=[{n_agents:32,n_worlds:4},{n_agents:128,n_worlds:1,world_size:[80,160]}]'. Empty (the
     # paper): every world has env.world.n_agents.
     extra_teams: list[TeamConfig] = field(default_factory=list)
+    # Every group's K worlds (env.n_worlds and each extra team's) taken this many times: slots per step and the
+    # rollout grow by the factor, the team mix stays. For machines with many cores or a GPU (conf/machine/).
+    replicas: int = 1
 
 
 @dataclass

@@ -8,6 +8,7 @@ import pickle
 
 import numpy as np
 import pytest
+import torch
 
 from searchrl.bench.__main__ import main as bench_main
 from searchrl.world.config import WorldConfig
@@ -115,23 +116,36 @@ def test_bench_json_rows(capsys):
     assert rows and {"case", "engine", "peak_rss_mb"} <= rows[0].keys()
 
 
-def test_bench_train_reports_fps_and_env_share(capsys):
+SHARES = ("world_share", "acting_share", "labels_share", "buffer_share", "update_share")
+
+
+def test_bench_train_reports_fps_and_the_shares_of_the_wall_time(capsys):
     assert bench_main(["train", "--updates", "1", "--threads", "1", "--network", "small", "--json"]) == 0
     (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert row["agent_steps_per_s"] > 0 and 0 < row["env_share"] < 1 and row["labels_share"] == 0
-    assert 0 < row["update_share"] < 1
+    assert row["agent_steps_per_s"] > 0 and row["labels_share"] == 0 and row["device"].startswith("cpu")
+    assert all(0 < row[share] < 1 for share in SHARES if share != "labels_share")
+    assert sum(row[share] for share in SHARES) <= 1.0001  # parts of one wall time; SB3's bookkeeping is the rest
+    assert row["slots"] == 16 * 8 and row["batch_size"] == 1024
 
 
 def test_bench_train_times_a_recipe_with_the_teacher_term(capsys):
     assert bench_main(["train", "--updates", "1", "--threads", "1", "--experiment", "rl_term_b", "--json"]) == 0
     (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert row["case"] == "rl_term_b_threads1" and 0 < row["labels_share"] < 1 and 0 < row["update_share"] < 1
-    # The raw bound of the same run: the network alone, so above the recipe's own speed by a margin of its update's
-    assert row["raw_bound_agent_steps_per_s"] > 0
+    assert row["case"] == "rl_term_b_cpu_threads1" and 0 < row["labels_share"] < 1 and 0 < row["update_share"] < 1
+    # The raw bound of the same run: the network alone, acting and updating, in plain torch
+    raw = 1 / (1 / row["raw_acting_agent_steps_per_s"] + 1 / row["raw_update_agent_steps_per_s"])
+    assert row["raw_bound_agent_steps_per_s"] == pytest.approx(raw, rel=1e-3)
     assert row["ratio_to_raw_bound"] == round(row["agent_steps_per_s"] / row["raw_bound_agent_steps_per_s"], 3)
     with pytest.raises(SystemExit):
         bench_main(["train", "--experiment", "nothing"])
     assert "--experiment=nothing is not allowed: one of" in capsys.readouterr().err
+
+
+def test_bench_train_takes_a_machine_and_refuses_a_missing_device_in_one_line(capsys):
+    with pytest.raises(SystemExit):  # machine=gpu asks for cuda, which this machine lacks (CI has no GPU)
+        bench_main(["train", "--machine", "gpu"] if not torch.cuda.is_available() else ["train", "--device", "cuda:99"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("python -m searchrl.bench: error: device=") and "not allowed" in err[-1]
 
 
 def test_bench_rejects_bad_arguments(capsys):

@@ -53,6 +53,7 @@ NOT_TRAINING = {"threads", "device", "progress_bar", "log_interval", "checkpoint
 # Settings added to the code after some policy shipped, absent from its config.yaml, with why their schema default
 # is what that run did (a section covers the settings under it where a shipped config lacks the whole section).
 ADDED_LATER = {
+    "env.replicas": "1: every group's worlds once, the only layout before the field",
     "env.world.k_per_n": "k = k + k_per_n·n per world; 0 keeps k = 1000 (λk = 1), the sensing of every shipped run",
     "env.world.belief_age": "0: the belief channels show the belief as it is, with no age",
     "env.world.belief_age_channel": "false: five channels, no age channel",

@@ -65,12 +65,29 @@ def test_a_checkpoints_record_names_its_file_by_hash_and_how_it_acts(tmp_path):
     settings = evaluation_settings(cfg, "policy:run", "b")
     assert settings["checkpoint_sha256"] == hashlib.sha256(b"weights").hexdigest()
     assert settings["deterministic"] is True and "world" not in settings and "controller_args" not in settings
+    assert settings["device"] == "cpu"  # the kind of device its network ran on
     assert option_defaults(cfg) == {"scenario.obstacles.kind": "iid", "scenario.obstacles.density": 0.0,
                                     "scenario.obstacles.connected": False,
                                     "scenario.prior.kind": "mixture", "scenario.prior.variance_scale": None,
-                                    "scenario.targets.kind": "prior", "grid.agents": None}  # fmt: skip
+                                    "scenario.targets.kind": "prior", "grid.agents": None,
+                                    "device": "cpu"}  # fmt: skip
     walls = evaluation_settings(_cfg(f"checkpoint={model}", "scenario=walls"), "policy:run", "b")
     assert walls["scenario"]["obstacles"] == {"kind": "iid", "density": 0.2, "connected": True}
+
+
+def test_a_checkpoints_folder_holds_results_of_one_kind_of_device(tmp_path):
+    """A record made before `device` existed ran on the CPU and takes a CPU rerun; a folder recorded on CUDA refuses
+    a CPU rerun (and the reverse), naming the device: the two may round logits, so sampled actions, differently."""
+    model = tmp_path / "model.zip"
+    model.write_bytes(b"weights")
+    cfg = _cfg(f"checkpoint={model}")
+    settings = evaluation_settings(cfg, "policy:run", "b")
+    old = {key: value for key, value in settings.items() if key != "device"}
+    (tmp_path / RECORD).write_text(OmegaConf.to_yaml(OmegaConf.create(old)))
+    claim_folder(tmp_path, settings, option_defaults(cfg))
+    (tmp_path / RECORD).write_text(OmegaConf.to_yaml(OmegaConf.create({**settings, "device": "cuda"})))
+    with pytest.raises(ConfigError, match=r"device: 'cuda' there, 'cpu' here"):
+        claim_folder(tmp_path, settings, option_defaults(cfg))
 
 
 def test_a_record_made_before_scenarios_and_removed_options_still_matches_the_paper(tmp_path):

@@ -1,5 +1,6 @@
-"""The whole-sequence LSTM path (searchrl/policies/recurrent.py) is sb3-contrib's per-step loop in one call: the same
-outputs, states and gradients on padded minibatches whose sequences open episodes, and the same PPO update."""
+"""The whole-sequence LSTM path (searchrl/policies/recurrent.py) is sb3-contrib's per-step loop in one call per
+stretch between episode starts: the same outputs, states and gradients on minibatches whose sequences open episodes
+at their heads or inside, and the same PPO update."""
 
 from __future__ import annotations
 
@@ -58,15 +59,24 @@ def test_starts_at_sequence_heads_give_the_loops_outputs_states_and_gradients(st
         torch.testing.assert_close(out[first], loop[0].reshape(N_SEQ, LENGTH, HIDDEN)[first])
 
 
-def test_a_start_inside_a_sequence_takes_the_loop():
-    batch = _batch([(1, 0), (2, 4)])  # sequence 2 opens an episode at its fifth step
+EVERY_STEP = [(s, t) for s in range(N_SEQ) for t in range(LENGTH)]
+
+
+@pytest.mark.parametrize(
+    "starts_at, n_calls", [([(1, 0), (2, 4)], 2), ([(2, 4), (0, 4), (5, 8), (3, 1)], 4), (EVERY_STEP, LENGTH)]
+)
+def test_starts_inside_sequences_give_the_loops_arithmetic_one_call_per_stretch(starts_at, n_calls):
+    """Starts anywhere (the whole-slot minibatches make them): one LSTM call per stretch between the steps where
+    some sequence starts, and the per-step loop's outputs, final states and gradients."""
+    batch = _batch(starts_at)
     calls = []
-    batch[3].register_forward_hook(lambda *_: calls.append(1))
+    hook = batch[3].register_forward_hook(lambda *_: calls.append(1))
     ours = _outputs_and_gradients(process_sequence, *batch)
-    assert len(calls) == LENGTH
+    hook.remove()
+    assert len(calls) == n_calls
     loop = _outputs_and_gradients(RecurrentActorCriticPolicy._process_sequence, *batch)
     for mine, theirs in zip(ours, loop, strict=True):
-        assert torch.equal(mine, theirs)
+        torch.testing.assert_close(mine, theirs, rtol=1e-5, atol=1e-6)
 
 
 def test_the_ppo_update_equals_sb3_contribs_on_the_same_rollouts():
@@ -91,3 +101,22 @@ def test_the_ppo_update_equals_sb3_contribs_on_the_same_rollouts():
     reference, ours = (m.policy.state_dict() for m in models)
     for name in reference:
         torch.testing.assert_close(ours[name], reference[name], rtol=1e-5, atol=1e-6, msg=name)
+
+
+def test_a_trained_policy_copies_by_deepcopy_and_by_its_constructor_parameters():
+    """After an update SB3 would keep the minibatch's distribution (and its graph) on the policy, which deepcopy
+    refuses; sb3-contrib's constructor parameters omit the LSTM's size. Both copies hold the same weights."""
+    import copy
+
+    from searchrl.policies.extractor import SearchCNN
+
+    policy_kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": [],
+                     "lstm_hidden_size": 16}  # fmt: skip
+    model = RecurrentPPO(SequenceLstmPolicy, SearchVecEnv(WORLD, n_worlds=2, seed=0), n_steps=8, batch_size=16,
+                         n_epochs=1, seed=0, policy_kwargs=policy_kwargs)  # fmt: skip
+    model.learn(48)
+    rebuilt = SequenceLstmPolicy(**model.policy._get_constructor_parameters())
+    rebuilt.load_state_dict(model.policy.state_dict())
+    for twin in (copy.deepcopy(model.policy), rebuilt):
+        for name, value in model.policy.state_dict().items():
+            assert torch.equal(twin.state_dict()[name], value), name

@@ -19,9 +19,10 @@ SHIPPED = sorted((ROOT / "runs" / "reference").rglob("model.zip"))
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """A tiny RecurrentPPO after one update: optimiser moments and a last rollout in its zip."""
-    from tests.test_teacher_term import WORLD, _model
-    from searchrl.envs.vec_env import SearchVecEnv
     from sb3_contrib import RecurrentPPO
+
+    from searchrl.envs.vec_env import SearchVecEnv
+    from tests.test_teacher_term import WORLD, _model
 
     model = _model(RecurrentPPO, SearchVecEnv(WORLD, n_worlds=2, seed=0))
     model.learn(48)

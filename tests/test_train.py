@@ -312,3 +312,19 @@ def test_a_run_trains_validates_and_records_its_scenario(tmp_path, monkeypatch):
         "prior": {"kind": "mixture", "variance_scale": None},
         "targets": {"kind": "prior"},
     }
+
+
+def test_a_machine_replicates_every_group_of_worlds_and_minibatches_are_whole_slots():
+    """machine=cpu16 takes each of B's recipe's groups of worlds four times (the team mix stays) and a minibatch
+    four times larger; env.replicas below 1 and a minibatch that is not whole slots are refused by name."""
+    from searchrl.world.config import ConfigError
+
+    base, big = (make_plan(_compose(["+experiment=rl_term_b", *m])) for m in ([], ["machine=cpu16"]))
+    assert [(w.n_agents, 4 * k) for w, k in base.groups] == [(w.n_agents, k) for w, k in big.groups]
+    assert big.rollout == 4 * base.rollout and big.cfg.algo.batch_size == 4 * base.cfg.algo.batch_size
+    assert big.cfg.threads == 16 and big.cfg.device == "cpu"
+    refused = {"env.replicas=0": "env.replicas=0 is not allowed",
+               "algo.batch_size=1000": "algo.batch_size=1000 is not allowed: a multiple of algo.n_steps"}  # fmt: skip
+    for bad, message in refused.items():
+        with pytest.raises(ConfigError, match=message):
+            make_plan(_compose(["+model=b", bad]))

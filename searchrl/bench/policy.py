@@ -1,6 +1,8 @@
 """Policy inference: SB3's `predict` against the traced `Actor` on one batch of real observations, in one run.
 
-Both sample actions and carry the LSTM state; the batch holds every slot of a few Table 2 worlds (n80, N32)."""
+Both sample actions and carry the LSTM state; the batch holds every slot of a few Table 2 worlds (n80, N32). With
+--device both run their network there, and both move the observations and LSTM states from numpy and back each
+call."""
 
 from __future__ import annotations
 
@@ -8,12 +10,12 @@ import time
 from typing import TextIO
 
 import numpy as np
-import torch
 
 from searchrl.controllers.policy import PolicyController
 from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.runner import cell_config
 from searchrl.policies.checkpoint import checkpoint_config, load_actor, load_checkpoint
+from searchrl.threads import use_threads
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_world
@@ -29,9 +31,11 @@ def _rate(act, batch: int, seconds: float) -> float:
     return calls * batch / elapsed
 
 
-def run(checkpoint: str, threads: int = 2, worlds: int = 128, seconds: float = 3.0,
+def run(checkpoint: str, threads: int = 2, worlds: int = 128, seconds: float = 3.0, device: str = "cpu",
         log: TextIO | None = None) -> list[dict]:  # fmt: skip
-    torch.set_num_threads(threads)
+    """Two rows, SB3's predict and the actor's controller on the same batch, each with its network on `device` (a
+    checked one, searchrl/policies/device.py): agent-steps/s, and the actor's speedup."""
+    use_threads(threads, network_on_cpu=str(device) == "cpu")
     world_dict, algo, _ = checkpoint_config(checkpoint)
     config = cell_config(WorldConfig.from_dict(world_dict), Cell(80, 32, 16, 32))
     state = allocate(config, worlds)
@@ -41,18 +45,18 @@ def run(checkpoint: str, threads: int = 2, worlds: int = 128, seconds: float = 3
     batch = worlds * config.n_agents
     obs = {"map": maps.reshape(batch, *maps.shape[2:]), "vector": vector.reshape(batch, -1)}
 
-    model = load_checkpoint(checkpoint, algo, device="cpu")
+    model = load_checkpoint(checkpoint, algo, device=device)
     lstm = [None]
     starts = np.zeros(batch, bool)
 
     def sb3() -> None:
         _, lstm[0] = model.predict(obs, state=lstm[0], episode_start=starts)
 
-    controller = PolicyController(load_actor(checkpoint, config), config, seed=0)
+    controller = PolicyController(load_actor(checkpoint, config, device=device), config, seed=0)
     controller.reset(state, np.ones(worlds, bool))
     rows = []
     for name, act in (("sb3_predict", sb3), ("actor", lambda: controller.act(state, maps, vector))):
-        rows.append({"case": f"policy_n80_N32_batch{batch}_threads{threads}", "engine": name,
+        rows.append({"case": f"policy_n80_N32_batch{batch}_threads{threads}", "engine": name, "device": str(device),
                      "agent_steps_per_s": round(_rate(act, batch, seconds), 1)})  # fmt: skip
     speedup = rows[1]["agent_steps_per_s"] / rows[0]["agent_steps_per_s"]
     rows[1]["speedup"] = round(speedup, 2)

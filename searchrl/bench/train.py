@@ -1,84 +1,161 @@
-"""SB3 training throughput: RecurrentPPO on the VecEnv for a fixed number of updates, with the paper network on
-model B's training scenarios, or a recipe (`--experiment`, e.g. one with the teacher term). Reports agent-steps/s
-and where the wall time goes: the environment's steps, the teacher's labels (runs with the teacher term), the
-updates (`train`); the rest is the policy acting during the rollout and SB3's bookkeeping.
+"""SB3 training throughput on a device: RecurrentPPO on the VecEnv for a fixed number of updates, with the paper
+network on model B's training scenarios, or a recipe (`--experiment`, e.g. one with the teacher term). Reports
+agent-steps/s and the shares of the wall time: the world (the VecEnv's steps), acting (the policy's forward passes
+during the rollout, with SB3's handling of them), the teacher's labels (runs with the teacher term), the rollout
+buffer (filling it, returns and advantages, and forming the minibatches) and the update (the minibatches' forward,
+backward and optimiser steps); what is left is SB3's bookkeeping.
 
 In the same run, the raw bound: the recipe's network alone on the last rollout's own minibatches (taken from the
 rollout buffer before the clock starts), forward + backward + Adam step, the recipe's epochs, in plain torch with
-no SB3 code in the timed loop. The recipe cannot train faster than that; the ratio says how close it comes."""
+no SB3 code in the timed loop. The update cannot run faster than that; the ratio says how close the recipe comes,
+and `update_ratio` how close the update alone comes. On a GPU the clocks are read after `torch.cuda.synchronize`.
+"""
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import TextIO
 
 import torch
 from hydra import compose, initialize_config_dir
 
 from searchrl.policies.recurrent import process_sequence
+from searchrl.threads import use_threads
 from searchrl.train.__main__ import CONF_DIR
 from searchrl.train.build import make_algorithm, make_vec_env
 from searchrl.train.plan import make_plan
 from searchrl.train.teacher_labels import TeacherLabels
 
 
-def _timed(fn: Callable, total: list[float]) -> Callable:
+def _timed(fn: Callable, total: list[float], sync: Callable[[], None]) -> Callable:
     def timed(*args, **kwargs):
         start = time.perf_counter()
         out = fn(*args, **kwargs)
+        sync()
         total[0] += time.perf_counter() - start
         return out
 
     return timed
 
 
-def run(updates: int = 4, threads: int = 2, network: str = "paper", experiment: str | None = None,
-        log: TextIO | None = None) -> list[dict]:  # fmt: skip
+def _timed_batches(get: Callable, total: list[float], sync: Callable[[], None]) -> Callable:
+    """`get` of a rollout buffer whose time inside the generator (forming each minibatch) counts to `total`."""
+
+    def timed(*args, **kwargs) -> Iterator:
+        batches = get(*args, **kwargs)
+        while True:
+            start = time.perf_counter()
+            item = next(batches, None)
+            sync()
+            total[0] += time.perf_counter() - start
+            if item is None:
+                return
+            yield item
+
+    return timed
+
+
+def run(updates: int = 4, threads: int | None = None, network: str = "paper", experiment: str | None = None,
+        device: str | None = None, machine: str | None = None, log: TextIO | None = None) -> list[dict]:  # fmt: skip
     """One run of `updates` rollouts (plus one warm-up rollout, not timed); `experiment` composes
-    `+experiment=<name>` (its own model and network) instead of model B on the paper's recipe with `network`."""
+    `+experiment=<name>` (its own model and network) instead of model B on the paper's recipe with `network`;
+    `machine` composes `machine=<name>` (conf/machine/), whose threads and device `threads` and `device` replace."""
     overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", f"network={network}"]
+    overrides += [f"machine={machine}"] if machine else []
+    overrides += [f"{key}={value}" for key, value in (("threads", threads), ("device", device)) if value is not None]
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        cfg = compose(config_name="train", overrides=[*overrides, f"threads={threads}"])
+        cfg = compose(config_name="train", overrides=overrides)
+    threads, device = int(cfg.threads), str(cfg.device)
     # The few timed rollouts would all fall in a recipe's critic warm-up (its first rollouts, value-only updates):
     # time the updates the rest of the run makes.
     cfg.imitation.critic_warmup = 0
-    torch.set_num_threads(threads)
+    use_threads(threads, network_on_cpu=torch.device(device).type == "cpu")
     plan = make_plan(cfg)
+    sync = torch.cuda.synchronize if torch.device(device).type == "cuda" else lambda: None
     env = make_vec_env(plan, seed=0)
     base = env.venv if isinstance(env, TeacherLabels) else env
-    spent = {"env": [0.0], "labels": [0.0], "update": [0.0]}
-    base.step_wait = _timed(base.step_wait, spent["env"])
+    spent = {part: [0.0] for part in ("world", "acting", "labels", "buffer", "update")}
+    rollout_time, train_time, filling, batching = [0.0], [0.0], [0.0], [0.0]
+    base.step_wait = _timed(base.step_wait, spent["world"], sync)
     if isinstance(env, TeacherLabels):
-        env._label = _timed(env._label, spent["labels"])
+        env._label = _timed(env._label, spent["labels"], sync)
     model = make_algorithm(plan, env)
-    model.train = _timed(model.train, spent["update"])
+    buffer = model.rollout_buffer
+    for name in ("add", "compute_returns_and_advantage"):
+        setattr(buffer, name, _timed(getattr(buffer, name), filling, sync))
+    buffer.get = _timed_batches(buffer.get, batching, sync)
+    model.collect_rollouts = _timed(model.collect_rollouts, rollout_time, sync)
+    model.train = _timed(model.train, train_time, sync)
     rollout = plan.rollout
     model.learn(rollout)  # warm-up: numba cache, torch kernels
-    for total in spent.values():
+    for total in [*spent.values(), rollout_time, train_time, filling, batching]:
         total[0] = 0.0
     start = time.perf_counter()
     model.learn(rollout * updates, reset_num_timesteps=False)
+    sync()
     wall = time.perf_counter() - start
+    spent["buffer"][0] = filling[0] + batching[0]
+    spent["update"][0] = in_update = train_time[0] - batching[0]
+    spent["acting"][0] = rollout_time[0] - spent["world"][0] - spent["labels"][0] - filling[0]
     fps = rollout * updates / wall
-    raw = raw_bound(model, updates)
+    acting_s, update_s = raw_acting_seconds(model, sync), raw_update_seconds(model, sync)
+    raw = rollout / (acting_s + update_s)
     name = experiment or f"recurrent_ppo_{network}_model_b_K{cfg.env.n_worlds}_N{cfg.env.world.n_agents}"
-    row = {"case": f"{name}_threads{threads}", "engine": "sb3", "agent_steps_per_s": round(fps, 1),
-           "raw_bound_agent_steps_per_s": round(raw, 1), "ratio_to_raw_bound": round(fps / raw, 3)}  # fmt: skip
+    slots = sum(k * world.n_agents for world, k in plan.groups)
+    row = {"case": f"{name}_{machine or torch.device(device).type}_threads{threads}", "engine": "sb3",
+           "device": device_name(device), "slots": slots, "batch_size": int(model.batch_size),
+           "agent_steps_per_s": round(fps, 1), "raw_bound_agent_steps_per_s": round(raw, 1),
+           "ratio_to_raw_bound": round(fps / raw, 3),
+           "raw_acting_agent_steps_per_s": round(rollout / acting_s, 1),
+           "raw_update_agent_steps_per_s": round(rollout / update_s, 1),
+           "acting_ratio": round(acting_s * updates / spent["acting"][0], 3),
+           "update_ratio": round(update_s * updates / in_update, 3)}  # fmt: skip
     row.update({f"{part}_share": round(total[0] / wall, 4) for part, total in spent.items()})
     if log:
         shares = ", ".join(f"{part} {100 * row[f'{part}_share']:.1f}%" for part in spent)
-        print(f"{row['case']}: {fps:,.0f} agent-steps/s over {updates} updates of {rollout} agent-steps; "
-              f"wall time: {shares}, the rest acting and bookkeeping", file=log)  # fmt: skip
-        print(f"  raw bound (the network alone on the same minibatches, {model.n_epochs} epochs): {raw:,.0f} "
-              f"agent-steps/s; the recipe at {fps / raw:.2f} of it", file=log)  # fmt: skip
+        print(f"{row['case']} on {row['device']}: {fps:,.0f} agent-steps/s over {updates} updates of {rollout} "
+              f"agent-steps ({slots} slots, minibatch {model.batch_size}); wall time: {shares}, the rest SB3's "
+              "bookkeeping", file=log)  # fmt: skip
+        print(f"  raw bound (the network alone, in plain torch: acting on the rollout, {model.n_epochs} epochs on "
+              f"its minibatches): {raw:,.0f} agent-steps/s; the recipe at {fps / raw:.2f} of it; its acting at "
+              f"{row['acting_ratio']:.2f} and its update at {row['update_ratio']:.2f} of theirs", file=log)  # fmt: skip
     return [row]
 
 
-def raw_bound(model, repeats: int) -> float:
-    """Agent-steps/s of `model`'s network alone: its policy (after the timed run) trained, in plain torch, on the
-    minibatches its rollout buffer holds (the last rollout, cut and padded as PPO's update cuts them), n_epochs
-    passes per rollout, `repeats` times; each minibatch one forward (extractor, actor and critic LSTMs over whole
+@torch.no_grad()
+def raw_acting_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
+    """Seconds `model`'s network alone takes to act through its last rollout, in plain torch: per step, one forward
+    of every slot (extractor, actor and critic LSTMs one step on, heads) and a sample; the observations already on
+    the device (the rollout buffer's), so neither the world nor SB3's handling of the tensors is in it."""
+    policy, buffer = model.policy, model.rollout_buffer
+    policy.set_training_mode(False)
+    data, _ = next(buffer.get(None))  # every slot, sequence-major: (n_envs·n_steps, ...)
+    steps = [{key: obs.reshape(buffer.n_envs, buffer.buffer_size, *obs.shape[1:])[:, t]
+              for key, obs in data.observations.items()} for t in range(buffer.buffer_size)]  # fmt: skip
+    starts = data.episode_starts.reshape(buffer.n_envs, buffer.buffer_size)
+
+    def rollout() -> None:
+        pi, vf = data.lstm_states.pi, data.lstm_states.vf
+        for t, obs in enumerate(steps):
+            features = policy.features_extractor(obs)
+            actor, pi = process_sequence(features, pi, starts[:, t], policy.lstm_actor)
+            critic, vf = process_sequence(features, vf, starts[:, t], policy.lstm_critic)
+            logits = policy.action_net(policy.mlp_extractor.forward_actor(actor))
+            policy.value_net(policy.mlp_extractor.forward_critic(critic))
+            torch.distributions.Categorical(logits=logits).sample()
+
+    rollout()  # warm-up
+    sync()
+    start = time.perf_counter()
+    rollout()
+    sync()
+    return time.perf_counter() - start
+
+
+def raw_update_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
+    """Seconds `model`'s network alone takes to train on its last rollout, in plain torch: n_epochs passes over the
+    minibatches its rollout buffer forms; each minibatch one forward (extractor, actor and critic LSTMs over whole
     sequences, heads), a loss touching logits and values, backward, gradient clipping and an Adam step."""
     policy = model.policy
     policy.set_training_mode(True)
@@ -100,11 +177,20 @@ def raw_bound(model, repeats: int) -> float:
         optimizer.step()
 
     step(*batches[0])  # warm-up
+    sync()
     start = time.perf_counter()
-    for _ in range(repeats * model.n_epochs):
+    for _ in range(model.n_epochs):
         for batch in batches:
             step(*batch)
-    return model.rollout_buffer.buffer_size * model.rollout_buffer.n_envs * repeats / (time.perf_counter() - start)
+    sync()
+    return time.perf_counter() - start
+
+
+def device_name(device: str) -> str:
+    """The card's name on a CUDA device, else the CPU's torch thread count."""
+    if torch.device(device).type == "cuda":
+        return torch.cuda.get_device_name(torch.device(device))
+    return f"cpu ({torch.get_num_threads()} torch threads)"
 
 
 def _samples(item: tuple) -> tuple:

@@ -1,23 +1,26 @@
-"""World throughput: agent-steps/s of the batched engine and of the plain reference oracle (tests/oracle.py),
-on two cases, measured in one run so their ratio is meaningful on this machine."""
+"""World throughput: agent-steps/s of the batched engine, at each numba thread count asked for, and of the plain
+reference oracle (tests/oracle.py), on two cases, measured in one run so their ratios are meaningful on this
+machine."""
 
 from __future__ import annotations
 
 import importlib.util
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
 
+import numba
 import numpy as np
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_worlds
-from searchrl.world.state import allocate
+from searchrl.world.state import WorldState, allocate
 from searchrl.world.step import step
 
-# (case name, world side n, agents N, worlds K); targets and m follow Table 2 for the side.
+# (case name, world side n, agents N, worlds K); targets and m follow Table 2 for the side. The batch kernels share
+# the worlds among the threads, so the one-world case measures the cost of threads it cannot use.
 CASES = (("n40_N8_K64", 40, 8, 64), ("n160_N256_K1", 160, 256, 1))
 _TABLE2 = {20: (4, 8), 40: (8, 16), 80: (16, 32), 160: (32, 64)}  # n -> (targets, distributions)
 
@@ -33,6 +36,20 @@ def _load_oracle() -> tuple[Callable, Callable] | None:
     return module.oracle_step, module.oracle_observe
 
 
+def max_threads() -> int:
+    """The most numba threads this process can run (`numba.config.NUMBA_NUM_THREADS`: the cores, or the
+    NUMBA_NUM_THREADS environment variable)."""
+    return int(numba.config.NUMBA_NUM_THREADS)
+
+
+def thread_counts(text: str) -> list[int]:
+    """`--threads` of the world suite: "2" or "1,2" (each measured in the same run), as a list of ints."""
+    try:
+        return [int(part) for part in text.split(",")]
+    except ValueError:
+        raise ValueError(f"--threads={text} is not allowed: thread counts separated by commas, e.g. 1,2") from None
+
+
 def case_config(n: int, n_agents: int) -> WorldConfig:
     """Model B settings on a Table 2 cell (communication on, Φ = 5)."""
     targets, dists = _TABLE2[n]
@@ -40,47 +57,73 @@ def case_config(n: int, n_agents: int) -> WorldConfig:
                        n_agents=n_agents)  # fmt: skip
 
 
+def _steps(config: WorldConfig, state: WorldState, step_fn: Callable, observe_fn: Callable, rng: np.random.Generator,
+           seconds: float, min_steps: int) -> float:  # fmt: skip
+    """Agent-steps/s of one window: step + observe + reset of finished worlds, random actions."""
+    n_worlds = state.n_worlds
+    steps, start = 0, time.perf_counter()
+    while steps < min_steps or time.perf_counter() - start < seconds:
+        actions = rng.integers(0, config.n_actions, size=(n_worlds, config.n_agents))
+        result = step_fn(config, state, actions, rng)
+        observe_fn(config, state)
+        done = result.terminated | result.truncated
+        if done.any():
+            reset_worlds(config, state, done, rng)
+        steps += 1
+    return steps * n_worlds * config.n_agents / (time.perf_counter() - start)
+
+
 def measure(config: WorldConfig, n_worlds: int, step_fn: Callable, observe_fn: Callable, seconds: float,
-            min_steps: int = 1, repeats: int = 3) -> float:  # fmt: skip
-    """Agent-steps/s of step + observe + reset of finished worlds, random actions, after one warm-up step.
+            min_steps: int = 1, repeats: int = 3, threads: Sequence[int] = (0,)) -> dict[int, float]:  # fmt: skip
+    """Agent-steps/s of step + observe + reset of finished worlds, random actions, at each numba thread count of
+    `threads` (0: leave numba's as it is), after one warm-up step at each.
 
     The best of `repeats` windows of `seconds / repeats` each is reported (as `timeit` does): on a shared
-    2-core machine the slower windows measure the neighbours, not the engine.
+    2-core machine the slower windows measure the neighbours, not the engine. The thread counts take turns window
+    by window, so a neighbour that comes and goes weighs on each alike.
     """
     rng = np.random.default_rng(0)
     state = allocate(config, n_worlds)
     reset_worlds(config, state, np.ones(n_worlds, bool), rng)
-    actions = rng.integers(0, config.n_actions, size=(n_worlds, config.n_agents))
-    step_fn(config, state, actions, rng)  # warm-up (numba compile or cache load)
-    best = 0.0
-    for _ in range(repeats):
-        steps, start = 0, time.perf_counter()
-        while steps < min_steps or time.perf_counter() - start < seconds / repeats:
-            actions = rng.integers(0, config.n_actions, size=(n_worlds, config.n_agents))
-            result = step_fn(config, state, actions, rng)
-            observe_fn(config, state)
-            done = result.terminated | result.truncated
-            if done.any():
-                reset_worlds(config, state, done, rng)
-            steps += 1
-        best = max(best, steps * n_worlds * config.n_agents / (time.perf_counter() - start))
+    before = numba.get_num_threads()
+    best = dict.fromkeys(threads, 0.0)
+    try:
+        for t in threads:  # warm-up (numba compile or cache load, numba's threads started)
+            numba.set_num_threads(t or before)
+            step_fn(config, state, rng.integers(0, config.n_actions, size=(n_worlds, config.n_agents)), rng)
+        for _ in range(repeats):
+            for t in threads:
+                numba.set_num_threads(t or before)
+                speed = _steps(config, state, step_fn, observe_fn, rng, seconds / repeats / len(threads), min_steps)
+                best[t] = max(best[t], speed)
+    finally:
+        numba.set_num_threads(before)
     return best
 
 
-def run(seconds: float = 3.0, log: TextIO | None = None) -> list[dict]:
-    """Measure every case with the engine and the oracle; returns one row per (case, engine)."""
+def run(seconds: float = 3.0, threads: Sequence[int] | None = None, log: TextIO | None = None) -> list[dict]:
+    """Measure every case with the engine at each of `threads` (numba thread counts; default numba's current one,
+    all cores unless set) and once with the oracle; one row per (case, engine, threads). `seconds` is the budget of
+    each case's batched measurement and of its oracle's."""
+    threads = list(threads) if threads else [numba.get_num_threads()]
     oracle = _load_oracle()
     rows = []
     for name, n, n_agents, n_worlds in CASES:
         config = case_config(n, n_agents)
         buffers = observation_buffers(config, n_worlds)  # reused, as SearchWorld does
-        engine = measure(config, n_worlds, step, lambda c, s, b=buffers: observe(c, s, b), seconds, min_steps=20)
-        rows.append({"case": name, "engine": "batched", "agent_steps_per_s": round(engine, 1)})
-        line = f"{name:>14}: batched {engine:>12,.0f} agent-steps/s"
+        speeds = measure(config, n_worlds, step, lambda c, s, b=buffers: observe(c, s, b), seconds, min_steps=20,
+                         threads=threads)  # fmt: skip
+        first = speeds[threads[0]]
+        parts = []
+        for t in threads:
+            rows.append({"case": name, "engine": "batched", "threads": t, "agent_steps_per_s": round(speeds[t], 1)})
+            scaling = f", {speeds[t] / first:.2f}x" if t != threads[0] else ""
+            parts.append(f"{speeds[t]:>12,.0f} ({t} thread{'s' if t > 1 else ''}{scaling})")
+        line = f"{name:>14}: batched {' '.join(parts)} agent-steps/s"
         if oracle is not None:
-            slow = measure(config, n_worlds, oracle[0], oracle[1], seconds, min_steps=1, repeats=1)
-            rows.append({"case": name, "engine": "oracle", "agent_steps_per_s": round(slow, 1)})
-            line += f" | oracle {slow:>10,.0f} | ratio {engine / slow:>7.1f}x"
+            slow = measure(config, n_worlds, oracle[0], oracle[1], seconds, min_steps=1, repeats=1)[0]
+            rows.append({"case": name, "engine": "oracle", "threads": 1, "agent_steps_per_s": round(slow, 1)})
+            line += f" | oracle {slow:>10,.0f} | ratio {first / slow:>7.1f}x (threads={threads[0]})"
         if log:
             print(line, file=log, flush=True)
     if log:

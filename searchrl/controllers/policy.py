@@ -31,10 +31,10 @@ class PolicyController:
 
     @classmethod
     def load(
-        cls, path: str | Path, config: WorldConfig, deterministic: bool = False, seed: int = 0
+        cls, path: str | Path, config: WorldConfig, deterministic: bool = False, seed: int = 0, device: str = "cpu"
     ) -> PolicyController:
-        """Load `path` (a model.zip of a run) and act with it."""
-        return cls(load_actor(path, config), config, deterministic, seed)
+        """Load `path` (a model.zip of a run) and act with it, its network on `device`."""
+        return cls(load_actor(path, config, device=device), config, deterministic, seed)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         slots = state.n_worlds * state.n_agents

@@ -35,6 +35,7 @@ from searchrl.evaluate.record import claim_folder, evaluation_settings, option_d
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
+from searchrl.policies.device import check_device, resolve_device
 from searchrl.schema import MAX_THREADS, override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.scenario import Scenario
@@ -43,7 +44,7 @@ from searchrl.world.streams import WorldStreams
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 # Set per cell by the grid, or training-only: a heuristic's evaluation refuses them rather than drop them.
 SET_BY_GRID = ("env.n_worlds", "env.world.n_agents", "env.world.world_size", "env.world.n_targets",
-               "env.world.n_distributions", "deterministic")  # fmt: skip
+               "env.world.n_distributions", "env.replicas", "deterministic")  # fmt: skip
 LOCKS = ".locks"  # <out_dir>/.locks/: the folder's record lock and one lock per cell being run
 register_configs()
 
@@ -62,7 +63,8 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         world_dict, _, model_name = checkpoint_config(cfg.checkpoint)
         world = WorldConfig.from_dict(world_dict)
         run_name = checkpoint_label(cfg.checkpoint)
-        actor = load_actor(cfg.checkpoint, world)  # loaded once, serves every cell
+        device = resolve_device(str(cfg.device))  # checked here too: analysis scripts call this function alone
+        actor = load_actor(cfg.checkpoint, world, device=device)  # loaded once, serves every cell
 
         def policy_factory(config: WorldConfig, seed: int | WorldStreams = 0) -> PolicyController:
             return PolicyController(actor, config, deterministic=bool(cfg.deterministic), seed=seed)
@@ -126,6 +128,9 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[
         for key, value in cfg.controller.items():
             if isinstance(value, float):
                 need(math.isfinite(value), f"controller.{key}", value, "a finite number")
+    check_device(str(cfg.device))  # asked for and missing: refused, never run on the CPU instead
+    need(cfg.checkpoint is not None or str(cfg.device) in ("cpu", "auto"), "device", cfg.device,
+         f"cpu: controller={cfg.controller.name} runs on the CPU (device is for checkpoint=<model.zip>)")  # fmt: skip
     need(0 <= int(cfg.seed) <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
     need(1 <= int(cfg.threads) <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
     need(math.isfinite(cfg.batch_mb) and cfg.batch_mb > 0, "batch_mb", cfg.batch_mb, "a number of MiB > 0")
@@ -222,10 +227,11 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
 
 def run_evaluation(plan: Evaluation) -> Path:
     """Run the plan's cells of this shard that have no result yet (its folder claimed); returns the folder."""
-    import torch
+    from searchrl.threads import use_threads
 
     cfg, out_dir, scenario, world = plan.cfg, plan.out_dir, plan.scenario, plan.world
-    torch.set_num_threads(int(cfg.threads))
+    on_cpu = cfg.checkpoint is not None and resolve_device(str(cfg.device)).type == "cpu"
+    use_threads(int(cfg.threads), network_on_cpu=on_cpu)  # a heuristic's or a GPU policy's world: every thread
     mine = [(i, c) for i, c in plan.cells if (i + plan.shard_offset) % int(cfg.num_shards) == int(cfg.shard)]
     todo = [(i, c) for i, c in mine if not (out_dir / "cells" / f"{c.key}.parquet").exists()]
     maps, repeats = int(cfg.grid.maps_per_cell), int(cfg.grid.repeats)

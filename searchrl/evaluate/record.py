@@ -5,6 +5,9 @@ settings (another `controller.horizon`, a retrained `model.zip` at the same path
 silently keep the first run's cells beside its own. The first run into a folder records the settings that decide
 its episodes; every later run compares its own with them and stops, naming what differs, before any work.
 Settings that do not change an episode (shard, num_shards, threads, batch_mb, progress_bar) are not recorded.
+A checkpoint's `device` is, as its kind (cpu, cuda, mps; not the index of a card): CUDA rounds the logits otherwise
+than the CPU (searchrl/policies/actor.py), an action may then flip (31 of 32 episodes of a slice alike on an H200),
+and a folder mixing both would hold cells no one command reproduces. A record made before `device` ran on the CPU.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 
 from searchrl.atomic import write_text_atomic
+from searchrl.policies.device import resolve_device
 from searchrl.world.config import RETIRED_FIELDS, ConfigError, WorldConfig, drop_retired
 from searchrl.world.scenario import PAPER, Scenario
 
@@ -53,6 +57,7 @@ def evaluation_settings(cfg: DictConfig, label: str, model_name: str) -> dict[st
     if cfg.checkpoint is not None:
         settings["checkpoint_sha256"] = file_sha256(cfg.checkpoint)
         settings["deterministic"] = bool(cfg.deterministic)
+        settings["device"] = resolve_device(str(cfg.device)).type  # auto recorded as what it ran on
     else:
         # Named by the label: a preset (controller=greedy_target) records the controller it sets (greedy) and every
         # setting, as the same settings spelled out do, so either may resume the other's folder.
@@ -64,10 +69,11 @@ def evaluation_settings(cfg: DictConfig, label: str, model_name: str) -> dict[st
 def option_defaults(cfg: DictConfig) -> dict[str, Any]:
     """Flattened defaults of the heuristic's own schema (`controller_args.<name>`) and of the world (`world.<name>`):
     an option added to a controller or the world after a folder was recorded is absent there, and at its default
-    it plays the episodes the record describes. A record made before scenarios existed ran the paper's."""
+    it plays the episodes the record describes. A record made before scenarios existed ran the paper's, one made
+    before `device` existed on the CPU."""
     defaults = _flatten({"scenario": PAPER.to_dict(), "grid": {"agents": None}})
     if cfg.checkpoint is not None:
-        return defaults
+        return defaults | {"device": "cpu"}
     world = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default for f in fields(WorldConfig)}
     defaults |= _flatten({"world": world})
     schema = OmegaConf.get_type(cfg.controller)

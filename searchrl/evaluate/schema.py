@@ -43,6 +43,9 @@ class EvaluateConfig:
     bound_draws: int = 1000  # placements per map for the search bound columns (searchrl/evaluate/bound.py)
     bound_cache: str | None = "runs/bounds"  # bounds computed once per map, shared by evaluations; null: no cache
     threads: int = 2
+    # torch device of a checkpoint's network: cpu, cuda, cuda:<index>, mps or auto (heuristics run on the CPU).
+    # Recorded: CUDA rounds the logits otherwise than the CPU, so a folder's cells all come from one kind of device.
+    device: str = "cpu"
     progress_bar: bool = True
 
 

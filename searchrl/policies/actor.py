@@ -7,6 +7,13 @@ evaluation we need only the actor, on large batches, with reproducible sampling,
 - calls the actor LSTM (RecurrentPPO) and the action head directly, on any subset of rows, and
 - leaves sampling to the caller (`sample_actions`, from uniforms the caller draws).
 Its logits equal the policy's own distribution logits to float32 rounding (tested).
+
+The network runs on the actor's device; the world, the LSTM state the caller holds and the sampling stay on the CPU
+in numpy (observations go to the device, logits and states come back). On the CPU every step is bit for bit what
+it was before devices existed (tests/test_golden.py). CUDA rounds otherwise: cuDNN convolutions run in TF32 by
+torch's default, and the shipped policies' logits differ from the CPU's by up to about 5e-2 (an H200), which flips
+one or two sampled or argmax actions in a thousand. `policy_copy` makes the copy an actor acts with when the policy
+it copies must stay as it is (validation).
 """
 
 from __future__ import annotations
@@ -16,12 +23,15 @@ import warnings
 import numpy as np
 import torch
 from sb3_contrib.common.recurrent.policies import RecurrentActorCriticPolicy
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
 
 
 def _optimized(extractor: nn.Module, example: dict[str, torch.Tensor]) -> nn.Module:
-    """The extractor traced, frozen and optimised for inference; the eager module where tracing fails."""
+    """The extractor traced, frozen and optimised for inference; the eager module where tracing fails or the result
+    strays from eager's. The check runs on the example's device: `optimize_for_inference` chooses its passes by
+    device (MKL-DNN layouts on the CPU only), so a pass that changes the arithmetic is caught on each."""
     try:
         with torch.no_grad(), warnings.catch_warnings():
             warnings.simplefilter("ignore")  # tracer warnings about Python values; the check below decides
@@ -34,15 +44,39 @@ def _optimized(extractor: nn.Module, example: dict[str, torch.Tensor]) -> nn.Mod
     return extractor
 
 
+def policy_copy(model: OnPolicyAlgorithm) -> ActorCriticPolicy:
+    """A new policy holding `model`'s policy's weights, on the model's device, built as the model built its own
+    (`_setup_model`: its policy class, spaces, schedule and policy_kwargs) and loaded with `load_state_dict`.
+
+    Not `copy.deepcopy`: SB3's ActorCriticPolicy keeps its last action distribution, with that minibatch's autograd
+    graph, which deepcopy refuses after an update. Not the policy's `_get_constructor_parameters` alone: SB3 2.9
+    leaves out share_features_extractor there and sb3-contrib 2.9 every LSTM setting. Building draws initial weights
+    from torch's global CPU generator, which training samples its actions from: it is restored afterwards, so a copy
+    does not shift a run's sampling."""
+    # ortho_init off: the weights are overwritten below, and orthogonal init (a QR per layer) takes 0.8 s of the
+    # paper network's 0.9 s build; it changes no layer. Built on the CPU: only the CPU generator is drawn from.
+    kwargs = {**model.policy_kwargs, "ortho_init": False}
+    with torch.random.fork_rng(devices=[]):
+        twin = model.policy_class(model.observation_space, model.action_space, model.lr_schedule,
+                                  use_sde=model.use_sde, **kwargs)  # fmt: skip
+    twin.to(model.device)
+    twin.load_state_dict(model.policy.state_dict())  # strict: a setting the build missed fails here, by name
+    return twin
+
+
 class Actor:
     """Logits of a trained ActorCriticPolicy (PPO, A2C) or RecurrentActorCriticPolicy (RecurrentPPO).
 
     Stateless: the caller keeps each slot's LSTM state (`initial_state`) and passes the rows it acts for.
     """
 
-    def __init__(self, policy: ActorCriticPolicy, optimize: bool = True) -> None:
+    def __init__(self, policy: ActorCriticPolicy, optimize: bool = True, device: str | torch.device = "cpu") -> None:
+        """Act with `policy`, moved to `device` and put in evaluation mode: the actor owns it from now on (pass
+        `policy_copy(model)` to keep a policy that trains on as it is)."""
         if not isinstance(policy, ActorCriticPolicy):
             raise TypeError(f"policy of type {type(policy).__name__} is not an SB3 ActorCriticPolicy")
+        self.device = torch.device(device)
+        policy.to(self.device)  # in place: a no-op for a policy already there
         policy.set_training_mode(False)
         self.recurrent = isinstance(policy, RecurrentActorCriticPolicy)
         self.n_actions = int(policy.action_space.n)
@@ -51,7 +85,8 @@ class Actor:
         self._lstm: nn.LSTM | None = policy.lstm_actor if self.recurrent else None
         space = policy.observation_space
         self.keys = tuple(space.spaces)  # "map", "vector"
-        example = {k: torch.as_tensor(np.stack([space[k].sample() for _ in range(4)])) for k in self.keys}
+        example = {k: torch.as_tensor(np.stack([space[k].sample() for _ in range(4)]), device=self.device)
+                   for k in self.keys}  # fmt: skip
         extractor = policy.pi_features_extractor
         self._extract = _optimized(extractor, example) if optimize else extractor
 
@@ -68,15 +103,16 @@ class Actor:
         """maps (B, C, F, F), vector (B, V), state (2, layers, B, hidden) or None -> (logits (B, n_actions) float32,
         next state). A slot whose episode starts now gets a zero state (`initial_state`)."""
         parts = {"map": maps, "vector": vector}
-        obs = {k: torch.from_numpy(np.ascontiguousarray(parts[k], np.float32)) for k in self.keys}
+        # `.to` and `.cpu` return the very tensor on the CPU: no copy, the same arithmetic as before devices
+        obs = {k: torch.from_numpy(np.ascontiguousarray(parts[k], np.float32)).to(self.device) for k in self.keys}
         features = self._extract(obs)
         if self._lstm is not None:
             if state is None:
                 raise ValueError("a recurrent policy needs its LSTM state: start from initial_state(batch)")
-            h, c = torch.from_numpy(np.ascontiguousarray(state, np.float32))
+            h, c = torch.from_numpy(np.ascontiguousarray(state, np.float32)).to(self.device)
             out, (h, c) = self._lstm(features.unsqueeze(0), (h.contiguous(), c.contiguous()))
-            features, state = out.squeeze(0), torch.stack([h, c]).numpy()
-        return self._head(self._mlp.forward_actor(features)).numpy(), state
+            features, state = out.squeeze(0), torch.stack([h, c]).cpu().numpy()
+        return self._head(self._mlp.forward_actor(features)).cpu().numpy(), state
 
 
 def sample_actions(logits: np.ndarray, uniforms: np.ndarray | None) -> np.ndarray:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import torch
 from omegaconf import OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.save_util import load_from_zip_file
@@ -86,10 +87,13 @@ def retired_kwargs_dropped(path: str | Path) -> dict | None:
     return {"policy_kwargs": kwargs}
 
 
-def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> Actor:
-    """The actor of a saved RecurrentPPO / PPO / A2C model.zip; ValueError if it sees another field of view
-    (channels, side) or acts in another action set than `config`'s world."""
+def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True,
+               device: str | torch.device = "cpu") -> Actor:  # fmt: skip
+    """The actor of a saved RecurrentPPO / PPO / A2C model.zip, its network on `device` (a checked one:
+    searchrl/policies/device.py); ValueError if it sees another field of view (channels, side) or acts in another
+    action set than `config`'s world."""
     _, algo, _ = checkpoint_config(path)
+    # Loaded on the CPU and moved to `device` by the Actor: one path for every device.
     model = load_checkpoint(path, algo, device="cpu")
     space = observation_space(config)
     seen, shown = model.observation_space["map"].shape, space["map"].shape
@@ -98,7 +102,7 @@ def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True) -> 
             f"checkpoint={str(path)!r} sees a {seen} field of view but the world shows {shown}"
             " (channels, side, side: fov and belief_age_channel must be the checkpoint's)"
         )
-    actor = Actor(model.policy, optimize=optimize)
+    actor = Actor(model.policy, optimize=optimize, device=device)
     if actor.n_actions != config.n_actions:
         raise ValueError(
             f"checkpoint={str(path)!r} acts with {actor.n_actions} actions but the world has {config.n_actions}"

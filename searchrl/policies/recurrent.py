@@ -1,24 +1,25 @@
 """sb3-contrib's recurrent policy with its LSTM run over whole sequences during PPO's update.
 
-`RecurrentActorCriticPolicy._process_sequence` (sb3-contrib 2.9) runs the LSTM over a minibatch's padded sequences
-in one call only when no step of any sequence starts an episode; otherwise it loops over the time steps in Python,
-one LSTM call per step, resetting the state where an episode starts. But the rollout buffer cuts a sequence at every
-episode start (`create_sequencers`: a start always opens a new sequence), so a start can only stand at a sequence's
-first step, and there resetting the state is the same as starting the sequence from a zero state. This policy does
-that: it zeroes the initial state of the sequences that open an episode and runs the LSTM over every sequence at
-once, which is the loop's arithmetic in one call (tests/test_recurrent.py: the same outputs and gradients). A start
-anywhere else, which no buffer of sb3-contrib 2.9 makes, falls back to the loop.
+`RecurrentActorCriticPolicy._process_sequence` (sb3-contrib 2.9) runs the LSTM over a minibatch's sequences in one
+call only when no step of any sequence starts an episode; otherwise it loops over the time steps in Python, one LSTM
+call per step, resetting the state of the sequences whose episode starts at that step. The loop's arithmetic needs
+a reset only at the steps where some sequence starts: between two such steps the LSTM can run over every sequence
+at once. `process_sequence` does that: one LSTM call per stretch between starting steps (one call when starts stand
+only at the sequences' heads, as sb3-contrib's buffer cuts them; a few in the whole-slot minibatches of
+searchrl/train/slot_buffer.py, where a slot's episode may start anywhere in its rollout), with the state of the
+starting sequences zeroed at the stretch's first step (tests/test_recurrent.py: the loop's outputs and gradients).
 
 During a rollout every sequence is one step long, so acting takes the same path.
 """
 
 from __future__ import annotations
 
+import copy
+from typing import Any
+
 import torch
-from sb3_contrib.common.recurrent.policies import (
-    RecurrentActorCriticPolicy,
-    RecurrentMultiInputActorCriticPolicy,
-)
+from sb3_contrib.common.recurrent.policies import RecurrentMultiInputActorCriticPolicy
+from stable_baselines3.common.distributions import Distribution
 from torch import nn
 
 States = tuple[torch.Tensor, torch.Tensor]
@@ -30,15 +31,41 @@ def process_sequence(features: torch.Tensor, lstm_states: States, episode_starts
     (n_seq·L,) -> (outputs (n_seq·L, hidden), final states): what sb3-contrib's `_process_sequence` returns."""
     n_seq = lstm_states[0].shape[1]
     starts = episode_starts.reshape(n_seq, -1)
-    if bool((starts[:, 1:] != 0).any()):  # a start inside a sequence: the original per-step loop
-        return RecurrentActorCriticPolicy._process_sequence(features, lstm_states, episode_starts, lstm)
-    keep = (1.0 - starts[:, 0]).view(1, n_seq, 1)  # the loop's reset at the first step, applied to the initial state
     sequences = features.reshape(n_seq, -1, lstm.input_size).swapaxes(0, 1)  # (L, n_seq, input)
-    outputs, states = lstm(sequences, (lstm_states[0] * keep, lstm_states[1] * keep))
-    return torch.flatten(outputs.transpose(0, 1), start_dim=0, end_dim=1), states
+    length = sequences.shape[0]
+    # The steps after the first where some sequence starts an episode (one small host read of a (L,) mask).
+    cuts = (torch.nonzero(starts[:, 1:].any(dim=0)).flatten() + 1).tolist()
+    h, c = lstm_states
+    outputs = []
+    for first, end in zip([0, *cuts], [*cuts, length], strict=True):
+        keep = (1.0 - starts[:, first]).view(1, n_seq, 1)  # the loop's reset of the sequences starting here
+        out, (h, c) = lstm(sequences[first:end], (h * keep, c * keep))
+        outputs.append(out)
+    out = outputs[0] if len(outputs) == 1 else torch.cat(outputs)
+    return torch.flatten(out.transpose(0, 1), start_dim=0, end_dim=1), (h, c)
 
 
 class SequenceLstmPolicy(RecurrentMultiInputActorCriticPolicy):
     """sb3-contrib's `MultiInputLstmPolicy` with `process_sequence` above; the same parameters and saved state."""
 
     _process_sequence = staticmethod(process_sequence)
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        # sb3-contrib's omits the LSTM's settings, so a policy built from it (SB3's way to copy or load a policy
+        # alone) would get the default 256-wide LSTM and refuse the weights.
+        data = super()._get_constructor_parameters()
+        data.update(lstm_hidden_size=self.lstm_actor.hidden_size, n_lstm_layers=self.lstm_actor.num_layers,
+                    shared_lstm=self.shared_lstm, enable_critic_lstm=self.enable_critic_lstm,
+                    lstm_kwargs=self.lstm_kwargs)  # fmt: skip
+        return data
+
+    def _get_action_dist_from_latent(self, latent_pi: torch.Tensor) -> Distribution:
+        # SB3 fills the policy's one `action_dist` in place, so after an update the policy holds that minibatch's
+        # logits and their graph, and `copy.deepcopy(policy)` fails ("Only Tensors created explicitly by the user
+        # support the deepcopy protocol"). Each call fills a shallow copy instead: the policy keeps no graph.
+        shared = self.action_dist
+        self.action_dist = copy.copy(shared)
+        try:
+            return super()._get_action_dist_from_latent(latent_pi)
+        finally:
+            self.action_dist = shared

@@ -18,7 +18,6 @@ from pathlib import Path
 
 import hydra
 import pandas as pd
-import torch
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
@@ -31,6 +30,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from searchrl.atomic import FolderBusy, hold, remove_temporaries, storage_message, write_atomic, write_text_atomic
 from searchrl.schema import override_keys
+from searchrl.threads import use_threads
 from searchrl.train.build import init_weights, load_algorithm, make_algorithm, make_vec_env
 from searchrl.train.callbacks import (
     AtomicCheckpointCallback,
@@ -155,7 +155,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
 
 def prepare_folder(cfg: DictConfig, run_dir: Path, resuming: bool) -> None:
     """Refuse a folder that holds another run (or a finished one with nothing to resume from), clear what a killed
-    writer left, and set torch's threads and the device as the run records them."""
+    writer left, and set torch's and numba's threads and the device as the run records them."""
     if not resuming and ((run_dir / "config.yaml").exists() or checkpoints(run_dir / "checkpoints")):
         fail(f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder")
     if resuming and not checkpoints(run_dir / "checkpoints") and (run_dir / "model.zip").exists():
@@ -163,8 +163,8 @@ def prepare_folder(cfg: DictConfig, run_dir: Path, resuming: bool) -> None:
              f"run from its weights with init={run_dir / 'model.zip'}")  # fmt: skip
     for folder in (run_dir, run_dir / "checkpoints"):  # left by a killed writer; we hold the folder's lock
         remove_temporaries(folder)
-    torch.set_num_threads(int(cfg.threads))
     cfg.device = str(get_device(cfg.device))  # recorded as used (device=auto becomes cpu or cuda)
+    use_threads(int(cfg.threads), network_on_cpu=cfg.device == "cpu")  # torch's and the world's (numba's)
 
 
 def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple[BaseAlgorithm, bool]:

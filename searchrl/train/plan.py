@@ -15,12 +15,12 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-import torch
 from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from searchrl.controllers.registry import make_teacher
 from searchrl.policies.algorithms import ALGORITHMS
+from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
 from searchrl.schema import MAX_THREADS, override_keys
 from searchrl.train.imitation import lr_factor
@@ -74,6 +74,9 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     batch = cfg.algo.get("batch_size")
     need(batch is None or 1 <= int(batch) <= rollout, "algo.batch_size", batch, f"1 <= batch_size <= rollout "
          f"size {rollout}")  # fmt: skip
+    # A minibatch is whole slots' rollouts (searchrl/train/slot_buffer.py): a whole number of n_steps.
+    need(batch is None or int(batch) % int(cfg.algo.n_steps) == 0, "algo.batch_size", batch,
+         f"a multiple of algo.n_steps={cfg.algo.n_steps} (minibatches of whole slots' rollouts)")  # fmt: skip
     check_init(cfg)
     im = cfg.imitation
     teacher_args = dict(OmegaConf.to_container(im.teacher_args, resolve=True) or {})
@@ -85,7 +88,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     SearchCNN.check_sizes(list(cfg.network.conv_channels), int(cfg.network.vector_size), list(cfg.network.fc_sizes),
                           groups[0][0].fov)  # fmt: skip
     notes = unused_settings(cfg, list(overrides), groups) + round_to_rollouts(cfg, rollout)
-    algorithm = TEACHER_ALGORITHMS[cfg.algo.name] if teacher_term else algorithm
+    algorithm = TEACHER_ALGORITHMS.get(cfg.algo.name, algorithm)  # the term off (w = 0) where a recipe has none
     return Plan(cfg, groups, scenario, im.teacher, teacher_args, algorithm, teacher_term, rollout, tuple(notes))
 
 
@@ -116,16 +119,21 @@ def check_algo(cfg: DictConfig) -> type[BaseAlgorithm]:
 
 
 def team_groups(cfg: DictConfig) -> list[tuple[WorldConfig, int]]:
-    """(world config, K) per group of worlds: env.world with env.n_worlds, then each of env.extra_teams."""
+    """(world config, K) per group of worlds: env.world with env.n_worlds, then each of env.extra_teams; every K
+    times env.replicas."""
     world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))  # ConfigError naming a field
-    groups = [(world, int(cfg.env.n_worlds))]
+    replicas = cfg.env.get("replicas", 1)
+    need(isinstance(replicas, int) and replicas >= 1, "env.replicas", replicas, "an integer >= 1 (1: the recipe's "
+         "worlds once)")  # fmt: skip
+    groups = [(world, int(cfg.env.n_worlds) * replicas)]
     for j, team in enumerate(cfg.env.extra_teams):
         if int(team.n_worlds) < 1:
             raise ConfigError(f"env.extra_teams[{j}].n_worlds={team.n_worlds!r} is not allowed: must be >= 1")
         try:
             sizes = OmegaConf.to_container(team, resolve=True)["world_size"]  # n, [low, high] or null (the world's)
             sizes = world.world_size if sizes is None else tuple(sizes) if isinstance(sizes, list) else sizes
-            groups.append((replace(world, n_agents=int(team.n_agents), world_size=sizes), int(team.n_worlds)))
+            team_world = replace(world, n_agents=int(team.n_agents), world_size=sizes)
+            groups.append((team_world, int(team.n_worlds) * replicas))
         except ConfigError as err:
             raise ConfigError(f"env.extra_teams[{j}]: {err}") from None
     return groups
@@ -201,25 +209,6 @@ def check_teacher_term(cfg: DictConfig, teacher_term: bool) -> None:
     if teacher_term and cfg.algo.name not in TEACHER_ALGORITHMS:
         need(False, "algo", cfg.algo.name, f"one of {', '.join(TEACHER_ALGORITHMS)} with imitation.rl_weight or "
              "imitation.critic_warmup (the teacher term is a PPO loss term)")  # fmt: skip
-
-
-def check_device(device: str) -> None:
-    """ConfigError unless torch can run on `device` here: a run never falls back to the CPU unasked."""
-    allowed = "cpu, cuda, cuda:<index>, mps or auto (cuda when torch sees one, else cpu)"
-    if device == "auto":
-        return
-    try:
-        parsed = torch.device(device)
-    except (RuntimeError, ValueError):
-        raise ConfigError(f"device={device!r} is not allowed: {allowed}") from None
-    if parsed.type == "cuda":
-        count = torch.cuda.device_count()
-        need(count > 0, "device", device, "cpu here: torch sees no CUDA device (torch.cuda.is_available() is False)")
-        need((parsed.index or 0) < count, "device", device, f"a CUDA index below {count} (devices torch sees)")
-    elif parsed.type == "mps":
-        need(torch.backends.mps.is_available(), "device", device, "cpu here: torch sees no MPS device")
-    else:
-        need(parsed.type == "cpu", "device", device, allowed)
 
 
 def unused_settings(cfg: DictConfig, overrides: list[str], groups: tuple[tuple[WorldConfig, int], ...]) -> list[str]:

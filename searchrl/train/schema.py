@@ -109,7 +109,9 @@ class TrainConfig:
     # A checkpoint whose policy weights start this run (fine-tuning, e.g. from a run's imitation.zip); the step
     # count and optimiser start afresh. Same observation and action spaces and network needed.
     init: str | None = None
-    threads: int = 2  # torch threads; a run is bit-reproducible for a given count (on one machine and torch build)
+    # torch's threads and the world's (numba's, at most the cores: searchrl/threads.py); a run is bit-reproducible
+    # for a given count (on one machine and torch build), whose world part does not depend on it
+    threads: int = 2
     device: str = "cpu"
     progress_bar: bool = True
     log_interval: int = 1  # rollouts between log rows

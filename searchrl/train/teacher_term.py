@@ -15,7 +15,9 @@ kickstarting (Schmitt et al. 2018), which distils toward the teacher with a weig
   critic that knows the learner.
 
 With `w = 0` and no warm-up the update is SB3's PPO update exactly (tests/test_teacher_term.py compares parameters).
-The labels come from a `LabelSource` and reach the minibatches through the rollout buffer (`LabelledBuffer`).
+The labels come from a `LabelSource` and reach the minibatches through the rollout buffer, whose minibatches are
+whole slots' rollouts with no padding (`searchrl/train/slot_buffer.py`); every RecurrentPPO run trains with this
+class, the term off (w = 0, no warm-up) where the recipe has none.
 """
 
 from __future__ import annotations
@@ -25,10 +27,10 @@ from typing import Any, Protocol
 import numpy as np
 import torch
 from sb3_contrib import RecurrentPPO
-from sb3_contrib.common.recurrent.buffers import RecurrentDictRolloutBuffer
-from stable_baselines3.common.buffers import DictRolloutBuffer
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.utils import explained_variance
+
+from searchrl.train.slot_buffer import SlotRolloutBuffer
 
 SCHEDULES = ("constant", "linear")
 
@@ -56,29 +58,8 @@ def value_parameters(policy: ActorCriticPolicy) -> list[torch.nn.Parameter]:
     return [p for m in modules if m is not None for p in m.parameters()]
 
 
-class _Labelled:
-    """Rollout-buffer mixin: `labels` (n_envs·n_steps,), flattened like the buffer's own arrays, travel with every
-    minibatch as a second item, padded like the actions in recurrent minibatches."""
-
-    labels: np.ndarray
-
-    def _get_samples(self, batch_inds: np.ndarray, *args: Any, **kwargs: Any) -> tuple[Any, torch.Tensor]:
-        samples = super()._get_samples(batch_inds, *args, **kwargs)
-        if isinstance(self, RecurrentDictRolloutBuffer):  # `pad` was just set up for this minibatch's sequences
-            return samples, self.pad(self.labels[batch_inds]).reshape(-1).long()
-        return samples, self.to_torch(self.labels[batch_inds]).long()
-
-
-class LabelledRecurrentBuffer(_Labelled, RecurrentDictRolloutBuffer):
-    pass
-
-
-class LabelledBuffer(_Labelled, DictRolloutBuffer):
-    pass
-
-
 class TeacherTerm:
-    """Mixin for PPO and RecurrentPPO (Dict observations): the update above. Set `label_source` before `learn`;
+    """Mixin for RecurrentPPO (Dict observations): the update above. Set `label_source` before `learn`;
     `teacher_weight`, `teacher_schedule` and `critic_warmup` are saved with the model, `rollouts_trained` too, so
     a resumed run neither warms the critic up again nor restarts the schedule."""
 
@@ -95,14 +76,17 @@ class TeacherTerm:
 
     def _setup_model(self) -> None:
         super()._setup_model()
-        old = self.rollout_buffer  # rebuilt as its labelled twin, with the same settings
-        settings = {"buffer_size": old.buffer_size, "observation_space": old.observation_space,
-                    "action_space": old.action_space, "device": old.device, "gae_lambda": old.gae_lambda,
-                    "gamma": old.gamma, "n_envs": old.n_envs}  # fmt: skip
-        if isinstance(old, RecurrentDictRolloutBuffer):
-            self.rollout_buffer = LabelledRecurrentBuffer(hidden_state_shape=old.hidden_state_shape, **settings)
-        else:
-            self.rollout_buffer = LabelledBuffer(**settings)
+        old = self.rollout_buffer  # rebuilt as the whole-slot buffer, with the same settings
+        self.rollout_buffer = SlotRolloutBuffer(
+            old.buffer_size,
+            old.observation_space,
+            old.action_space,
+            hidden_state_shape=old.hidden_state_shape,
+            device=old.device,
+            gae_lambda=old.gae_lambda,
+            gamma=old.gamma,
+            n_envs=old.n_envs,
+        )
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "label_source"]
@@ -121,7 +105,7 @@ class TeacherTerm:
             labels = np.zeros((buffer.buffer_size, buffer.n_envs), np.int64)
         else:
             raise RuntimeError("TeacherTerm.train: teacher_weight > 0 needs a label_source (configure_teacher)")
-        buffer.labels = buffer.swap_and_flatten(np.asarray(labels, np.int64)[..., None])[:, 0]
+        buffer.set_labels(labels)
         self.policy.set_training_mode(True)
         self._update_learning_rate(self.policy.optimizer)
         if self.rollouts_trained < self.critic_warmup:
@@ -134,13 +118,10 @@ class TeacherTerm:
     def _evaluate(self, data: Any, actions: torch.Tensor) -> tuple[torch.Tensor, ...]:
         """(values (B,), log-probabilities (len(actions), B) of each row of `actions` (A, B), entropy (B,), mask
         (B,) bool of real steps). One forward pass: a categorical's log_prob broadcasts over leading dims."""
-        if isinstance(self, RecurrentPPO):
-            values, log_prob, entropy = self.policy.evaluate_actions(
-                data.observations, actions, data.lstm_states, data.episode_starts
-            )
-            return values.flatten(), log_prob, entropy, data.mask > 1e-8
-        values, log_prob, entropy = self.policy.evaluate_actions(data.observations, actions)
-        return values.flatten(), log_prob, entropy, torch.ones_like(values.flatten(), dtype=torch.bool)
+        values, log_prob, entropy = self.policy.evaluate_actions(
+            data.observations, actions, data.lstm_states, data.episode_starts
+        )
+        return values.flatten(), log_prob, entropy, data.mask > 1e-8
 
     def _fit_critic(self) -> None:
         """Value loss on the value-only parameters; every other gradient is dropped, so Adam moves nothing else."""
@@ -176,7 +157,7 @@ class TeacherTerm:
                 values, log_probs, entropy, mask = self._evaluate(data, torch.stack([actions, labels]))
                 log_prob, teacher_log_prob = log_probs[0], log_probs[1]
                 advantages = data.advantages
-                if self.normalize_advantage and (isinstance(self, RecurrentPPO) or len(advantages) > 1):
+                if self.normalize_advantage:
                     advantages = (advantages - advantages[mask].mean()) / (advantages[mask].std() + 1e-8)
                 ratio = torch.exp(log_prob - data.old_log_prob)
                 clipped = torch.clamp(ratio, 1 - clip_range, 1 + clip_range)
@@ -209,11 +190,14 @@ class TeacherTerm:
             if not continue_training:
                 break
         buffer = self.rollout_buffer
-        for name, key in (("policy_gradient_loss", "pg"), ("value_loss", "value"), ("entropy_loss", "entropy"),
-                          ("imitation_loss", "imitation"), ("clip_fraction", "clip"), ("approx_kl", "kl")):  # fmt: skip
+        logged = [("policy_gradient_loss", "pg"), ("value_loss", "value"), ("entropy_loss", "entropy"),
+                  ("clip_fraction", "clip"), ("approx_kl", "kl")]  # fmt: skip
+        if self.label_source is not None:  # without a teacher the labels are placeholders: nothing to log
+            logged.append(("imitation_loss", "imitation"))
+            self.logger.record("train/imitation_weight", weight)
+        for name, key in logged:
             self.logger.record(f"train/{name}", float(np.mean(logs[key])) if logs[key] else float("nan"))
         self.logger.record("train/loss", loss.item())
-        self.logger.record("train/imitation_weight", weight)
         self.logger.record("train/explained_variance",
                            explained_variance(buffer.values.flatten(), buffer.returns.flatten()))  # fmt: skip
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")

@@ -4,27 +4,31 @@ World w of a validation set with seed s is the evaluation's map w of cell 0 unde
 key (s, 0, w, 0) (searchrl/controllers/episodes.py). The policy acts through `PolicyController`, the evaluation's
 inference path, with actions sampled from the episode's own stream (or argmax), so the same weights give the same
 metrics at every validation (common random numbers: a curve's steps are changes of the weights, not of sampling
-luck) and a validation's found fraction is what `python -m searchrl.evaluate` reports on the same worlds.
+luck) and a validation's found fraction is what `python -m searchrl.evaluate` reports on the same worlds when its
+`device=` is the training's (cpu for both by default). On another device the logits round otherwise and a sampled
+action may flip (searchrl/policies/actor.py).
+
+Validation acts with a copy of the training policy on the model's device (`policy_copy`), on every device alike: the
+policy that trains on keeps its mode and weights, and torch's global generator, which training samples from, is
+left where it was.
 """
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
-from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
 from searchrl.controllers.base import RandomWalk
 from searchrl.controllers.episodes import play_episodes
 from searchrl.controllers.policy import PolicyController
-from searchrl.policies.actor import Actor
+from searchrl.policies.actor import Actor, policy_copy
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.streams import WorldStreams
 
 
 def run_episodes(
-    world_config: WorldConfig, n_worlds: int, seed: int, model: BaseAlgorithm | None, deterministic: bool = False,
+    world_config: WorldConfig, n_worlds: int, seed: int, model: OnPolicyAlgorithm | None, deterministic: bool = False,
     scenario: Scenario = PAPER,
 ) -> dict[str, float]:  # fmt: skip
     """Mean episode metrics of `model`'s policy (or of a random walk, None) over the validation set of `n_worlds`
@@ -32,8 +36,8 @@ def run_episodes(
     if model is None:
         factory = RandomWalk
     else:
-        policy = model.policy if model.device.type == "cpu" else copy.deepcopy(model.policy).to("cpu")
-        actor = Actor(policy)  # traced as evaluation's is (about 0.2 s), so both act alike to the last bit
+        # Traced as evaluation's is (about 0.2 s), so both act alike to the last bit on the same device.
+        actor = Actor(policy_copy(model), device=model.device)
 
         def factory(config: WorldConfig, streams: WorldStreams) -> PolicyController:
             return PolicyController(actor, config, deterministic=deterministic, seed=streams)

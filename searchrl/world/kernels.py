@@ -1,9 +1,14 @@
-"""Compiled phases of one step (see SPEC.md). Each function loops over worlds, agents and cells inside numba,
-so the Python side makes one call per phase per batch, never one per agent or cell.
+"""Compiled phases of one step (see SPEC.md). Each works the worlds first..stop-1 of a batch, one after the other:
+`step.step_worlds` cuts the batch into such spans and shares them among numba's threads, so the Python side makes
+one call per batch, never one per world, agent or cell. A phase reads and writes the rows of its own worlds only,
+with scratch and work space of its own span that it leaves as it found them: that is what lets any thread step any
+world with the same result.
 
 Conventions: the state comes as one `w` (`WorldState.arrays()`: the WorldState fields, padded maps, unpadded
 positions, `w.halo` the halo h); Γ's support as one `support` (`footprint.SUPPORT`: parallel arrays dr, dc, g of
-the 13 non-zero cells of Γ, in row-major order); scratch grids as one `scratch` (`scratch_grids`).
+the 13 non-zero cells of Γ, in row-major order); scratch grids as one slot of `scratch_grids`. A field of `w` is
+read once per call and every element is indexed from the whole array, with no view taken in the loops: a view
+counts a reference to its array atomically, on a counter that every thread working the same array would contend for.
 """
 
 from __future__ import annotations
@@ -18,40 +23,40 @@ _CACHE = True  # compiled code is cached next to the source, so later starts ski
 
 
 class Scratch(NamedTuple):
-    """Per-side (S, S) scratch grids; every kernel leaves them as it found them."""
+    """Scratch grids, one slot per thread that steps worlds at once (slot j: [j]); every phase leaves its slot as
+    it found it."""
 
-    claim: np.ndarray  # (S, S) int32, -1
-    surv: np.ndarray  # (S, S) float64
-    fsum: np.ndarray  # (S, S) float64
-    removed: np.ndarray  # (2, S, S) float64
-    done: np.ndarray  # (S, S) bool, False
+    claim: np.ndarray  # (slots, S, S) int32, -1
+    surv: np.ndarray  # (slots, S, S) float64
+    fsum: np.ndarray  # (slots, S, S) float64
+    removed: np.ndarray  # (slots, 2, S, S) float64
+    done: np.ndarray  # (slots, S, S) bool, False
 
 
 @lru_cache(maxsize=8)
-def scratch_grids(side: int) -> Scratch:
-    """The scratch grids for maps of side S = `side`, shared by every step of that side."""
+def scratch_grids(side: int, slots: int = 1) -> Scratch:
+    """The scratch grids for maps of side S = `side`, `slots` of each, shared by every step of that side."""
     return Scratch(
-        claim=np.full((side, side), -1, np.int32),
-        surv=np.empty((side, side), np.float64),
-        fsum=np.empty((side, side), np.float64),
-        removed=np.empty((2, side, side), np.float64),
-        done=np.zeros((side, side), np.bool_),
+        claim=np.full((slots, side, side), -1, np.int32),
+        surv=np.empty((slots, side, side), np.float64),
+        fsum=np.empty((slots, side, side), np.float64),
+        removed=np.empty((slots, 2, side, side), np.float64),
+        done=np.zeros((slots, side, side), np.bool_),
     )
 
 
 @njit(cache=_CACHE)
-def move_agents(w, actions, priority, moves, scratch, collided):
+def move_agents(w, first, stop, actions, priority, moves, claim, target, candidate, collided):
     """Phase 1. actions (K,N) int64 index moves (A,2) int64; priority (K,N) float64 breaks ties. Updates w.pos
     (K,N,2) and w.occupant (K,S,S) in place; writes collided (K,N) bool.
 
-    scratch.claim: (S,S) int32 filled with -1 (left as found). A move is blocked by a blocked cell, by a cell
-    occupied at the start of the step, or by a higher-priority mover aiming at the same cell.
+    claim: (S,S) int32 filled with -1 (left as found); target (N,2) int64 and candidate (N,) bool are work space.
+    A move is blocked by a blocked cell, by a cell occupied at the start of the step, or by a higher-priority mover
+    aiming at the same cell.
     """
-    pos, occupant, blocked, h, claim = w.pos, w.occupant, w.blocked, w.halo, scratch.claim
-    n_worlds, n_agents = actions.shape
-    target = np.empty((n_agents, 2), np.int64)
-    candidate = np.empty(n_agents, np.bool_)
-    for k in range(n_worlds):
+    pos, occupant, blocked, h = w.pos, w.occupant, w.blocked, w.halo
+    n_agents = actions.shape[1]
+    for k in range(first, stop):
         for i in range(n_agents):
             a = actions[k, i]
             r = pos[k, i, 0] + moves[a, 0] + h
@@ -89,20 +94,20 @@ def move_agents(w, actions, priority, moves, scratch, collided):
 
 
 @njit(cache=_CACHE)
-def detect_targets(w, detect, support, found_by):
+def detect_targets(w, first, stop, detect, support, cover_agent, cover_g, found_by):
     """Phase 2. Each unfound target is found with probability 1 - Π(1 - Γ_i) from one uniform draw (detect (K,T)
     float64), credited to the first agent (by index) whose cumulative threshold passes the draw. Updates
-    w.target_found, w.found_grid and w.n_found; found_by (K,N) int64 is written.
+    w.target_found, w.found_grid and w.n_found; found_by (K,N) int64 is written. cover_agent (13,) int64 and
+    cover_g (13,) float64 are work space.
     """
     target_pos, target_valid, target_found = w.target_pos, w.target_valid, w.target_found
     found_grid, n_found, occupant, h = w.found_grid, w.n_found, w.occupant, w.halo
     dr, dc, g = support.dr, support.dc, support.g
-    n_worlds, n_targets = target_valid.shape
+    n_targets = target_valid.shape[1]
     n_support = dr.shape[0]
-    cover_agent = np.empty(n_support, np.int64)
-    cover_g = np.empty(n_support, np.float64)
-    found_by[:] = 0
-    for k in range(n_worlds):
+    for k in range(first, stop):
+        for i in range(found_by.shape[1]):
+            found_by[k, i] = 0
         for q in range(n_targets):
             if not target_valid[k, q] or target_found[k, q]:
                 continue
@@ -133,7 +138,7 @@ def detect_targets(w, detect, support, found_by):
 
 
 @njit(cache=_CACHE)
-def sense(w, support, c_coef, scratch, collected):
+def sense(w, first, stop, support, c_coef, surv, fsum, removed, done, collected):
     """Phase 3 (eq. 1-4). True maps w.p, w.u (K,S,S) decay by Π_i (1 - λkΓ_i) under overlapping footprints, c_coef
     (K,) float64 the λk of each world; each agent is credited the Γ-weighted share of what its cells lost.
     collected (K,N) float64 = M_p + M_u.
@@ -142,10 +147,9 @@ def sense(w, support, c_coef, scratch, collected):
     """
     p, u, pos, h = w.p, w.u, w.pos, w.halo
     dr, dc, g = support.dr, support.dc, support.g
-    surv, fsum, removed, done = scratch.surv, scratch.fsum, scratch.removed, scratch.done
-    n_worlds, n_agents = pos.shape[0], pos.shape[1]
+    n_agents = pos.shape[1]
     n_support = dr.shape[0]
-    for k in range(n_worlds):
+    for k in range(first, stop):
         for i in range(n_agents):  # agent index order: the product is taken in that order
             for s in range(n_support):
                 r, c = pos[k, i, 0] + h + dr[s], pos[k, i, 1] + h + dc[s]
@@ -178,27 +182,25 @@ def sense(w, support, c_coef, scratch, collected):
 
 
 @njit(cache=_CACHE)
-def refresh_beliefs(w, radius):
+def refresh_beliefs(w, first, stop, radius):
     """Phase 4. Copy the true maps w.p, w.u into each agent's belief w.belief (K,N,2,S,S) on its (2·radius+1)²
     explicit area Φ and grow the agent's belief box w.belief_box (K,N,4) to cover it. (When it was last seen is
     kept by searchrl/world/seen.py.)"""
     belief, belief_box, p, u, pos, h = w.belief, w.belief_box, w.p, w.u, w.pos, w.halo
-    n_worlds, n_agents = pos.shape[0], pos.shape[1]
     width = 2 * radius + 1
-    for k in range(n_worlds):
-        for i in range(n_agents):
+    for k in range(first, stop):
+        for i in range(pos.shape[1]):
             r0 = pos[k, i, 0] + h - radius
             c0 = pos[k, i, 1] + h - radius
-            for ch in range(2):
-                src = p if ch == 0 else u
-                for r in range(r0, r0 + width):
-                    for c in range(c0, c0 + width):
-                        belief[k, i, ch, r, c] = src[k, r, c]
-            box = belief_box[k, i]
-            box[0] = min(box[0], r0)
-            box[1] = max(box[1], r0 + width - 1)
-            box[2] = min(box[2], c0)
-            box[3] = max(box[3], c0 + width - 1)
+            for r in range(r0, r0 + width):
+                for c in range(c0, c0 + width):
+                    belief[k, i, 0, r, c] = p[k, r, c]
+                for c in range(c0, c0 + width):
+                    belief[k, i, 1, r, c] = u[k, r, c]
+            belief_box[k, i, 0] = min(belief_box[k, i, 0], r0)
+            belief_box[k, i, 1] = max(belief_box[k, i, 1], r0 + width - 1)
+            belief_box[k, i, 2] = min(belief_box[k, i, 2], c0)
+            belief_box[k, i, 3] = max(belief_box[k, i, 3], c0 + width - 1)
 
 
 @njit(cache=_CACHE)
@@ -222,23 +224,21 @@ def _find_neighbours(occupant, pos, k, radius, h, nbrs, n_nbrs):
 
 
 @njit(cache=_CACHE)
-def communicate(w, radius, merge, comm_pairs, comm_gain):
+def communicate(w, first, stop, radius, merge, nbrs, n_nbrs, region, offset, comm_pairs, comm_gain):
     """Phase 5 (eq. 13-16). Counts unordered neighbour pairs (Chebyshev distance <= radius) into comm_pairs (K,)
     int64 and, when `merge`, replaces each agent's belief w.belief by the elementwise min over itself and its
-    direct neighbours, all read from the pre-merge beliefs. comm_gain (K,N) float64 receives ΔM_p + ΔM_u.
+    direct neighbours, all read from the pre-merge beliefs. comm_gain (K,N) float64 receives ΔM_p + ΔM_u. Work
+    space: nbrs (N, (2·radius+1)² − 1), n_nbrs (N,), region (N,4), offset (N+1,), all int64.
 
     Outside the union of its neighbours' belief boxes an agent's value is already the min (neighbours hold the
     prior there, which bounds every belief from above), so only that union is scanned. New values go to a
     buffer first and are written back afterwards: the update is simultaneous.
     """
     belief, belief_box, occupant, pos, h = w.belief, w.belief_box, w.occupant, w.pos, w.halo
-    n_worlds, n_agents = pos.shape[0], pos.shape[1]
-    nbrs = np.empty((n_agents, (2 * radius + 1) ** 2 - 1), np.int64)
-    n_nbrs = np.empty(n_agents, np.int64)
-    region = np.empty((n_agents, 4), np.int64)
-    offset = np.empty(n_agents + 1, np.int64)
-    comm_gain[:] = 0.0
-    for k in range(n_worlds):
+    n_agents = pos.shape[1]
+    for k in range(first, stop):
+        for i in range(n_agents):
+            comm_gain[k, i] = 0.0
         comm_pairs[k] = _find_neighbours(occupant, pos, k, radius, h, nbrs, n_nbrs)
         if not merge or comm_pairs[k] == 0:
             continue
@@ -246,8 +246,9 @@ def communicate(w, radius, merge, comm_pairs, comm_gain):
         for i in range(n_agents):
             r0, r1, c0, c1 = 1 << 30, -1, 1 << 30, -1
             for b in range(n_nbrs[i]):
-                box = belief_box[k, nbrs[i, b]]
-                r0, r1, c0, c1 = min(r0, box[0]), max(r1, box[1]), min(c0, box[2]), max(c1, box[3])
+                j = nbrs[i, b]
+                r0, r1 = min(r0, belief_box[k, j, 0]), max(r1, belief_box[k, j, 1])
+                c0, c1 = min(c0, belief_box[k, j, 2]), max(c1, belief_box[k, j, 3])
             region[i, 0], region[i, 1], region[i, 2], region[i, 3] = r0, r1, c0, c1
             cells = (r1 - r0 + 1) * (c1 - c0 + 1) if (n_nbrs[i] > 0 and r1 >= r0) else 0
             offset[i + 1] = offset[i] + 2 * cells
@@ -260,13 +261,13 @@ def communicate(w, radius, merge, comm_pairs, comm_gain):
             at = offset[i]
             for ch in range(2):
                 for r in range(r0, r1 + 1):
-                    seg = buf[at : at + width]
-                    seg[:] = belief[k, i, ch, r, c0 : c1 + 1]
+                    for c in range(width):
+                        buf[at + c] = belief[k, i, ch, r, c0 + c]
                     for b in range(n_nbrs[i]):
-                        other = belief[k, nbrs[i, b], ch, r, c0 : c1 + 1]
+                        j = nbrs[i, b]
                         for c in range(width):
-                            if other[c] < seg[c]:
-                                seg[c] = other[c]
+                            if belief[k, j, ch, r, c0 + c] < buf[at + c]:
+                                buf[at + c] = belief[k, j, ch, r, c0 + c]
                     at += width
         for i in range(n_agents):  # pass 2: write back, ΔM, and grow the box
             r0, r1, c0, c1 = region[i, 0], region[i, 1], region[i, 2], region[i, 3]
@@ -277,14 +278,12 @@ def communicate(w, radius, merge, comm_pairs, comm_gain):
             gain = 0.0
             for ch in range(2):
                 for r in range(r0, r1 + 1):
-                    row = belief[k, i, ch, r]
                     for c in range(width):
-                        new = buf[at + c]
-                        if new < row[c0 + c]:
-                            gain += np.float64(row[c0 + c]) - np.float64(new)
-                            row[c0 + c] = new
+                        new, old = buf[at + c], belief[k, i, ch, r, c0 + c]
+                        if new < old:
+                            gain += np.float64(old) - np.float64(new)
+                            belief[k, i, ch, r, c0 + c] = new
                     at += width
             comm_gain[k, i] = gain
-            box = belief_box[k, i]
-            box[0], box[1] = min(box[0], r0), max(box[1], r1)
-            box[2], box[3] = min(box[2], c0), max(box[3], c1)
+            belief_box[k, i, 0], belief_box[k, i, 1] = min(belief_box[k, i, 0], r0), max(belief_box[k, i, 1], r1)
+            belief_box[k, i, 2], belief_box[k, i, 3] = min(belief_box[k, i, 2], c0), max(belief_box[k, i, 3], c1)

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.kernels import _CACHE
+from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.seen import freshness
 from searchrl.world.state import WorldState
 
@@ -41,60 +42,73 @@ def observe(
     have sensed), by scaling them or, with `belief_age_channel`, in a sixth channel. Pass `out` to reuse buffers.
     """
     maps, vec = observation_buffers(config, state.n_worlds) if out is None else out
-    observe_into(state.arrays(), maps, vec)
+    observe_into(state.arrays(), maps, vec, world_threads())
     return maps, vec
 
 
-@njit(cache=_CACHE)
-def observe_into(w, maps, vec):
+@njit(cache=_CACHE, parallel=True)
+def observe_into(w, maps, vec, threads):
     """Observation of §3.2.1 of the state w (`WorldState.arrays()`) into maps (K,N,C,F,F) float32 and vec (K,N,3)
-    float32 (see SPEC.md). Where w.age_rate[k] > 0 the freshness exp(−age_rate·(t − belief_time)), times
-    belief_seen where that is kept (not (K, N, 0, 0)), scales the belief channels (C = 5) or fills channel 5 (C = 6).
+    float32 (see SPEC.md), on up to `threads` threads. Where w.age_rate[k] > 0 the freshness
+    exp(−age_rate·(t − belief_time)), times belief_seen where that is kept (not (K, N, 0, 0)), scales the belief
+    channels (C = 5) or fills channel 5 (C = 6).
 
-    Written channel by channel so every inner loop runs over contiguous memory. (A numba `prange` over agents
-    was 15x slower on the 2-core machine: thread wake-ups cost more than the work.)
+    The worlds are shared among numba's threads (searchrl/world/parallel.py), a whole world to a thread: a
+    `prange` over agents was 15x slower on the 2-core machine, its thread wake-ups costing more than the work.
     """
+    n_worlds = maps.shape[0]
+    n_chunks = chunk_count(n_worlds, n_worlds, threads)
+    if n_chunks == 1:  # in this thread: no parallel region to start
+        _observe_span(w, maps, vec, 0, n_worlds)
+        return
+    for chunk in prange(n_chunks):
+        first, stop = chunk_span(chunk, n_chunks, 0, n_worlds)
+        _observe_span(w, maps, vec, first, stop)
+
+
+@njit(cache=_CACHE)
+def _observe_span(w, maps, vec, first, stop):
+    """`observe_into` for worlds first..stop-1, written channel by channel so every inner loop runs over
+    contiguous memory. Every element is indexed from the whole arrays, with no view taken in the loops (see
+    kernels.py: views count references to the shared arrays atomically, a counter all threads would contend for)."""
     occupant, blocked, found_grid, belief, obs_scale = w.occupant, w.blocked, w.found_grid, w.belief, w.obs_scale
     belief_time, belief_seen, age_rate, t, pos, h = w.belief_time, w.belief_seen, w.age_rate, w.t, w.pos, w.halo
-    n_worlds, n_agents = pos.shape[0], pos.shape[1]
+    size, n_targets, n_found = w.size, w.n_targets, w.n_found
+    n_agents = pos.shape[1]
     fov = maps.shape[3]
     half = fov // 2
     as_channel = maps.shape[2] > 5  # a sixth channel (observe.n_channels) holds the freshness
     with_seen = belief_seen.shape[2] > 0
-    for flat in range(n_worlds * n_agents):
-        k, i = flat // n_agents, flat % n_agents
+    for k in range(first, stop):
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
-        r0 = pos[k, i, 0] + h - half
-        c0 = pos[k, i, 1] + h - half
-        out = maps[k, i]
-        occ, blk, fnd = occupant[k], blocked[k], found_grid[k]
-        bel_p, bel_u = belief[k, i, 0], belief[k, i, 1]
-        for a in range(fov):
-            r = r0 + a
-            for b in range(fov):
-                out[0, a, b] = occ[r, c0 + b] >= 0
-            for b in range(fov):
-                out[1, a, b] = blk[r, c0 + b]
-            for b in range(fov):
-                out[2, a, b] = fnd[r, c0 + b]
-            for b in range(fov):
-                out[3, a, b] = bel_p[r, c0 + b] * sp
-            for b in range(fov):
-                out[4, a, b] = bel_u[r, c0 + b] * su
-        if age_rate[k] > 0.0:
-            seen_at = belief_time[k, i]
+        for i in range(n_agents):
+            r0 = pos[k, i, 0] + h - half
+            c0 = pos[k, i, 1] + h - half
             for a in range(fov):
                 r = r0 + a
                 for b in range(fov):
-                    fresh = np.float32(freshness(age_rate[k], t[k], seen_at[r, c0 + b]))
-                    if with_seen:
-                        fresh *= belief_seen[k, i, r, c0 + b]
-                    if as_channel:
-                        out[5, a, b] = fresh
-                    else:
-                        out[3, a, b] *= fresh
-                        out[4, a, b] *= fresh
-        out[0, half, half] = 0.0  # the agent itself stands at the centre and is not shown
-        vec[k, i, 0] = pos[k, i, 1] / w.size[k]
-        vec[k, i, 1] = pos[k, i, 0] / w.size[k]
-        vec[k, i, 2] = (w.n_targets[k] - w.n_found[k]) / w.n_targets[k] if w.n_targets[k] > 0 else 0.0
+                    maps[k, i, 0, a, b] = occupant[k, r, c0 + b] >= 0
+                for b in range(fov):
+                    maps[k, i, 1, a, b] = blocked[k, r, c0 + b]
+                for b in range(fov):
+                    maps[k, i, 2, a, b] = found_grid[k, r, c0 + b]
+                for b in range(fov):
+                    maps[k, i, 3, a, b] = belief[k, i, 0, r, c0 + b] * sp
+                for b in range(fov):
+                    maps[k, i, 4, a, b] = belief[k, i, 1, r, c0 + b] * su
+            if age_rate[k] > 0.0:
+                for a in range(fov):
+                    r = r0 + a
+                    for b in range(fov):
+                        fresh = np.float32(freshness(age_rate[k], t[k], belief_time[k, i, r, c0 + b]))
+                        if with_seen:
+                            fresh *= belief_seen[k, i, r, c0 + b]
+                        if as_channel:
+                            maps[k, i, 5, a, b] = fresh
+                        else:
+                            maps[k, i, 3, a, b] *= fresh
+                            maps[k, i, 4, a, b] *= fresh
+            maps[k, i, 0, half, half] = 0.0  # the agent itself stands at the centre and is not shown
+            vec[k, i, 0] = pos[k, i, 1] / size[k]
+            vec[k, i, 1] = pos[k, i, 0] / size[k]
+            vec[k, i, 2] = (n_targets[k] - n_found[k]) / n_targets[k] if n_targets[k] > 0 else 0.0

@@ -21,11 +21,12 @@ belief is the truth and already holds the neighbours' sensing: the world always 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import SUPPORT
 from searchrl.world.kernels import _CACHE
+from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.state import WorldState
 
 
@@ -35,31 +36,52 @@ def freshness(rate, now, then):
     return np.exp(-rate * (now - then))
 
 
-@njit(cache=_CACHE)
-def remember_sightings(w, support, seen, known, view, phi, forget, first, stop):
+def remember_sightings(w, support, seen: np.ndarray, known: np.ndarray, view: int, phi: int, forget: bool,
+                       first: int, stop: int) -> None:  # fmt: skip
     """Update seen and known (K,N,S,S), either (K,N,0,0) to skip it, of worlds first..stop-1 at the agents'
     positions in w (a `WorldArrays`): seen *= (1 − Γ) (support: a `Footprint`) under the footprint of every other
     agent within Chebyshev distance `view` of each agent, scanned row by row; then on the agent's Φ (radius `phi`)
-    known = w.t[k] and, with `forget`, seen = 1."""
+    known = w.t[k] and, with `forget`, seen = 1. The worlds are shared among numba's threads
+    (searchrl/world/parallel.py)."""
+    _remember_sightings(w, support, seen, known, view, phi, forget, first, stop, world_threads())
+
+
+@njit(cache=_CACHE, parallel=True)
+def _remember_sightings(w, support, seen, known, view, phi, forget, first, stop, threads):
+    """`remember_sightings` on up to `threads` threads."""
+    n_chunks = chunk_count(stop - first, stop - first, threads)
+    if n_chunks == 1:  # in this thread (one world after a reset, say): no parallel region to start
+        _remember_span(w, support, seen, known, view, phi, forget, first, stop)
+        return
+    for chunk in prange(n_chunks):
+        start, end = chunk_span(chunk, n_chunks, first, stop)
+        _remember_span(w, support, seen, known, view, phi, forget, start, end)
+
+
+@njit(cache=_CACHE)
+def _remember_span(w, support, seen, known, view, phi, forget, first, stop):
+    """`remember_sightings` for worlds first..stop-1, in this thread; no view taken in the loops (kernels.py)."""
     pos, occupant, t, h = w.pos, w.occupant, w.t, w.halo
     dr, dc, g = support.dr, support.dc, support.g
     use_seen, use_known = seen.shape[2] > 0, known.shape[2] > 0
     for k in range(first, stop):
-        occ = occupant[k]
         for i in range(pos.shape[1]):
             r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
             if use_seen:
-                mine = seen[k, i]
                 for r in range(r0 - view, r0 + view + 1):
                     for c in range(c0 - view, c0 + view + 1):
-                        j = occ[r, c]
+                        j = occupant[k, r, c]
                         if j >= 0 and j != i:
                             for s in range(g.shape[0]):
-                                mine[r + dr[s], c + dc[s]] *= 1.0 - g[s]
+                                seen[k, i, r + dr[s], c + dc[s]] *= 1.0 - g[s]
                 if forget:
-                    mine[r0 - phi : r0 + phi + 1, c0 - phi : c0 + phi + 1] = 1.0
+                    for r in range(r0 - phi, r0 + phi + 1):
+                        for c in range(c0 - phi, c0 + phi + 1):
+                            seen[k, i, r, c] = 1.0
             if use_known:
-                known[k, i, r0 - phi : r0 + phi + 1, c0 - phi : c0 + phi + 1] = t[k]
+                for r in range(r0 - phi, r0 + phi + 1):
+                    for c in range(c0 - phi, c0 + phi + 1):
+                        known[k, i, r, c] = t[k]
 
 
 def update_freshness(config: WorldConfig, state: WorldState, first: int, stop: int) -> None:

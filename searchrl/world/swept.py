@@ -11,13 +11,13 @@ from searchrl.world.kernels import _CACHE
 
 
 @njit(cache=_CACHE)
-def sweep(w, support, stale):
-    """stale (K,N) bool: True where no free cell under agent i's footprint (Γ > 0; support: a `Footprint`) was
-    unswept before this step, every agent judged against the same map; then every footprint's cells are marked in
-    w.swept (K,S,S) bool. Positions are the new ones (after the move)."""
+def sweep(w, first, stop, support, stale):
+    """In worlds first..stop-1: stale (K,N) bool True where no free cell under agent i's footprint (Γ > 0; support:
+    a `Footprint`) was unswept before this step, every agent judged against the same map; then every footprint's
+    cells are marked in w.swept (K,S,S) bool. Positions are the new ones (after the move)."""
     pos, swept, blocked, h = w.pos, w.swept, w.blocked, w.halo
     dr, dc = support.dr, support.dc
-    for k in range(pos.shape[0]):
+    for k in range(first, stop):
         for i in range(pos.shape[1]):
             r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
             new = False

@@ -1,0 +1,40 @@
+"""The torch device a policy runs on: checked once, in one line, by every app that takes one (training's `device=`,
+evaluation's `device=`, `python -m searchrl.render --device`, `python -m searchrl.bench eval|policy --device`).
+
+A device asked for and missing is refused, never replaced by the CPU: a run or an evaluation that silently fell back
+would be slower than asked, and an evaluation would record a device it did not use.
+"""
+
+from __future__ import annotations
+
+import torch
+from stable_baselines3.common.utils import get_device
+
+from searchrl.world.config import ConfigError, need
+
+ALLOWED = "cpu, cuda, cuda:<index>, mps or auto (cuda when torch sees one, else cpu)"
+
+
+def check_device(device: str, name: str = "device") -> None:
+    """ConfigError "`name`=device is not allowed: ..." unless torch can run on `device` here."""
+    if device == "auto":
+        return
+    try:
+        parsed = torch.device(device)
+    except (RuntimeError, ValueError, TypeError):
+        raise ConfigError(f"{name}={device!r} is not allowed: {ALLOWED}") from None
+    if parsed.type == "cuda":
+        count = torch.cuda.device_count()
+        need(count > 0, name, device, "cpu here: torch sees no CUDA device (torch.cuda.is_available() is False)")
+        need((parsed.index or 0) < count, name, device, f"a CUDA index below {count} (devices torch sees)")
+    elif parsed.type == "mps":
+        need(torch.backends.mps.is_available(), name, device, "cpu here: torch sees no MPS device")
+    else:
+        need(parsed.type == "cpu", name, device, ALLOWED)
+
+
+def resolve_device(device: str, name: str = "device") -> torch.device:
+    """The torch device `device` names (`auto`: cuda when torch sees one, else cpu, as SB3 and training read it),
+    after `check_device`."""
+    check_device(device, name)
+    return get_device(device)

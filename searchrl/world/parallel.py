@@ -1,0 +1,68 @@
+"""How the world's batch kernels share K worlds among numba's threads.
+
+A batch kernel (`step.step_worlds`, `observe.observe_into`, `seen.remember_sightings`) splits its worlds into
+`chunk_count` contiguous chunks, one per numba thread, and runs them in a `prange` loop; chunk c works the worlds
+of `chunk_span(c, ...)` one after the other, with scratch slot c where it needs scratch. What a world's step does
+depends on that world's rows alone, its random draws come in (K, ...) arrays drawn before the call, and nothing
+is summed across worlds, so neither the number of threads nor which thread steps a world changes a bit of the
+result (tests/test_threads.py). One chunk (one thread, or one world) runs in the calling thread, outside any
+parallel region, so a single thread costs nothing over a plain loop.
+
+The threads are numba's: `numba.set_num_threads` (or `searchrl.threads.use_threads`) sets how many, up to
+`numba.config.NUMBA_NUM_THREADS` (the cores, or the NUMBA_NUM_THREADS environment variable).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numba
+from numba import njit
+
+from searchrl.world.kernels import _CACHE
+
+
+# The threading layer that runs the prange loops is numba's default choice: TBB where the tbb package is installed,
+# else OpenMP, else numba's own workqueue (NUMBA_THREADING_LAYER picks one). Workqueue is the last resort, not a
+# choice: its idle workers and its waiting caller poll with naps that double up to 20 ms, so a region of about a
+# millisecond (a step of 64 worlds) waits about as long as it works, and 2 threads were no faster than 1 on an idle
+# 16-core machine. GNU OpenMP (pip's numba without tbb) wakes its spinning workers at once but is not fork-safe:
+# numba kills a forked child that opens a parallel region after its parent did. So a child forked after the
+# parent's OpenMP threads started steps its worlds on one thread, in the calling thread (`chunk_count`), and never
+# opens one. Hydra's multirun launchers start their jobs as new processes (joblib's loky executes a fresh
+# interpreter; submitit runs a command), not as forks. OpenMP's workers wait as OMP_WAIT_POLICY says
+# (searchrl/__init__.py: in a multirun they sleep at once).
+def _one_thread_after_fork() -> None:
+    """In a child forked from a process whose OpenMP threads started, run the world's kernels in one thread."""
+    try:
+        layer = numba.threading_layer()
+    except ValueError:  # no threads started before the fork: the child chooses and starts its own
+        return
+    if layer == "omp":
+        numba.set_num_threads(1)
+
+
+os.register_at_fork(after_in_child=_one_thread_after_fork)
+
+
+def world_threads() -> int:
+    """numba's threads for the calling thread (`numba.get_num_threads()`), what a batch kernel is told to use.
+
+    Read in Python and passed in: called inside a compiled function, numba's get_num_threads is a ctypes pointer
+    that keeps the function from being cached."""
+    return numba.get_num_threads()
+
+
+@njit(cache=_CACHE)
+def chunk_count(n_worlds, slots, threads):
+    """How many chunks to split n_worlds worlds into: one per thread (`threads`, `world_threads()`), at most one
+    per world and per scratch slot (`slots`), at least one."""
+    return max(1, min(n_worlds, slots, threads))
+
+
+@njit(cache=_CACHE)
+def chunk_span(chunk, n_chunks, first, stop):
+    """(start, end): the worlds start..end-1 of chunk `chunk` when first..stop-1 is cut into n_chunks contiguous
+    chunks whose sizes differ by at most one."""
+    n = stop - first
+    return first + chunk * n // n_chunks, first + (chunk + 1) * n // n_chunks
