@@ -71,22 +71,11 @@ def test_a_heuristic_runs_on_the_cpu(tmp_path, capsys, monkeypatch):
     assert not out.exists() and not (tmp_path / "x.gif").exists()
 
 
-def _one_line_exit_2(capsys, call, *needles: str) -> None:
-    """`call` exits with 2, its last stderr line an argparse `error:` naming every needle, no traceback."""
-    capsys.readouterr()
-    with pytest.raises(SystemExit) as exit_:
-        call()
-    err = capsys.readouterr().err
-    assert exit_.value.code == 2 and "Traceback" not in err, err
-    line = err.strip().splitlines()[-1]
-    assert "error:" in line and all(n in line for n in needles), err
-
-
 @pytest.mark.parametrize("device", MISSING)
 def test_render_refuses_a_missing_device_before_any_file(tmp_path, capsys, device):
     out = tmp_path / "gifs" / "x.gif"
     args = ["--checkpoint", CHECKPOINT, "--device", device, *SMALL_EPISODE, "--out", str(out)]
-    _one_line_exit_2(capsys, lambda: render(args), f"--device={device!r}", "is not allowed")
+    _refused(capsys, lambda: render(args), f"--device={device!r}", "is not allowed")
     assert not out.parent.exists()
 
 
@@ -102,7 +91,7 @@ def test_bench_refuses_a_missing_device_before_any_measurement(capsys, monkeypat
     monkeypatch.setattr("searchrl.bench.evaluate.run", lambda *a, **k: pytest.fail("measured"))
     monkeypatch.setattr("searchrl.bench.policy.run", lambda *a, **k: pytest.fail("measured"))
     args = [suite, "--checkpoint", CHECKPOINT, "--device", device]
-    _one_line_exit_2(capsys, lambda: bench(args), f"--device={device!r}", "is not allowed")
+    _refused(capsys, lambda: bench(args), f"--device={device!r}", "is not allowed")
 
 
 def test_bench_passes_the_device_it_checked(monkeypatch):
