@@ -11,7 +11,7 @@ export PYTHONUNBUFFERED=1
 LOG="$OUT/log.txt"
 JSON="$OUT/bench.jsonl"
 say() { echo "== $(date +%T) $*" | tee -a "$LOG"; }
-B="python -m searchrl.bench"
+B="timeout 150 python -m searchrl.bench"   # each step bounded: one stuck step leaves the rest their time
 
 say "machine"
 { nvidia-smi --query-gpu=name,memory.total --format=csv,noheader; nproc

@@ -20,6 +20,7 @@ from typing import TextIO
 import torch
 from hydra import compose, initialize_config_dir
 
+from searchrl.policies.device import resolve_device
 from searchrl.policies.recurrent import process_sequence
 from searchrl.threads import use_threads
 from searchrl.train.__main__ import CONF_DIR
@@ -66,7 +67,7 @@ def run(updates: int = 4, threads: int | None = None, network: str = "paper", ex
     overrides += [f"{key}={value}" for key, value in (("threads", threads), ("device", device)) if value is not None]
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose(config_name="train", overrides=overrides)
-    threads, device = int(cfg.threads), str(cfg.device)
+    threads, device = int(cfg.threads), str(resolve_device(str(cfg.device)))  # `auto` read as cpu or cuda
     # The few timed rollouts would all fall in a recipe's critic warm-up (its first rollouts, value-only updates):
     # time the updates the rest of the run makes.
     cfg.imitation.critic_warmup = 0

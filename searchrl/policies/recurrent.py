@@ -33,8 +33,9 @@ def process_sequence(features: torch.Tensor, lstm_states: States, episode_starts
     starts = episode_starts.reshape(n_seq, -1)
     sequences = features.reshape(n_seq, -1, lstm.input_size).swapaxes(0, 1)  # (L, n_seq, input)
     length = sequences.shape[0]
-    # The steps after the first where some sequence starts an episode (one small host read of a (L,) mask).
-    cuts = (torch.nonzero(starts[:, 1:].any(dim=0)).flatten() + 1).tolist()
+    # The steps after the first where some sequence starts an episode (one small host read of a (L,) mask; none
+    # when acting, one step at a time, so a rollout on a GPU does not wait for it).
+    cuts = (torch.nonzero(starts[:, 1:].any(dim=0)).flatten() + 1).tolist() if length > 1 else []
     h, c = lstm_states
     outputs = []
     for first, end in zip([0, *cuts], [*cuts, length], strict=True):

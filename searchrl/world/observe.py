@@ -54,7 +54,7 @@ def observe_into(w, maps, vec, threads):
     channels (C = 5) or fills channel 5 (C = 6).
 
     The worlds are shared among numba's threads (searchrl/world/parallel.py), a whole world to a thread: a
-    `prange` over agents was 15x slower on the 2-core machine, its thread wake-ups costing more than the work.
+    `prange` over agents was 15x slower on two cores, its thread wake-ups costing more than the work.
     """
     n_worlds = maps.shape[0]
     n_chunks = chunk_count(n_worlds, n_worlds, threads)
