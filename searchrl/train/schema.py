@@ -109,9 +109,7 @@ class TrainConfig:
     # A checkpoint whose policy weights start this run (fine-tuning, e.g. from a run's imitation.zip); the step
     # count and optimiser start afresh. Same observation and action spaces and network needed.
     init: str | None = None
-    # torch's threads and the world's (numba's, at most the cores: searchrl/threads.py); a run is bit-reproducible
-    # for a given count (on one machine and torch build), whose world part does not depend on it
-    threads: int = 2
+    threads: int = 2  # torch's; the world's too off the CPU (searchrl/threads.py); bit-reproducible on the CPU
     device: str = "cpu"
     progress_bar: bool = True
     log_interval: int = 1  # rollouts between log rows
