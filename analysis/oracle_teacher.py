@@ -74,8 +74,7 @@ class OracleSwitch:
 
 
 # %% The teacher joins the registry for this process only: `imitation.teacher=oracle_switch`
-registry.HEURISTICS["oracle_switch"] = registry.Heuristic(OracleSwitch, OracleSwitchConfig, "oracle_switch")
-registry.TEACHERS = (*registry.TEACHERS, "oracle_switch")
+registry.register("oracle_switch", OracleSwitch, OracleSwitchConfig)
 
 # %%
 if __name__ == "__main__":

@@ -30,6 +30,7 @@
 #     python analysis/suite.py runs/suite/obstacles --focus path_greedy
 
 # %%
+import sys
 from pathlib import Path
 
 import matplotlib
@@ -54,8 +55,7 @@ folders = {f.parent.parent: root for root in roots for f in root.rglob("cells/*.
 folders = {f: root for f, root in sorted(folders.items()) if cell_files(f)}
 if not folders:
     cli.stop(f"no results under {[str(r) for r in roots]}: run the suite first (docs/evaluation.md, Suites)")
-OUT = cli.out_dir(args.out, Path.cwd() / "analysis" / "out" / f"suite_{roots[0].name}")
-OUT.mkdir(parents=True, exist_ok=True)
+cli.check_eval_dirs(list(folders))  # a damaged cell file named in one line, before any output
 
 
 def labelled(folder: Path, root: Path) -> pd.DataFrame:
@@ -74,6 +74,33 @@ episodes["map"] = episodes["n"].astype(str) + "_" + episodes["N"].astype(str) + 
 controllers = sorted(episodes["controller"].unique())
 GROUP = "family" if set(episodes["family"]) - {"paper"} else "scenario"  # a suite of scenarios has no family
 families = sorted(set(episodes[GROUP]) - {"paper"})
+
+# %% [markdown]
+# Every table compares controllers on the same maps. A controller without some scenario is refused; a suite run part
+# of the way (or two suites of different grids) is compared on the maps every controller has under every scenario,
+# and the tables say how many were left out and which cells they cover.
+
+# %%
+held = episodes.groupby(["controller", "scenario"])["map"].agg(frozenset)
+scenarios = sorted(episodes["scenario"].unique())
+absent = [(c, sc) for c in controllers for sc in scenarios if (c, sc) not in held.index]
+if absent:
+    cli.stop(f"{absent[0][0]} has no results under scenario {absent[0][1]!r} ({len(absent)} controller and scenario "
+             f"pairs missing): run it, or leave that controller's folder out")  # fmt: skip
+common = frozenset.intersection(*held)
+if not common:
+    cli.stop("the controllers and scenarios share no map (cell and map seed): folders of different grids or seeds")
+left_out = episodes["map"].nunique() - len(common)
+episodes = episodes[episodes["map"].isin(common)].reset_index(drop=True)
+CELLS = sorted({(int(n), int(a)) for n, a in zip(episodes["n"], episodes["N"], strict=True)})
+GRID = f"cells {', '.join(f'n{n}_N{a}' for n, a in CELLS)}" + (
+    f"; {left_out} maps that not every controller and scenario has left out" if left_out else ""
+)
+if left_out:
+    print(f"note: {left_out} maps left out, held by some controllers or scenarios only (a run not finished?)",
+          file=sys.stderr)  # fmt: skip
+OUT = cli.out_dir(args.out, Path.cwd() / "analysis" / "out" / f"suite_{roots[0].name}")
+OUT.mkdir(parents=True, exist_ok=True)
 
 
 # %%
@@ -104,7 +131,7 @@ for c in controllers:
     row["whole suite"] = ci(per_map(mine))
     family_rows[c] = row
 note = "a family's column averages its severities 0.25, 0.5 and 1" if GROUP == "family" else "a column per scenario"
-text = (f"Mean found fraction, 95 % CI over maps ({episodes['map'].nunique()} maps: cells x map seeds); "
+text = (f"Mean found fraction, 95 % CI over maps ({episodes['map'].nunique()} maps: cells x map seeds; {GRID}); "
         f"{note}\n\n" + table(family_rows, "controller"))  # fmt: skip
 write_text_atomic(OUT / f"{GROUP}.md", text + "\n")
 print(text)

@@ -8,13 +8,14 @@ conf/scenario -> a plain mapping read by searchrl.world.scenario.Scenario.from_d
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, make_dataclass
+from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
+from difflib import get_close_matches
 from typing import Any, get_type_hints
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, DictConfig, OmegaConf
+from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf, ValueNode
 
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 
 # WorldConfig's fields as a Hydra schema: the same names, types and defaults (types and unknown keys are checked at
 # composition), but `world_size` untyped so that an integer (`env.world.world_size=20`, every world 20×20) composes
@@ -74,6 +75,45 @@ def scenario_default() -> dict[str, Any]:
 def override_keys(overrides: list[str]) -> list[str]:
     """The keys a command line's Hydra overrides set: `+a.b=1`, `~a.b`, `a.b=1` -> `a.b`."""
     return [o.split("=", 1)[0].lstrip("+~") for o in overrides]
+
+
+def unknown_keys(cfg: DictConfig) -> list[str]:
+    """The keys of `cfg` that no schema knows, each as `key[=value] is not allowed: no such setting (did you mean
+    near?)`: a node typed by a dataclass (its schema) holds only that dataclass's fields, and `+key=value` on the
+    command line adds one Hydra does not refuse. Nodes typed as plain mappings (a scenario, a teacher's arguments)
+    are their readers' to check. Lists of typed nodes (`env.extra_teams`) are walked too."""
+    found: list[str] = []
+
+    def walk(node: Any, path: str) -> None:
+        if isinstance(node, ListConfig):
+            for index in range(len(node)):
+                walk(node._get_node(index), f"{path}[{index}]")
+            return
+        if not isinstance(node, DictConfig) or node._is_none() or node._is_missing():
+            return
+        schema = OmegaConf.get_type(node)
+        known = [f.name for f in fields(schema)] if is_dataclass(schema) else None
+        for key in node:
+            name = f"{path}.{key}" if path else str(key)
+            if known is not None and key not in known:
+                near = get_close_matches(str(key), known, n=1, cutoff=0.6)
+                value = node._get_node(key)
+                shown = f"{name}={value._value()!r}" if isinstance(value, ValueNode) else name
+                hint = f" (did you mean {path + '.' if path else ''}{near[0]}?)" if near else ""
+                found.append(f"{shown} is not allowed: no such setting{hint}")
+                continue
+            walk(node._get_node(key), name)
+
+    walk(cfg, "")
+    return found
+
+
+def check_known_keys(cfg: DictConfig) -> None:
+    """Raise ConfigError naming every key of `cfg` that no schema knows (`unknown_keys`), in one line."""
+    unknown = unknown_keys(cfg)
+    if unknown:
+        raise ConfigError(f"{'; '.join(unknown)} (docs/options.md lists the settings; Hydra adds a key given with "
+                          f"'+' without a word)")  # fmt: skip
 
 
 def register_shared_configs() -> ConfigStore:

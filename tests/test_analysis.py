@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import jupytext
@@ -25,6 +23,7 @@ from searchrl.analysis.stats import (
 )
 from searchrl.evaluate.results import load
 from searchrl.render import main as render_main
+from tests.scripts import run_script as _script
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
@@ -74,22 +73,21 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
     if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
         args = [str(eval_dirs[0].parent.parent), str(out_dir)]
     env = {
-        "SEARCHRL_CELLS": "n20_N1,n20_N2",
-        "SEARCHRL_LABEL": "small",
-        **os.environ,
+        "SEARCHRL_CELLS": os.environ.get("SEARCHRL_CELLS", "n20_N1,n20_N2"),
+        "SEARCHRL_LABEL": os.environ.get("SEARCHRL_LABEL", "small"),
         "SEARCHRL_EVAL_DIRS": ",".join(map(str, eval_dirs)),
         "SEARCHRL_RUN_DIRS": str(run_dir),
         "SEARCHRL_SWEEP_DIR": str(eval_dirs[0].parent.parent / "sweep"),
         "SEARCHRL_ANALYSIS_OUT": str(out_dir),
-        "MPLBACKEND": "Agg",
     }
-    out = subprocess.run([sys.executable, f"analysis/{notebook}", *args], cwd=ROOT, env=env, capture_output=True,
-                         text=True, timeout=300)  # fmt: skip
+    out = _script(notebook, *args, env=env)
     assert out.returncode == 0, out.stderr[-3000:]
 
 
 # context_probe.py needs a policy trained with the context: tests/test_context.py runs it on one
-@pytest.mark.parametrize("notebook", [p.name for p in NOTEBOOKS if p.name != "context_probe.py"])
+# hedging.py runs rules and a shipped policy itself (about 50 s): in the slow run
+@pytest.mark.parametrize("notebook", [pytest.param(p.name, marks=pytest.mark.slow) if p.name == "hedging.py" else p.name
+                                      for p in NOTEBOOKS if p.name != "context_probe.py"])  # fmt: skip
 def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
     eval_dirs = [fixture_dirs / "eval" / c for c in ("surfing", "coverage", "policy")]
     _run_notebook(notebook, eval_dirs, fixture_dirs / "run", tmp_path)
@@ -177,13 +175,6 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         bounds = pd.read_csv(tmp_path / "bounds.csv")
         assert len(bounds) == 30 and (bounds.maps == 1).all() and bounds.bound.between(0, 1).all()
         assert len(list((tmp_path / "cache").glob("*.parquet"))) == 30  # per-map rows kept for the next run
-
-
-def _script(notebook: str, *args: str) -> subprocess.CompletedProcess:
-    """Run analysis/<notebook> with `args` and none of the SEARCHRL_* variables."""
-    env = {k: v for k, v in os.environ.items() if not k.startswith("SEARCHRL_")} | {"MPLBACKEND": "Agg"}
-    return subprocess.run([sys.executable, f"analysis/{notebook}", *args], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=300)  # fmt: skip
 
 
 def test_notebooks_take_folders_and_out_as_arguments(fixture_dirs, tmp_path):
@@ -456,6 +447,37 @@ def test_a_suite_of_scenarios_is_tabulated_per_scenario(tmp_path):
     moves = (tmp_path / "out" / "moves.md").read_text()
     assert "| coverage |" in moves and "| sweep |" in moves and "| sweep_again |" in moves
     assert "## sweep − sweep_again" in (tmp_path / "out" / "compare.md").read_text()
+
+
+def test_a_suite_run_part_way_is_compared_on_the_maps_all_have_and_a_missing_scenario_is_refused(tmp_path):
+    """Killed part-way: a scenario's cells of one controller gone. The tables compare every controller on the maps
+    all have under every scenario and say how many were left out; a controller without a whole scenario, or a
+    damaged cell file, is one line before any output."""
+    import shutil
+
+    from tests.test_suite import TINY, _run
+
+    walls = {**TINY, "severities": [], "families": {}, "variance_scales": [None],
+             "scenarios": [{"obstacles": {"kind": "maze", "corridor": 2, "loops": 0.1}}]}  # fmt: skip
+    for controller in ("coverage", "sweep"):
+        _run(tmp_path / "suite" / controller, f"controller={controller}", suite=walls)
+    maze = next(p for p in (tmp_path / "suite" / "sweep").iterdir() if p.name.startswith("maze"))
+    cells = sorted((maze / "cells").glob("*.parquet"))
+    assert len(cells) >= 2
+    cells[0].unlink()  # the suite killed before this cell
+    out = _script("suite.py", str(tmp_path / "suite"), "--out", str(tmp_path / "out"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    header = (tmp_path / "out" / "scenario.md").read_text().splitlines()[0]
+    assert "maps that not every controller and scenario has left out" in header and cells[0].stem not in header
+    shutil.rmtree(maze)  # a whole scenario missing
+    out = _script("suite.py", str(tmp_path / "suite"), "--out", str(tmp_path / "out2"))
+    assert out.returncode == 1 and "error: sweep has no results under scenario 'maze2l0.1'" in out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "out2").exists()
+    cells[1].parent.mkdir(parents=True)
+    cells[1].write_bytes(b"PAR1 truncated")
+    out = _script("suite.py", str(tmp_path / "suite"), "--out", str(tmp_path / "out3"))
+    assert out.returncode == 1 and f"{cells[1]} cannot be read as a cell's results" in out.stderr
+    assert not (tmp_path / "out3").exists()
 
 
 @pytest.mark.parametrize(

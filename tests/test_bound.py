@@ -164,8 +164,15 @@ def test_the_cache_gives_the_same_bounds_and_only_for_the_same_map(tmp_path):
     fresh = cell_bounds(world, cell, seeds, draws=200)
     assert cell_bounds(world, cell, seeds[:2], draws=200, cache=tmp_path).equals(fresh.iloc[:2])
     assert cell_bounds(world, cell, seeds, draws=200, cache=tmp_path).equals(fresh)  # two read, one added
+    # on threads, cached and new rows mixed, in the order of the seeds asked for
+    assert (
+        cell_bounds(world, cell, [*seeds[::-1], 14], 200, tmp_path, workers=3)
+        .iloc[:3]
+        .equals(fresh.iloc[::-1].reset_index(drop=True))
+    )
+    assert cell_bounds(world, cell, [14, *seeds], 200, workers=2).equals(cell_bounds(world, cell, [14, *seeds], 200))
     cached = pd.read_parquet(tmp_path / "n20_N2_draws200.parquet")
-    assert sorted(cached.map_seed) == seeds
+    assert sorted(cached.map_seed) == [*seeds, 14]
     cached.loc[:, "bound"] = -1.0  # a row is reused only for its own map: another digest is recomputed
     cached.loc[:, "digest"] = "another map"
     cached.to_parquet(tmp_path / "n20_N2_draws200.parquet")

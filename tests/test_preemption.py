@@ -36,7 +36,7 @@ def _rows(run: Path) -> list[int]:
         return []
 
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize("signum", [signal.SIGTERM, pytest.param(signal.SIGINT, marks=pytest.mark.slow)])
 def test_a_signal_checkpoints_the_last_update_and_a_resume_logs_every_step_once(tmp_path, signum):
     run = tmp_path / "run"
     process = _train(run, *TINY, "total_timesteps=100000000", "checkpoint_every=100000000")

@@ -16,6 +16,7 @@ from PIL import Image
 
 from searchrl.analysis.sweep import load_jobs, mean_ci, score_table, setting_keys, validation_curves
 from searchrl.train.score import run_score
+from tests.scripts import run_script
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ["+model=b", "total_timesteps=512", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,20]",
@@ -61,7 +62,18 @@ def test_the_same_command_resumes_the_study(optuna_sweep):
     assert len(study.trials) == 3 and all(t.state.name == "COMPLETE" for t in study.trials)
     first = load_jobs(optuna_sweep / "sweep")
     assert study.trials[2].params["algo.learning_rate"] not in set(first["algo.learning_rate"])  # a new trial
-    # ... the one an uninterrupted three-trial sweep proposes (each trial's draws are seeded by its number)
+
+
+@pytest.mark.slow
+def test_a_resumed_study_proposes_what_an_uninterrupted_one_does(optuna_sweep):
+    """Each trial's draws are seeded by its number: two trials, then one more in the same study, propose what one
+    sweep of three trials proposes."""
+    import optuna
+
+    storage = f"sqlite:///{optuna_sweep / 'study.db'}"
+    if len(optuna.load_study(study_name="b_recurrent_ppo", storage=storage).trials) == 2:  # not resumed above yet
+        _optuna(optuna_sweep / "again_slow", optuna_sweep / "study.db", trials=1)
+    study = optuna.load_study(study_name="b_recurrent_ppo", storage=storage)
     _optuna(optuna_sweep / "whole", optuna_sweep / "whole.db", trials=3)
     whole = optuna.load_study(study_name="b_recurrent_ppo", storage=f"sqlite:///{optuna_sweep / 'whole.db'}")
     assert [t.params for t in whole.trials] == [t.params for t in study.trials]
@@ -138,16 +150,14 @@ def test_mean_ci_of_one_and_of_equal_values():
 
 def test_the_sweep_notebook_writes_table_and_plot(tmp_path):
     sweep = make_fixture_sweep(tmp_path / "multirun")
-    out = subprocess.run([sys.executable, "analysis/sweep.py", str(sweep), "--out", str(tmp_path / "out")], cwd=ROOT,
-                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    out = run_script("sweep.py", str(sweep), "--out", str(tmp_path / "out"))
     assert out.returncode == 0, out.stderr[-3000:]
     table = (tmp_path / "out" / "sweep.md").read_text()
     assert "| 0.001 | 3 | 0.650 |" in table and "| 0.0003 | 3 | 0.520 |" in table
     assert pd.read_csv(tmp_path / "out" / "sweep.csv").shape[0] == 2
     with Image.open(tmp_path / "out" / "sweep_curves.png") as image:
         assert (image.format, image.size) == ("PNG", (780, 480))
-    missing = subprocess.run([sys.executable, "analysis/sweep.py", str(tmp_path / "nowhere")], cwd=ROOT,
-                             capture_output=True, text=True, timeout=120)  # fmt: skip
+    missing = run_script("sweep.py", str(tmp_path / "nowhere"))
     assert missing.returncode == 1 and missing.stderr.strip().count("\n") == 0 and "nowhere" in missing.stderr
 
 

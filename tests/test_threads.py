@@ -16,6 +16,9 @@ import torch
 
 from searchrl.bench import world as bench_world
 from searchrl.bench.__main__ import main as bench_main
+from searchrl.controllers import greedy, walls
+from searchrl.controllers.greedy import FootprintGreedy
+from searchrl.controllers.walls import PathGreedy
 from searchrl.threads import use_threads
 from searchrl.world import observe, seen, step
 from searchrl.world.config import WorldConfig
@@ -44,7 +47,7 @@ def chunks(monkeypatch):
 
     def use(t: int) -> None:
         numba.set_num_threads(1 if t == 1 else TWO)
-        for module in (step, observe, seen):  # where the kernels are told how many threads they may use
+        for module in (step, observe, seen, greedy, walls):  # where the kernels are told how many threads they may use
             monkeypatch.setattr(module, "world_threads", lambda t=t: t)
 
     yield use
@@ -103,6 +106,39 @@ def test_per_world_streams_give_the_same_episodes_at_any_thread_count(chunks):
     serial = run([(seeds, keys)])
     chunks(2)
     _same(run([(seeds, keys)]), serial)
+
+
+@pytest.mark.parametrize(
+    "config, rule, settings",
+    [(CONFIGS["model_b"], FootprintGreedy, {"horizon": 3, "w_p": 0, "w_u": 0, "w_t": 1, "reach": 2, "contested": 0.5}),
+     (CONFIGS["aged_seen_c"], FootprintGreedy, {"seen": True, "age": 1.0, "hedge": 0.2}),
+     (CONFIGS["model_b"], PathGreedy, {"radius": 4})],
+    ids=["target_reach_contested", "seen_age_hedge", "path_greedy"],
+)  # fmt: skip
+def test_greedy_moves_are_the_same_at_any_thread_count(chunks, config, rule, settings):
+    """Footprint-greedy and path-greedy (the teachers that label every training step) move 7 worlds alike on 1
+    thread and cut in 2, 3 and 7 chunks: their kernels share out the worlds, each chunk with its own scratch."""
+
+    def moves() -> list[np.ndarray]:
+        world = SearchWorld(config, n_worlds=7, seed=4, scenario=OBSTACLES)
+        maps, vector = world.reset()
+        teacher = rule(config, seed=9, **settings)
+        teacher.reset(world.state, np.ones(7, bool))
+        out = []
+        for _ in range(config.max_steps + 5):  # past a world's end: its reset restarts the teacher's memory
+            actions = np.asarray(teacher.act(world.state, maps, vector), np.int64)
+            tr = world.step(actions)
+            maps, vector = tr.maps, tr.vector
+            teacher.reset(world.state, tr.result.done)
+            out.append(actions.copy())
+        return out
+
+    chunks(1)
+    serial = moves()
+    assert len({a.tobytes() for a in serial}) > 1
+    for t in (2, 3, 7):
+        chunks(t)
+        _same(moves(), serial)
 
 
 def test_remember_sightings_of_a_span_touches_those_worlds_only(chunks):

@@ -3,9 +3,6 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +17,7 @@ from searchrl.analysis.stats import (
     paired_margins,
     summarize,
 )
+from tests.scripts import run_script as _script
 
 ROOT = Path(__file__).resolve().parents[1]
 CELL = {"model": "b", "n": 40, "N": 4}
@@ -199,12 +197,6 @@ def synthetic_dirs(tmp_path_factory) -> dict[str, Path]:
                 folder / "cells" / f"n{n}_N{agents}.parquet")  # fmt: skip
         dirs[folder.name] = folder
     return dirs
-
-
-def _script(notebook: str, *args: str) -> subprocess.CompletedProcess:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("SEARCHRL_")} | {"MPLBACKEND": "Agg"}
-    return subprocess.run([sys.executable, f"analysis/{notebook}", *args], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=120)  # fmt: skip
 
 
 def test_claim_1_counts_the_cells_of_its_region_only(synthetic_dirs, tmp_path):

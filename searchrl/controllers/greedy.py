@@ -55,11 +55,12 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import GAMMA, MOVES, SUPPORT, SUPPORT_DC, SUPPORT_DR, SUPPORT_G, team_sensing_rate
+from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.seen import freshness, remember_sightings
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
@@ -120,7 +121,7 @@ def cell_information(params, belief, prior, flat, sp, su, seen, known, rate, now
 
 
 @njit(cache=True, inline="always")  # inlined: called per move and step ahead, so its arguments are not copied
-def _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_others):
+def footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_others):
     """Σ Γ(d)·x·reach·I(r + d, c + d) of agent i's belief in world k of w (`WorldState.arrays()`) over the cells
     within params.fov_half rows and columns of its padded position (r0, c0), what the agent sees; x = contested
     where one of the agents at others[:n_others] (rows, cols) is fewer moves away than (r0, c0), else 1."""
@@ -147,40 +148,53 @@ def _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_othe
     return total
 
 
-@njit(cache=True)
-def greedy_actions(w, params, memory, fallback, out, scores):
+@njit(cache=True, parallel=True)
+def greedy_actions(w, params, memory, fallback, out, threads):
     """out (K,N) int64 <- footprint-greedy actions of the agents of w (`WorldState.arrays()`) with settings `params`
     (GreedyParams) and `memory` (GreedyMemory, seen and known already brought to this step). fallback (K,N) int64:
-    random moves used where nothing is sensed. scores (K,N) float64 <- the chosen move's score (0: fallback)."""
+    random moves used where nothing is sensed. The K·N agents (world-major) are shared among `threads` numba
+    threads (`searchrl.world.parallel.world_threads()`), not the worlds: a team mix holds a few worlds of many
+    agents. An agent's move reads the state and writes its own entry of `out` only, so the count changes no bit."""
+    n_slots = out.shape[0] * out.shape[1]
+    n_chunks = chunk_count(n_slots, n_slots, threads)
+    if n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
+        _greedy_span(w, params, memory, fallback, out, 0, n_slots)
+        return
+    for chunk in prange(n_chunks):
+        first, stop = chunk_span(chunk, n_chunks, 0, n_slots)
+        _greedy_span(w, params, memory, fallback, out, first, stop)
+
+
+@njit(cache=True)
+def _greedy_span(w, params, memory, fallback, out, first, stop):
+    """`greedy_actions` for the agents first..stop-1 of the K·N, world-major (agent i of world k is k·N + i)."""
     pos, occupant, blocked, h, moves, view = w.pos, w.occupant, w.blocked, w.halo, params.moves, params.fov_half
-    n_worlds, n_agents = pos.shape[0], pos.shape[1]
     others = np.empty(((2 * view + 1) ** 2, 2), np.int64)
-    for k in range(n_worlds):
-        for i in range(n_agents):
-            r, c = pos[k, i, 0] + h, pos[k, i, 1] + h
-            n_others = 0
-            if params.contested != 1.0:  # the other agents in view, as channel 0 of the observation shows them
-                for dr in range(-view, view + 1):
-                    for dc in range(-view, view + 1):
-                        j = occupant[k, r + dr, c + dc]
-                        if j >= 0 and j != i:
-                            others[n_others, 0], others[n_others, 1] = r + dr, c + dc
-                            n_others += 1
-            best, best_score = -1, 0.0
-            for a in range(1, params.n_actions):
-                mr, mc = moves[a, 0], moves[a, 1]
-                if blocked[k, r + mr, c + mc] or occupant[k, r + mr, c + mc] >= 0:
-                    continue
-                score, weight = 0.0, 1.0
-                for t in range(1, params.horizon + 1):
-                    score += weight * _footprint_information(
-                        w, params, memory, k, i, r + t * mr, c + t * mc, r, c, others, n_others
-                    )
-                    weight *= params.discount
-                if score > best_score:
-                    best, best_score = a, score
-            out[k, i] = best if best >= 1 else fallback[k, i]
-            scores[k, i] = best_score
+    for slot in range(first, stop):
+        k, i = slot // pos.shape[1], slot % pos.shape[1]
+        r, c = pos[k, i, 0] + h, pos[k, i, 1] + h
+        n_others = 0
+        if params.contested != 1.0:  # the other agents in view, as channel 0 of the observation shows them
+            for dr in range(-view, view + 1):
+                for dc in range(-view, view + 1):
+                    j = occupant[k, r + dr, c + dc]
+                    if j >= 0 and j != i:
+                        others[n_others, 0], others[n_others, 1] = r + dr, c + dc
+                        n_others += 1
+        best, best_score = -1, 0.0
+        for a in range(1, params.n_actions):
+            mr, mc = moves[a, 0], moves[a, 1]
+            if blocked[k, r + mr, c + mc] or occupant[k, r + mr, c + mc] >= 0:
+                continue
+            score, weight = 0.0, 1.0
+            for t in range(1, params.horizon + 1):
+                score += weight * footprint_information(
+                    w, params, memory, k, i, r + t * mr, c + t * mc, r, c, others, n_others
+                )
+                weight *= params.discount
+            if score > best_score:
+                best, best_score = a, score
+        out[k, i] = best if best >= 1 else fallback[k, i]
 
 
 def reach_weights(blocked: np.ndarray, exponent: float) -> np.ndarray:
@@ -284,7 +298,6 @@ class FootprintGreedy(FallbackHeuristic):
         # GreedyMemory's arrays, sized on the first reset
         self._weights, self._seen = np.ones((0, 0, 0)), np.ones((0, 0, 0, 0), np.float32)
         self._known, self._rates, self._flat = np.zeros((0, 0, 0, 0), np.int32), np.zeros(0), np.zeros(0)
-        self.scores = np.zeros((0, 0))  # (K, N) float64: the score of each agent's last move (greedy_actions)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         if self._weights.shape != state.blocked.shape:
@@ -319,7 +332,4 @@ class FootprintGreedy(FallbackHeuristic):
         return GreedyMemory(self._weights, self._seen, self._known, self._rates, self._flat)
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
-        memory, w = self.remember(state), state.arrays()
-        if self.scores.shape != out.shape:
-            self.scores = np.zeros(out.shape)
-        greedy_actions(w, self._params, memory, fallback, out, self.scores)
+        greedy_actions(state.arrays(), self._params, self.remember(state), fallback, out, world_threads())

@@ -97,6 +97,19 @@ def make_controller(name: str, config: WorldConfig, seed: int | WorldStreams = 0
 TEACHERS: tuple[str, ...] = tuple(name for name in HEURISTICS if name != "random")
 
 
+def register(name: str, cls: type, schema: type, label: str | None = None, teacher: bool = True) -> None:
+    """Add a heuristic: `controller=name` of the apps, and `imitation.teacher=name` with `teacher`. `cls(config,
+    **settings[, seed])` makes it (the `Controller` protocol, searchrl/controllers/base.py); `schema` is its
+    settings' dataclass (a `ControllerConfig` whose `name` is `name`); `label` is the name its results are
+    recorded under (default `name`). ConfigError for a name already registered."""
+    global TEACHERS
+    if name in HEURISTICS:
+        raise ConfigError(f"controller {name!r} is registered already: {HEURISTICS[name].cls.__name__}")
+    HEURISTICS[name] = Heuristic(cls, schema, label or name)
+    if teacher:
+        TEACHERS = (*TEACHERS, name)
+
+
 def make_teacher(teacher: str, config: WorldConfig, seed: int | WorldStreams, args: dict | None = None) -> Controller:
     """The teacher's controller; ConfigError naming `imitation.teacher` or `imitation.teacher_args` if either is
     not allowed (an unknown teacher, an argument its controller does not take, or a value it refuses)."""

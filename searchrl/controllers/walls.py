@@ -23,13 +23,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
-from searchrl.controllers.greedy import FootprintGreedy, _footprint_information, cell_information
+from searchrl.controllers.greedy import FootprintGreedy, cell_information, footprint_information
 from searchrl.controllers.switch import sweep_footprints
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G
+from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
 
@@ -59,48 +60,66 @@ def bfs(blocked, k, r0, c0, limit, n_actions, dist, first, queue):
     return tail
 
 
-@njit(cache=True)
-def path_greedy_actions(w, params, memory, radius, floor, fallback, out, dist, first, queue):
+@njit(cache=True, parallel=True)
+def path_greedy_actions(w, params, memory, radius, floor, fallback, out, threads):
     """out (K, N) <- PathGreedy's moves (module docstring); floor (K,): the information a cell must hold to be
-    worth a walk. dist, first (S, S) and queue (S·S, 2) are scratch (dist all -1)."""
+    worth a walk. The K·N agents are shared among `threads` numba threads (`searchrl.world.parallel.world_threads()`),
+    each chunk with its own BFS scratch, as in `greedy_actions`: an agent's move reads the state and writes its own
+    entry of `out` only."""
+    n_slots, side = out.shape[0] * out.shape[1], w.blocked.shape[1]
+    n_chunks = chunk_count(n_slots, n_slots, threads)
+    if n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
+        _path_greedy_span(w, params, memory, radius, floor, fallback, out, 0, n_slots, side)
+        return
+    for chunk in prange(n_chunks):
+        start, stop = chunk_span(chunk, n_chunks, 0, n_slots)
+        _path_greedy_span(w, params, memory, radius, floor, fallback, out, start, stop, side)
+
+
+@njit(cache=True)
+def _path_greedy_span(w, params, memory, radius, floor, fallback, out, start, stop, side):
+    """`path_greedy_actions` for the agents start..stop-1 of the K·N, world-major, with scratch of its own: dist,
+    first (S, S) and queue (S·S, 2) for `bfs`."""
+    dist, first = np.full((side, side), -1, np.int32), np.zeros((side, side), np.int64)
+    queue = np.zeros((side * side, 2), np.int64)
     pos, occupant, h, n_actions = w.pos, w.occupant, w.halo, params.n_actions
     sp_all, su_all, rate_all, now_all = w.obs_scale, w.obs_scale, memory.rates, w.t
     others = np.empty((1, 2), np.int64)
     best = np.zeros(n_actions)  # the best value of a cell each first move leads to
-    for k in range(pos.shape[0]):
-        for i in range(pos.shape[1]):
-            r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
-            reached = bfs(w.blocked, k, r0, c0, radius, n_actions, dist, first, queue)
-            best[:] = 0.0
+    for slot in range(start, stop):
+        k, i = slot // pos.shape[1], slot % pos.shape[1]
+        r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
+        reached = bfs(w.blocked, k, r0, c0, radius, n_actions, dist, first, queue)
+        best[:] = 0.0
+        for q in range(1, reached):
+            r, c = queue[q, 0], queue[q, 1]
+            value = footprint_information(w, params, memory, k, i, r, c, r0, c0, others, 0)
+            value *= params.discount ** (dist[r, c] - 1)
+            a = first[r, c]
+            if value > best[a]:
+                best[a] = value
+        choice, score = 0, floor[k] * 13.0  # a footprint's worth: 13 cells at the floor
+        for a in range(1, n_actions):
+            if best[a] > score and occupant[k, r0 + MOVES[a, 0], c0 + MOVES[a, 1]] < 0:
+                choice, score = a, best[a]
+        for q in range(reached):
+            dist[queue[q, 0], queue[q, 1]] = -1
+        if choice == 0:  # the pocket in reach is cleared: the nearest worthwhile cell, over the whole world
+            reached = bfs(w.blocked, k, r0, c0, -1, n_actions, dist, first, queue)
+            sp, su = sp_all[k, 0], su_all[k, 1]
+            rate = rate_all[k] if memory.known.shape[2] > 0 else 0.0
             for q in range(1, reached):
                 r, c = queue[q, 0], queue[q, 1]
-                value = _footprint_information(w, params, memory, k, i, r, c, r0, c0, others, 0)
-                value *= params.discount ** (dist[r, c] - 1)
-                a = first[r, c]
-                if value > best[a]:
-                    best[a] = value
-            choice, score = 0, floor[k] * 13.0  # a footprint's worth: 13 cells at the floor
-            for a in range(1, n_actions):
-                if best[a] > score and occupant[k, r0 + MOVES[a, 0], c0 + MOVES[a, 1]] < 0:
-                    choice, score = a, best[a]
+                info = cell_information(params, w.belief, w.p, memory.flat, sp, su, memory.seen, memory.known,
+                                        rate, now_all[k], k, i, r, c)  # fmt: skip
+                if info > floor[k]:
+                    a = first[r, c]
+                    if occupant[k, r0 + MOVES[a, 0], c0 + MOVES[a, 1]] < 0:
+                        choice = a
+                    break
             for q in range(reached):
                 dist[queue[q, 0], queue[q, 1]] = -1
-            if choice == 0:  # the pocket in reach is cleared: the nearest worthwhile cell, over the whole world
-                reached = bfs(w.blocked, k, r0, c0, -1, n_actions, dist, first, queue)
-                sp, su = sp_all[k, 0], su_all[k, 1]
-                rate = rate_all[k] if memory.known.shape[2] > 0 else 0.0
-                for q in range(1, reached):
-                    r, c = queue[q, 0], queue[q, 1]
-                    info = cell_information(params, w.belief, w.p, memory.flat, sp, su, memory.seen, memory.known,
-                                            rate, now_all[k], k, i, r, c)  # fmt: skip
-                    if info > floor[k]:
-                        a = first[r, c]
-                        if occupant[k, r0 + MOVES[a, 0], c0 + MOVES[a, 1]] < 0:
-                            choice = a
-                        break
-                for q in range(reached):
-                    dist[queue[q, 0], queue[q, 1]] = -1
-            out[k, i] = choice if choice > 0 else fallback[k, i]
+        out[k, i] = choice if choice > 0 else fallback[k, i]
 
 
 @dataclass
@@ -127,7 +146,7 @@ class PathGreedy(FootprintGreedy):
             raise ValueError(f"worth={worth!r} is not allowed: 0 < worth <= 1 (a share of the prior's mean)")
         super().__init__(config, horizon=1, discount=discount, w_p=0.0, w_u=0.0, w_t=1.0, reach=2.0, seed=seed)
         self.radius, self.worth = int(radius), float(worth)
-        self._floor, self._scratch = np.zeros(0), None
+        self._floor = np.zeros(0)
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         super().reset(state, mask)
@@ -136,12 +155,8 @@ class PathGreedy(FootprintGreedy):
         self._floor[mask] = self.worth * self.prior_information(state)[mask]
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
-        memory, w = self.remember(state), state.arrays()
-        side = state.blocked.shape[1]
-        if self._scratch is None or self._scratch[0].shape != (side, side):
-            self._scratch = (np.full((side, side), -1, np.int32), np.zeros((side, side), np.int64),
-                             np.zeros((side * side, 2), np.int64))  # fmt: skip
-        path_greedy_actions(w, self._params, memory, self.radius, self._floor, fallback, out, *self._scratch)
+        path_greedy_actions(state.arrays(), self._params, self.remember(state), self.radius, self._floor, fallback, out,
+                            world_threads())  # fmt: skip
 
 
 @njit(cache=True)

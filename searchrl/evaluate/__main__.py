@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from dataclasses import dataclass, fields, is_dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import hydra
@@ -29,16 +29,18 @@ from tqdm import tqdm
 from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, storage_message, write_atomic
 from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import heuristic, make_controller
-from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds
-from searchrl.evaluate.grid import Cell, table2_cells
+from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds, map_prior
+from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
+from searchrl.multirun import in_sweep, refuse
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
 from searchrl.policies.device import check_device, resolve_device
-from searchrl.schema import MAX_THREADS, override_keys
+from searchrl.schema import MAX_THREADS, check_known_keys, override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
-from searchrl.world.scenario import Scenario
+from searchrl.world.obstacles import IidObstacles
+from searchrl.world.scenario import Scenario, ScenarioMix
 from searchrl.world.streams import WorldStreams
 
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -49,9 +51,7 @@ LOCKS = ".locks"  # <out_dir>/.locks/: the folder's record lock and one lock per
 register_configs()
 
 
-def fail(message: str) -> None:
-    print(f"error: {message}", file=sys.stderr)
-    sys.exit(2)
+fail = refuse  # the one-line refusal, exit status 2 (searchrl/multirun.py)
 
 
 def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, object, bool]:
@@ -100,6 +100,7 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[
     """Every check of an evaluation's settings, before any work or file: ((grid index, cell) pairs, output folder,
     scenario). Raises
     ConfigError naming the bad value and what is allowed."""
+    check_known_keys(cfg)  # `+grid.map_per_cell=50` composes: refused here, not run without
     if cfg.checkpoint is not None:
         fixed = [o for o, k in zip(overrides, override_keys(overrides), strict=True)
                  if k.split(".")[0] in FIXED_BY_CHECKPOINT]  # fmt: skip
@@ -118,13 +119,6 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[
             )
         if cfg.model is not None and not cfg.model.trainable:
             raise ConfigError(f"+model={cfg.model.name} is not allowed: a world preset, one of a, b, c, diagonal")
-        schema = OmegaConf.get_type(cfg.controller)
-        known = {f.name for f in fields(schema)} if is_dataclass(schema) else set(cfg.controller)
-        unknown = sorted(set(cfg.controller) - known)
-        if unknown:
-            settings = sorted(known - {"name"})
-            raise ConfigError(f"controller.{unknown[0]}={cfg.controller[unknown[0]]!r} is not allowed: "
-                              f"controller={cfg.controller.name} has the settings {settings}")  # fmt: skip
         for key, value in cfg.controller.items():
             if isinstance(value, float):
                 need(math.isfinite(value), f"controller.{key}", value, "a finite number")
@@ -188,10 +182,13 @@ def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | N
     """Every check of an evaluation, before any work or file (ConfigError naming the bad value)."""
     cells, out_dir, scenario = check_evaluation(cfg, overrides)
     world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
+    walls = draws_walls(scenario)
     for index, cell in cells:  # a cell impossible for its n or N fails now, not when reached
         try:
             scenario.check(cell_config(world, cell))
             factory(cell_config(world, cell))
+            for m in range(int(cfg.grid.maps_per_cell) if walls else 0):  # exact: every map its episodes will draw
+                map_prior(cell_config(world, cell), map_seed(int(cfg.seed), index, m), scenario)
         except ConfigError as err:
             raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
     # Default runs/eval/<controller=…> (greedy_target's folder though its rows say greedy) or
@@ -199,6 +196,13 @@ def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | N
     default = controller_name.replace(":", "/") if cfg.checkpoint is not None else cfg.controller.name
     out_dir = out_dir or default_dir or Path(f"runs/eval/{default}")
     return Evaluation(cfg, cells, out_dir, scenario, world, controller_name, model_name, factory, needs_obs)
+
+
+def draws_walls(scenario: Scenario | ScenarioMix) -> bool:
+    """Whether some world of `scenario` draws obstacles, which are redrawn until agents and targets fit and may
+    never fit: the evaluation then draws every map before its first cell."""
+    members = getattr(scenario, "scenarios", (scenario,))
+    return any(not (isinstance(s.obstacles, IidObstacles) and s.obstacles.density <= 0) for s in members)
 
 
 def claim_evaluation(plan: Evaluation) -> None:
@@ -252,7 +256,7 @@ def run_evaluation(plan: Evaluation) -> Path:
                                          scenario=scenario)  # fmt: skip
                         seeds = frame["map_seed"].unique().tolist()
                         bounds = cell_bounds(world, cell, seeds, int(cfg.bound_draws), cfg.bound_cache,
-                                             scenario=scenario)  # fmt: skip
+                                             scenario=scenario, workers=int(cfg.threads))  # fmt: skip
                         frame = frame.merge(bounds[["map_seed", *BOUND_COLUMNS]], on="map_seed", validate="many_to_one")
                         for position, (name, value) in enumerate(scenario_columns(scenario, world).items()):
                             frame.insert(position, name, value)
@@ -291,9 +295,9 @@ def main(cfg: DictConfig) -> None:
     if cfg.get("suite") is not None:
         from searchrl.evaluate.suite import evaluate_suite
 
-        evaluate_suite(cfg, overrides)
+        in_sweep(evaluate_suite, cfg, overrides)
     else:
-        evaluate(cfg, overrides)
+        in_sweep(evaluate, cfg, overrides)
 
 
 if __name__ == "__main__":

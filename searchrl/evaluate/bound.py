@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -68,13 +69,15 @@ def _read_cache(path: Path) -> pd.DataFrame | None:
 
 def cell_bounds(
     world: WorldConfig, cell: Cell, seeds: list[int], draws: int = BOUND_DRAWS, cache: str | Path | None = None,
-    detection: bool = False, scenario: Scenario = PAPER,
+    detection: bool = False, scenario: Scenario = PAPER, workers: int = 1,
 ) -> pd.DataFrame:  # fmt: skip
     """One row per map seed: `bound` (expected targets at most), `bound_stderr`, `bound_fraction`, `reach`; with
     `detection` also the detection bound of the world's moves (`detection_bound`, `detection_stderr`,
     `detection_fraction`). With `cache`, rows computed before for the same map, reach and draws are read from it
-    and new ones added. The bound assumes §4.1.4's placement from the prior: under a scenario whose targets do not
-    follow the prior (`Scenario.targets_follow_prior`) its columns are NaN, as nothing bounds them from the prior."""
+    and new ones added; the new ones are computed on `workers` threads (each map from its own seed's generator, so
+    the count changes no value; numpy draws the Gumbel noise, most of the time, outside the GIL). The bound assumes
+    §4.1.4's placement from the prior: under a scenario whose targets do not follow the prior
+    (`Scenario.targets_follow_prior`) its columns are NaN, as nothing bounds them from the prior."""
     if not scenario.targets_follow_prior:
         columns = ["bound", "bound_stderr", "bound_fraction", "reach"]
         columns += ["detection_bound", "detection_stderr", "detection_fraction"] if detection else []
@@ -91,31 +94,38 @@ def cell_bounds(
         known = None  # a cache file of another layout: computed afresh and replaced
     if known is not None:  # a detection bound without its move set (before MOVE_SETS): computed again if asked
         known = known.drop(columns=["detection_bound", "detection_stderr"], errors="ignore")
-    rows, new = [], []
-    for seed in seeds:
-        p, u, free = map_prior(config, seed, scenario)
+    maps = {seed: map_prior(config, seed, scenario) for seed in seeds}
+    rows: dict[int, dict] = {}
+    for seed, (p, u, free) in maps.items():
         digest = map_digest(p, u, free, cell.n_targets)
-        hit = None
         if known is not None:
             match = known[(known.map_seed == seed) & (known.digest == digest) & (known.team_reach == reach)]
             hit = match.iloc[0].to_dict() if len(match) else None
             if hit is not None and detection and pd.isna(hit.get(f"detection_bound_{own}", np.nan)):
                 known, hit = known.drop(index=match.index[0]), None  # computed without it: again, with it
-        if hit is None:
-            rng = np.random.default_rng([seed, 29])  # the same draws with or without the detection bound
-            bound = search_bound(p, u, free, cell.n_targets, reach, draws, rng, budgets)
-            hit = {"map_seed": seed, "digest": digest, "team_reach": reach, "reach": bound.reach,
-                   "bound": bound.expected, "bound_stderr": bound.stderr}  # fmt: skip
-            for name, value, stderr in zip(MOVE_SETS if detection else [], bound.detection, bound.detection_stderr,
-                                           strict=True):  # fmt: skip
-                hit |= {f"detection_bound_{name}": value, f"detection_stderr_{name}": stderr}
-            new.append(hit)
-        rows.append(hit)
+            if hit is not None:
+                rows[seed] = hit
+
+    def compute(seed: int) -> dict:
+        p, u, free = maps[seed]
+        rng = np.random.default_rng([seed, 29])  # the same draws with or without the detection bound
+        bound = search_bound(p, u, free, cell.n_targets, reach, draws, rng, budgets)
+        hit = {"map_seed": seed, "digest": map_digest(p, u, free, cell.n_targets), "team_reach": reach,
+               "reach": bound.reach, "bound": bound.expected, "bound_stderr": bound.stderr}  # fmt: skip
+        for name, value, stderr in zip(MOVE_SETS if detection else [], bound.detection, bound.detection_stderr,
+                                       strict=True):  # fmt: skip
+            hit |= {f"detection_bound_{name}": value, f"detection_stderr_{name}": stderr}
+        return hit
+
+    missing = [seed for seed in maps if seed not in rows]
+    with ThreadPoolExecutor(max(1, min(workers, len(missing)))) as pool:
+        new = list(pool.map(compute, missing))
+    rows |= dict(zip(missing, new, strict=True))
     if path is not None and new:
         merged = pd.concat([known, pd.DataFrame(new)] if known is not None else [pd.DataFrame(new)])
         path.parent.mkdir(parents=True, exist_ok=True)
         write_atomic(path, lambda tmp: merged.reset_index(drop=True).to_parquet(tmp))
-    frame = pd.DataFrame(rows).astype({"map_seed": np.int64, "reach": np.int64})
+    frame = pd.DataFrame([rows[seed] for seed in seeds]).astype({"map_seed": np.int64, "reach": np.int64})
     frame["bound_fraction"] = frame["bound"] / cell.n_targets
     if not detection:
         return frame[["map_seed", *BOUND_COLUMNS, "reach"]]

@@ -19,7 +19,6 @@ from pathlib import Path
 import hydra
 import pandas as pd
 from hydra.core.hydra_config import HydraConfig
-from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -29,6 +28,7 @@ from stable_baselines3.common.utils import get_device
 from stable_baselines3.common.vec_env import VecEnv
 
 from searchrl.atomic import FolderBusy, hold, remove_temporaries, storage_message, write_atomic, write_text_atomic
+from searchrl.multirun import in_sweep
 from searchrl.schema import override_keys
 from searchrl.threads import use_threads
 from searchrl.train.build import init_weights, load_algorithm, make_algorithm, make_vec_env
@@ -292,14 +292,7 @@ def learn(plan: Plan, model: BaseAlgorithm, callbacks: list[BaseCallback], valid
 def main(cfg: DictConfig) -> float:
     """Train, and return the run's score (score.py) for Hydra sweepers: `-m hydra/sweeper=optuna` maximises it."""
     hydra_cfg = HydraConfig.get()
-    try:
-        final = train(cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
-    except SystemExit as stop:
-        # In a sweep, a refused or stopped run is a failed job (an Optuna trial marked FAIL, not left RUNNING when
-        # the exit would end the whole sweep); its error line is already on stderr.
-        if hydra_cfg.mode == RunMode.MULTIRUN and stop.code not in (0, None):
-            raise RuntimeError(f"the run stopped with exit status {stop.code} (its error line is above)") from None
-        raise
+    final = in_sweep(train, cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
     return read_score(final.parent)
 
 

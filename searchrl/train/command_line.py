@@ -3,14 +3,11 @@ one-line refusal (`fail`) every check of the training app uses."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
+from searchrl.multirun import refuse
 
-def fail(message: str) -> None:
-    """Name the bad value and what is allowed, in one line on stderr, and exit with status 2 (before any work)."""
-    print(f"error: {message}", file=sys.stderr)
-    sys.exit(2)
+fail = refuse  # the one-line refusal, exit status 2 (searchrl/multirun.py)
 
 
 def check_resume_argument(argv: list[str]) -> None:

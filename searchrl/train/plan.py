@@ -11,10 +11,12 @@ from __future__ import annotations
 import copy
 import math
 import zipfile
+from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 
@@ -22,12 +24,12 @@ from searchrl.controllers.registry import make_teacher
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
-from searchrl.schema import MAX_THREADS, override_keys
+from searchrl.schema import MAX_THREADS, check_known_keys, override_keys
 from searchrl.train.imitation import lr_factor
 from searchrl.train.schema import A2CConfig, RecurrentPPOConfig
 from searchrl.train.teacher_term import TEACHER_ALGORITHMS, check_settings
 from searchrl.world.config import ConfigError, WorldConfig, need
-from searchrl.world.scenario import Scenario
+from searchrl.world.scenario import Scenario, ScenarioMix
 
 ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "a2c": A2CConfig}
 TRAINABLE_MODELS = ("a", "b", "c", "diagonal")
@@ -62,12 +64,14 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     ConfigError naming the first bad value. `overrides` (the command line's) only choose the notes on settings the
     run will not use."""
     cfg = copy.deepcopy(cfg)  # rounded to whole rollouts below; the caller's stays as composed
+    check_known_keys(cfg)  # `+total_timestep=...` composes: refused here, not trained past
     check_model(cfg)
     algorithm = check_algo(cfg)
     groups = tuple(team_groups(cfg))
     scenario = Scenario.from_dict(OmegaConf.to_container(cfg.scenario, resolve=True) if "scenario" in cfg else None)
     for world, _ in groups:
         scenario.check(world)
+    draw_walls(scenario, groups)
     check_device(str(cfg.device))
     check_numbers(cfg)
     rollout = int(cfg.algo.n_steps) * sum(k * world.n_agents for world, k in groups)
@@ -90,6 +94,19 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     notes = unused_settings(cfg, list(overrides), groups) + round_to_rollouts(cfg, rollout)
     algorithm = TEACHER_ALGORITHMS.get(cfg.algo.name, algorithm)  # the term off (w = 0) where a recipe has none
     return Plan(cfg, groups, scenario, im.teacher, teacher_args, algorithm, teacher_term, rollout, tuple(notes))
+
+
+def draw_walls(scenario: Scenario | ScenarioMix, groups: Sequence[tuple[WorldConfig, int]], draws: int = 4) -> None:
+    """Walls are redrawn at a reset until agents and targets fit, and a setting where they never fit (iid walls at
+    density 0.9, connected) would stop the run at its first reset, its folder written: each group's walls are drawn
+    `draws` times at its smallest and largest side first, from a generator of their own (the run's are untouched).
+    ConfigError naming the setting."""
+    rng = np.random.default_rng(0)
+    for member in dict.fromkeys(getattr(scenario, "scenarios", (scenario,))):
+        for world, _ in groups:
+            for n in sorted({world.world_size[0], world.world_size[1]}):
+                for _ in range(draws):
+                    member.obstacles(n, world.n_agents + world.n_targets[1], rng)
 
 
 def check_model(cfg: DictConfig) -> None:

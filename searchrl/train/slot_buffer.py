@@ -35,6 +35,14 @@ class SlotRolloutBuffer(RecurrentDictRolloutBuffer):
         self.labels = np.zeros((self.buffer_size, self.n_envs), np.int64)
         self._slots: dict[str, torch.Tensor] = {}
 
+    def add(self, *args, lstm_states: RNNStates, **kwargs) -> None:
+        """SB3's `add`; the LSTM states are kept at the rollout's first step only, all a minibatch starts from (on a
+        GPU each kept state is a copy to the host, four a step in sb3-contrib's buffer)."""
+        if self.pos == 0:
+            super().add(*args, lstm_states=lstm_states, **kwargs)
+        else:
+            super(RecurrentDictRolloutBuffer, self).add(*args, **kwargs)
+
     def set_labels(self, labels: np.ndarray) -> None:
         """The teacher's action (n_steps, n_envs) for each step of the rollout just collected."""
         labels = np.asarray(labels, np.int64)

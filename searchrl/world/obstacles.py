@@ -22,7 +22,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from searchrl.world.config import WorldConfig, is_int, need
+from searchrl.world.config import ConfigError, WorldConfig, is_int, need
 from searchrl.world.truth import finite
 
 _MAX_OBSTACLE_DRAWS = 100
@@ -59,12 +59,13 @@ def largest_region(free: np.ndarray) -> np.ndarray:
 
 
 def _until_room(draw, room: int, what: str, n: int) -> np.ndarray:
-    """Repeat `draw()` (walls (n, n) bool) until `room` cells are free."""
+    """Repeat `draw()` (walls (n, n) bool) until `room` cells are free; ConfigError after _MAX_OBSTACLE_DRAWS."""
     for _ in range(_MAX_OBSTACLE_DRAWS):
         walls = draw()
         if (~walls).sum() >= room:
             return walls
-    raise RuntimeError(f"{_MAX_OBSTACLE_DRAWS} draws of {what} left fewer than {room} free cells of {n}x{n}")
+    raise ConfigError(f"{what} is not allowed here: {_MAX_OBSTACLE_DRAWS} draws left fewer than {room} free cells "
+                      f"(agents and targets) of {n}x{n}")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -85,7 +86,8 @@ class IidObstacles:
             walls = rng.random((n, n)) < self.density
             return ~largest_region(~walls) if self.connected else walls
 
-        return _until_room(draw, room, f"iid walls at density {self.density}", n)
+        return _until_room(draw, room, f"scenario.obstacles.density={self.density}"
+                           + (" with connected=true" if self.connected else ""), n)  # fmt: skip
 
     def check(self, config: WorldConfig) -> None:
         need(finite(self.density) and 0 <= self.density < 1, "scenario.obstacles.density", self.density,
@@ -141,7 +143,7 @@ class MazeObstacles:
     loops: float = 0.1
 
     def __call__(self, n: int, room: int, rng: np.random.Generator) -> np.ndarray:
-        return _until_room(lambda: self.draw(n, rng), room, f"a maze of corridor {self.corridor}", n)
+        return _until_room(lambda: self.draw(n, rng), room, f"scenario.obstacles.corridor={self.corridor}", n)
 
     def draw(self, n: int, rng: np.random.Generator) -> np.ndarray:
         step = self.corridor + 1
@@ -186,8 +188,14 @@ class MazeObstacles:
         need(is_int(self.corridor) and 1 <= self.corridor <= 16, "scenario.obstacles.corridor", self.corridor,
              "an integer 1 <= corridor <= 16 (cells)")  # fmt: skip
         need(finite(self.loops) and 0 <= self.loops <= 1, "scenario.obstacles.loops", self.loops, "0 <= loops <= 1")
-        share = (self.corridor / (self.corridor + 1)) ** 2
-        _check_room(config, share, "scenario.obstacles.corridor", self.corridor)
+        # Exact: the lattice's side² open squares of corridor² cells and the side² − 1 openings of its spanning
+        # tree are free in every draw. One lattice cell is no maze (an open room), so the smallest world needs two.
+        n = config.world_size[0]
+        side, width = (n + 1) // (self.corridor + 1), self.corridor
+        need(side >= 2, "scenario.obstacles.corridor", self.corridor, f"at most {(n + 1) // 2 - 1} in the smallest "
+             f"world (n={n}): two corridors and a wall a side, else the maze is one open room")  # fmt: skip
+        _check_room(config, (side * side * width * width + (side * side - 1) * width) / (n * n),
+                    "scenario.obstacles.corridor", self.corridor)  # fmt: skip
 
     @property
     def label(self) -> str:
@@ -234,6 +242,9 @@ class RoomObstacles:
              "an integer 4 <= room_size <= 1024 (cells)")  # fmt: skip
         need(is_int(self.door) and 1 <= self.door < self.room_size, "scenario.obstacles.door", self.door,
              "an integer 1 <= door < room_size (cells)")  # fmt: skip
+        n = config.world_size[0]
+        need(self.room_size <= n, "scenario.obstacles.room_size", self.room_size, f"at most the smallest world's "
+             f"side n={n}: a larger room is never divided, and the world is one open room")  # fmt: skip
         _check_room(config, 0.8, "scenario.obstacles.room_size", self.room_size)
 
     @property
