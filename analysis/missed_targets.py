@@ -36,7 +36,7 @@ from omegaconf.errors import OmegaConfBaseException
 from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown
 from searchrl.atomic import write_atomic, write_text_atomic
-from searchrl.evaluate.__main__ import make_controller_factory
+from searchrl.evaluate.app import make_controller_factory
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
 

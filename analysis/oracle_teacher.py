@@ -80,8 +80,8 @@ registry.register("oracle_switch", OracleSwitch, OracleSwitchConfig)
 if __name__ == "__main__":
     import hydra
 
-    from searchrl.evaluate.__main__ import CONF_DIR
-    from searchrl.train.__main__ import main
+    from searchrl.paths import CONF_DIR
+    from searchrl.train.app import main
 
     # the training app itself, its config found from here (its own decorator looks beside its module)
     hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="train")(main.__wrapped__)()

@@ -20,13 +20,14 @@ from PIL import Image, ImageDraw
 from searchrl.atomic import check_writable, write_atomic
 from searchrl.controllers.episodes import episode_streams, play
 from searchrl.controllers.registry import HEURISTICS, make_controller
+from searchrl.paths import CONF_DIR
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.render import world_frame
 from searchrl.world.scenario import Scenario
 from searchrl.world.state import WorldState
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "conf" / "scenario"  # the Hydra group's files, by name
+SCENARIOS = CONF_DIR / "scenario"  # the Hydra group's files, by name
 
 MODELS = {
     "a": {"explicit_area": 11, "communication": False, "diagonal": False},

@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 from hydra import compose, initialize_config_dir
 
-import searchrl.evaluate.__main__  # noqa: F401  (registers the evaluate schemas)
-from searchrl.train.__main__ import CONF_DIR
+import searchrl.evaluate.app  # noqa: F401  (registers the evaluate schemas)
+from searchrl.paths import CONF_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"

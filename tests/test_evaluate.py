@@ -12,11 +12,12 @@ import pandas as pd
 import pytest
 from hydra import compose, initialize_config_dir
 
-from searchrl.evaluate.__main__ import CONF_DIR, evaluate
+from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.bound import BOUND_COLUMNS
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import COLUMNS
+from searchrl.paths import CONF_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 SLICE = ["grid.world_sizes=[20,40]", "grid.n_targets=[4,8]", "grid.n_distributions=[8,16]", "grid.max_agents=[2,1]",

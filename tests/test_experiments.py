@@ -15,8 +15,8 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from searchrl.controllers.registry import resolved
+from searchrl.paths import CONF_DIR
 from searchrl.policies.slim import weights_sha256
-from searchrl.train.__main__ import CONF_DIR
 from searchrl.train.plan import make_plan
 from searchrl.train.schema import TrainConfig, saved_config
 from searchrl.world.scenario import Scenario

@@ -23,9 +23,10 @@ from sb3_contrib import RecurrentPPO
 
 from searchrl.atomic import hold, temporary_path
 from searchrl.envs.parallel_env import SearchParallelEnv
-from searchrl.evaluate.__main__ import CONF_DIR, evaluate
+from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.results import load
-from searchrl.train.__main__ import train
+from searchrl.paths import CONF_DIR
+from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
@@ -96,7 +97,7 @@ def test_a_cell_finished_by_another_job_meanwhile_is_not_run_again(tmp_path, mon
     kept as that job wrote it."""
     from contextlib import contextmanager
 
-    import searchrl.evaluate.__main__ as app
+    import searchrl.evaluate.app as app
 
     theirs = load(_evaluate(tmp_path / "theirs"))
     real_hold = app.hold

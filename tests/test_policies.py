@@ -8,8 +8,8 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from searchrl.controllers.policy import PolicyController
+from searchrl.paths import CONF_DIR
 from searchrl.policies.actor import Actor, sample_actions
-from searchrl.train.__main__ import CONF_DIR
 from searchrl.train.build import make_algorithm, make_vec_env
 from searchrl.train.plan import make_plan
 from searchrl.world.observe import observe

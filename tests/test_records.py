@@ -13,7 +13,6 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
 from searchrl.controllers.episodes import episode_streams
-from searchrl.evaluate.__main__ import CONF_DIR
 from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import (
     RECORD,
@@ -24,6 +23,7 @@ from searchrl.evaluate.record import (
     option_defaults,
 )
 from searchrl.evaluate.runner import cell_config, episode_keys, run_cell, worlds_per_batch
+from searchrl.paths import CONF_DIR
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.streams import WorldStreams, random_source
 

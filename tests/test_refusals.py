@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from hydra import compose, initialize_config_dir
 
-from searchrl.evaluate.__main__ import CONF_DIR, evaluate
+from searchrl.evaluate.app import evaluate
+from searchrl.paths import CONF_DIR
 from searchrl.schema import unknown_keys
-from searchrl.train.__main__ import train
+from searchrl.train.app import train
 from searchrl.world.obstacles import MazeObstacles
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -4,6 +4,9 @@ the ones error messages list, and `greedy_target` is footprint-greedy with the t
 from __future__ import annotations
 
 import ast
+import os
+import subprocess
+import sys
 from dataclasses import asdict, fields
 from pathlib import Path
 
@@ -13,7 +16,8 @@ from omegaconf import OmegaConf
 
 from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.controllers.registry import HEURISTICS, TEACHERS, allowed, heuristic, make_controller, make_teacher
-from searchrl.evaluate.__main__ import CONF_DIR, make_controller_factory
+from searchrl.evaluate.app import make_controller_factory
+from searchrl.paths import CONF_DIR
 from searchrl.world.config import ConfigError, WorldConfig
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -35,19 +39,39 @@ def test_every_name_has_a_config_file_a_schema_of_its_name_and_a_class_taking_it
         assert isinstance(controller, entry.cls)
 
 
+def _imports(path: Path) -> set[str]:
+    imported = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            imported |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            imported.add(node.module or "")
+    return imported
+
+
 def test_controllers_import_no_hydra_and_no_app_layer():
-    """Layering: world <- envs <- controllers <- train/evaluate; Hydra stays in the app layer."""
+    """Layering: world <- envs <- controllers <- train/evaluate; Hydra and its config library stay in the app
+    layer."""
     for path in (ROOT / "searchrl" / "controllers").glob("*.py"):
-        imported = set()
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.Import):
-                imported |= {a.name for a in node.names}
-            elif isinstance(node, ast.ImportFrom):
-                imported.add(node.module or "")
-        app = [
-            m for m in imported if m.split(".")[0] == "hydra" or m.startswith(("searchrl.train", "searchrl.evaluate"))
-        ]
+        app = [m for m in _imports(path) if m.split(".")[0] in ("hydra", "omegaconf")
+               or m.startswith(("searchrl.train", "searchrl.evaluate"))]  # fmt: skip
         assert not app, (path, app)
+
+
+def test_the_world_imports_no_rl_library_no_hydra_and_no_layer_above_it():
+    above = ("searchrl.envs", "searchrl.controllers", "searchrl.policies", "searchrl.train", "searchrl.evaluate")
+    libraries = ("hydra", "omegaconf", "torch", "stable_baselines3", "sb3_contrib", "gymnasium", "pettingzoo")
+    for path in (ROOT / "searchrl" / "world").glob("*.py"):
+        bad = [m for m in _imports(path) if m.split(".")[0] in libraries or m.startswith(above)]
+        assert not bad, (path, bad)
+
+
+def test_importing_the_package_sets_no_environment_variable():
+    """The OpenMP wait policy is the entry points' to set (searchrl/omp_wait.py), not an import's."""
+    code = "import os, sys; sys.argv += ['-m']; import searchrl.world.engine; print(os.environ.get('OMP_WAIT_POLICY'))"
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and out.stdout.strip() == "None", out.stderr
 
 
 def test_unknown_names_are_refused_listing_the_registry():

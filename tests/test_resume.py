@@ -16,7 +16,7 @@ from sb3_contrib import RecurrentPPO
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 from searchrl.envs.vec_env import SearchVecEnv
-from searchrl.train.__main__ import train
+from searchrl.train.app import train
 from searchrl.train.plan import make_plan
 from searchrl.train.validation import run_episodes
 from tests.test_train import TINY, _compose, _run

@@ -10,9 +10,9 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from searchrl.evaluate.__main__ import CONF_DIR
 from searchrl.evaluate.results import load
 from searchrl.evaluate.suite import SuiteConfig, evaluate_suite, suite_scenarios
+from searchrl.paths import CONF_DIR
 from searchrl.world.scenario import PAPER
 
 TINY = {"name": "tiny", "seed": 5, "variance_scales": [1.0], "severities": [1.0],

@@ -95,7 +95,7 @@ def test_the_score_averages_the_last_validations(tmp_path):
 
 
 def test_a_run_without_periodic_validation_is_scored_on_its_final_model(tmp_path):
-    from searchrl.train.__main__ import train
+    from searchrl.train.app import train
     from tests.test_train import _compose
 
     overrides = [*TINY, "validation.every=0"]

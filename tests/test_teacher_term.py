@@ -16,7 +16,7 @@ from searchrl.controllers.registry import make_teacher
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.extractor import SearchCNN
-from searchrl.train.__main__ import train
+from searchrl.train.app import train
 from searchrl.train.teacher_labels import TeacherLabels
 from searchrl.train.teacher_term import TeacherRecurrentPPO
 from searchrl.world.config import WorldConfig

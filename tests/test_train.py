@@ -18,7 +18,8 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
 
-from searchrl.train.__main__ import CONF_DIR, train
+from searchrl.paths import CONF_DIR
+from searchrl.train.app import train
 from searchrl.train.build import load_algorithm, make_vec_env
 from searchrl.train.plan import make_plan
 

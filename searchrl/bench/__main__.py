@@ -10,11 +10,9 @@ import argparse
 import json
 import math
 import sys
-from pathlib import Path
 
 from searchrl.controllers.registry import HEURISTICS
-
-CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+from searchrl.paths import CONF_DIR
 
 SUITES = {
     "world": "engine throughput, batched against the oracle, at numba thread counts (--threads 1,2, --seconds)",

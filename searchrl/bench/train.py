@@ -20,10 +20,10 @@ from typing import TextIO
 import torch
 from hydra import compose, initialize_config_dir
 
+from searchrl.paths import CONF_DIR
 from searchrl.policies.device import resolve_device
 from searchrl.policies.recurrent import process_sequence
 from searchrl.threads import use_threads
-from searchrl.train.__main__ import CONF_DIR
 from searchrl.train.build import make_algorithm, make_vec_env
 from searchrl.train.plan import make_plan
 from searchrl.train.teacher_labels import TeacherLabels

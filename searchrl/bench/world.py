@@ -7,12 +7,12 @@ from __future__ import annotations
 import importlib.util
 import time
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import TextIO
 
 import numba
 import numpy as np
 
+from searchrl.paths import repository_root
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_worlds
@@ -27,7 +27,7 @@ _TABLE2 = {20: (4, 8), 40: (8, 16), 80: (16, 32), 160: (32, 64)}  # n -> (target
 
 def _load_oracle() -> tuple[Callable, Callable] | None:
     """The oracle lives in tests/ (it is a test artefact); available when running from a checkout."""
-    path = Path(__file__).resolve().parents[2] / "tests" / "oracle.py"
+    path = repository_root() / "tests" / "oracle.py"
     if not path.exists():
         return None
     spec = importlib.util.spec_from_file_location("searchrl_test_oracle", path)

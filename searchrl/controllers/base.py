@@ -6,7 +6,6 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from omegaconf import MISSING
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.state import WorldState
@@ -40,7 +39,7 @@ class ControllerConfig:
     controller's class, its fields the class's keyword arguments; `name` is its key in
     `searchrl.controllers.registry.HEURISTICS`."""
 
-    name: str = MISSING
+    name: str = "???"  # omegaconf's MISSING: a schema composes only with its name set
 
 
 @dataclass

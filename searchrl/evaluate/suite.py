@@ -20,6 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from searchrl.atomic import FolderBusy, storage_message
+from searchrl.evaluate.app import claim_evaluation, fail, plan_evaluation, run_evaluation
 from searchrl.evaluate.schema import GridConfig
 from searchrl.schema import override_keys
 from searchrl.world.config import ConfigError, need
@@ -64,8 +65,6 @@ def suite_default_dir(cfg: DictConfig, name: str) -> Path:
 
 def evaluate_suite(cfg: DictConfig, overrides: list[str]) -> list[Path]:
     """Evaluate this shard's part of every scenario of `cfg.suite`; returns the scenario folders."""
-    from searchrl.evaluate.__main__ import claim_evaluation, fail, plan_evaluation, run_evaluation
-
     plans = []
     try:
         frozen = [o for o, k in zip(overrides, override_keys(overrides), strict=True)

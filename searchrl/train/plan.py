@@ -3,7 +3,7 @@
 `make_plan(cfg)` refuses a bad value with one ConfigError naming it and what is allowed, before any work or file;
 what it returns holds the world of each group of worlds, the scenario, the teacher (validated by building it), the
 algorithm class and the rollout size, so nothing downstream reads or checks the config again
-(searchrl/train/__main__.py builds env, algorithm, teacher and callbacks from it in one flat sequence).
+(searchrl/train/app.py builds env, algorithm, teacher and callbacks from it in one flat sequence).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from searchrl.controllers.registry import make_teacher
+from searchrl.paths import CONF_DIR
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
@@ -111,7 +112,7 @@ def draw_walls(scenario: Scenario | ScenarioMix, groups: Sequence[tuple[WorldCon
 
 def check_model(cfg: DictConfig) -> None:
     """A trainable model chosen with +model= (or an experiment that sets one)."""
-    conf = Path(__file__).resolve().parents[2] / "conf" / "model"
+    conf = CONF_DIR / "model"
     trainable = [m for m in sorted(p.stem for p in conf.glob("*.yaml")) if m in TRAINABLE_MODELS]
     if cfg.model is None:
         raise ConfigError(f"choose a model to train with +model=<name>; trainable models: {', '.join(trainable)}")

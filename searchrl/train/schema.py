@@ -15,6 +15,7 @@ from typing import Any
 
 from omegaconf import MISSING, DictConfig, OmegaConf
 
+from searchrl.paths import repository_root
 from searchrl.schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
 from searchrl.world.config import ANY, RETIRED_FIELDS, drop_retired
 
@@ -139,17 +140,17 @@ def run_dir(resume: str | None, model: str, seed: int, now: str) -> str:
     return f"{resume}/resumed/{now}" if resume else f"runs/train/{model}/{now}_seed{seed}"
 
 
-def repository_root() -> str:
-    """The checkout searchrl runs from (Hydra reads conf/ there): `${searchrl_root:}` in a config, so a path under
-    it does not depend on the folder a command is started in."""
-    return str(Path(__file__).resolve().parents[2])
+def root_resolver() -> str:
+    """`${searchrl_root:}` in a config: the checkout (`repository_root`), so a path under it does not depend on the
+    folder a command is started in."""
+    return str(repository_root())
 
 
 def register_configs() -> None:
     if not OmegaConf.has_resolver("searchrl_run_dir"):
         OmegaConf.register_new_resolver("searchrl_run_dir", run_dir)
     if not OmegaConf.has_resolver("searchrl_root"):
-        OmegaConf.register_new_resolver("searchrl_root", repository_root)
+        OmegaConf.register_new_resolver("searchrl_root", root_resolver)
     cs = register_shared_configs()
     cs.store(name="train_schema", node=TrainConfig)
     cs.store(group="network", name="network_schema", node=NetworkConfig)

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-_CACHE = True  # compiled code is cached next to the source, so later starts skip the ~5 s compile
+CACHE = True  # compiled code is cached next to the source, so later starts skip the ~5 s compile
 
 
 class Scratch(NamedTuple):
@@ -45,7 +45,7 @@ def scratch_grids(side: int, slots: int = 1) -> Scratch:
     )
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def move_agents(w, first, stop, actions, priority, moves, claim, target, candidate, collided):
     """Phase 1. actions (K,N) int64 index moves (A,2) int64; priority (K,N) float64 breaks ties. Updates w.pos
     (K,N,2) and w.occupant (K,S,S) in place; writes collided (K,N) bool.
@@ -93,7 +93,7 @@ def move_agents(w, first, stop, actions, priority, moves, claim, target, candida
                     pos[k, i, 1] = c - h
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def detect_targets(w, first, stop, detect, support, cover_agent, cover_g, found_by):
     """Phase 2. Each unfound target is found with probability 1 - Π(1 - Γ_i) from one uniform draw (detect (K,T)
     float64), credited to the first agent (by index) whose cumulative threshold passes the draw. Updates
@@ -137,7 +137,7 @@ def detect_targets(w, first, stop, detect, support, cover_agent, cover_g, found_
                     break
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def sense(w, first, stop, support, c_coef, surv, fsum, removed, done, collected):
     """Phase 3 (eq. 1-4). True maps w.p, w.u (K,S,S) decay by Π_i (1 - λkΓ_i) under overlapping footprints, c_coef
     (K,) float64 the λk of each world; each agent is credited the Γ-weighted share of what its cells lost.
@@ -181,7 +181,7 @@ def sense(w, first, stop, support, c_coef, surv, fsum, removed, done, collected)
             collected[k, i] = total
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def refresh_beliefs(w, first, stop, radius):
     """Phase 4. Copy the true maps w.p, w.u into each agent's belief w.belief (K,N,2,S,S) on its (2·radius+1)²
     explicit area Φ and grow the agent's belief box w.belief_box (K,N,4) to cover it. (When it was last seen is
@@ -203,7 +203,7 @@ def refresh_beliefs(w, first, stop, radius):
             belief_box[k, i, 3] = max(belief_box[k, i, 3], c0 + width - 1)
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def _find_neighbours(occupant, pos, k, radius, h, nbrs, n_nbrs):
     """Fill nbrs[i, :n_nbrs[i]] with the agents within Chebyshev distance `radius` of agent i in world k (index
     order of the scan, which is row-major). Returns the number of unordered neighbour pairs."""
@@ -223,7 +223,7 @@ def _find_neighbours(occupant, pos, k, radius, h, nbrs, n_nbrs):
     return pairs
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def communicate(w, first, stop, radius, merge, nbrs, n_nbrs, region, offset, comm_pairs, comm_gain):
     """Phase 5 (eq. 13-16). Counts unordered neighbour pairs (Chebyshev distance <= radius) into comm_pairs (K,)
     int64 and, when `merge`, replaces each agent's belief w.belief by the elementwise min over itself and its

@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit, prange
 
 from searchrl.world.config import WorldConfig
-from searchrl.world.kernels import _CACHE
+from searchrl.world.kernels import CACHE
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.seen import freshness
 from searchrl.world.state import WorldState
@@ -46,7 +46,7 @@ def observe(
     return maps, vec
 
 
-@njit(cache=_CACHE, parallel=True)
+@njit(cache=CACHE, parallel=True)
 def observe_into(w, maps, vec, threads):
     """Observation of §3.2.1 of the state w (`WorldState.arrays()`) into maps (K,N,C,F,F) float32 and vec (K,N,3)
     float32 (see SPEC.md), on up to `threads` threads. Where w.age_rate[k] > 0 the freshness
@@ -66,7 +66,7 @@ def observe_into(w, maps, vec, threads):
         _observe_span(w, maps, vec, first, stop)
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def _observe_span(w, maps, vec, first, stop):
     """`observe_into` for worlds first..stop-1, written channel by channel so every inner loop runs over
     contiguous memory. Every element is indexed from the whole arrays, with no view taken in the loops (see

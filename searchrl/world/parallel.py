@@ -19,7 +19,7 @@ import os
 import numba
 from numba import njit
 
-from searchrl.world.kernels import _CACHE
+from searchrl.world.kernels import CACHE
 
 
 # The threading layer that runs the prange loops is numba's default choice: TBB where the tbb package is installed,
@@ -31,7 +31,7 @@ from searchrl.world.kernels import _CACHE
 # parent's OpenMP threads started steps its worlds on one thread, in the calling thread (`chunk_count`), and never
 # opens one. Hydra's multirun launchers start their jobs as new processes (joblib's loky executes a fresh
 # interpreter; submitit runs a command), not as forks. OpenMP's workers wait as OMP_WAIT_POLICY says
-# (searchrl/__init__.py: in a multirun they sleep at once).
+# (searchrl/omp_wait.py, set by the apps: in a multirun they sleep at once).
 def _one_thread_after_fork() -> None:
     """In a child forked from a process whose OpenMP threads started, run the world's kernels in one thread."""
     try:
@@ -53,14 +53,14 @@ def world_threads() -> int:
     return numba.get_num_threads()
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def chunk_count(n_worlds, slots, threads):
     """How many chunks to split n_worlds worlds into: one per thread (`threads`, `world_threads()`), at most one
     per world and per scratch slot (`slots`), at least one."""
     return max(1, min(n_worlds, slots, threads))
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def chunk_span(chunk, n_chunks, first, stop):
     """(start, end): the worlds start..end-1 of chunk `chunk` when first..stop-1 is cut into n_chunks contiguous
     chunks whose sizes differ by at most one."""

@@ -25,12 +25,12 @@ from numba import njit, prange
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import SUPPORT
-from searchrl.world.kernels import _CACHE
+from searchrl.world.kernels import CACHE
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.state import WorldState
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def freshness(rate, now, then):
     """exp(−rate·(now − then)) as float64: what is left at step `now` of a belief last true at step `then`."""
     return np.exp(-rate * (now - then))
@@ -46,7 +46,7 @@ def remember_sightings(w, support, seen: np.ndarray, known: np.ndarray, view: in
     _remember_sightings(w, support, seen, known, view, phi, forget, first, stop, world_threads())
 
 
-@njit(cache=_CACHE, parallel=True)
+@njit(cache=CACHE, parallel=True)
 def _remember_sightings(w, support, seen, known, view, phi, forget, first, stop, threads):
     """`remember_sightings` on up to `threads` threads."""
     n_chunks = chunk_count(stop - first, stop - first, threads)
@@ -58,7 +58,7 @@ def _remember_sightings(w, support, seen, known, view, phi, forget, first, stop,
         _remember_span(w, support, seen, known, view, phi, forget, start, end)
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def _remember_span(w, support, seen, known, view, phi, forget, first, stop):
     """`remember_sightings` for worlds first..stop-1, in this thread; no view taken in the loops (kernels.py)."""
     pos, occupant, t, h = w.pos, w.occupant, w.t, w.halo

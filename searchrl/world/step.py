@@ -10,7 +10,7 @@ from numba import njit, prange
 from searchrl.world import kernels
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT
-from searchrl.world.kernels import _CACHE
+from searchrl.world.kernels import CACHE
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
@@ -103,7 +103,7 @@ def step(
     )
 
 
-@njit(cache=_CACHE, parallel=True)
+@njit(cache=CACHE, parallel=True)
 def step_worlds(w, actions, priority, detect, moves, support, c_coef, phi, comm_radius, merge, scratch, out, threads):
     """Phases 1-5 of SPEC.md (move, detect, sense and sweep, refresh, communicate) for every world of w, the worlds
     shared among numba's threads (searchrl/world/parallel.py). actions (K,N) int64, priority
@@ -127,7 +127,7 @@ def step_worlds(w, actions, priority, detect, moves, support, c_coef, phi, comm_
                    chunk, first, stop)  # fmt: skip
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def _step_span(w, actions, priority, detect, moves, support, c_coef, phi, comm_radius, merge, scratch, out, slot,
                first, stop):  # fmt: skip
     """`step_worlds` for worlds first..stop-1, with scratch slot `slot` and work space of its own."""

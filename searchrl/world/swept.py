@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from numba import njit
 
-from searchrl.world.kernels import _CACHE
+from searchrl.world.kernels import CACHE
 
 
-@njit(cache=_CACHE)
+@njit(cache=CACHE)
 def sweep(w, first, stop, support, stale):
     """In worlds first..stop-1: stale (K,N) bool True where no free cell under agent i's footprint (Γ > 0; support:
     a `Footprint`) was unswept before this step, every agent judged against the same map; then every footprint's

@@ -1,0 +1,285 @@
+"""The evaluation behind `python -m searchrl.evaluate` (searchrl/evaluate/__main__.py): `plan_evaluation` checks
+every setting, `claim_evaluation` claims the folder, `run_evaluation` runs the cells; `evaluate` does all three.
+
+Runs a controller on the Table 2/3 grid and writes one parquet file per cell, `<out_dir>/cells/<cell>.parquet`
+(one row per episode), atomically; cells already written are skipped, so a rerun resumes and `shard=` /
+`num_shards=` split the grid across multirun jobs. `<out_dir>/evaluation.yaml` records the settings the cells were
+run with; a run with other settings into the same folder stops before any work (`searchrl/evaluate/record.py`).
+Every setting and every grid cell is checked before the folder is claimed; a job runs a cell only while it holds
+that cell's lock (`<out_dir>/.locks/`), so jobs sharing a folder never write one cell twice (docs/files.md).
+Each row carries its map's search bound (`bound`, `bound_stderr`, `bound_fraction`; searchrl/evaluate/bound.py).
+Load the results with `searchrl.evaluate.results.load`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+from tqdm import tqdm
+
+from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, storage_message, write_atomic
+from searchrl.controllers.policy import PolicyController
+from searchrl.controllers.registry import heuristic, make_controller
+from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds, map_prior
+from searchrl.evaluate.grid import Cell, map_seed, table2_cells
+from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
+from searchrl.evaluate.runner import cell_config, run_cell
+from searchrl.evaluate.schema import register_configs
+from searchrl.multirun import refuse
+from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
+from searchrl.policies.device import check_device, resolve_device
+from searchrl.schema import MAX_THREADS, check_known_keys, override_keys
+from searchrl.world.config import ConfigError, WorldConfig, need
+from searchrl.world.obstacles import IidObstacles
+from searchrl.world.scenario import Scenario, ScenarioMix
+from searchrl.world.streams import WorldStreams
+
+# Set per cell by the grid, or training-only: a heuristic's evaluation refuses them rather than drop them.
+SET_BY_GRID = ("env.n_worlds", "env.world.n_agents", "env.world.world_size", "env.world.n_targets",
+               "env.world.n_distributions", "env.replicas", "deterministic")  # fmt: skip
+LOCKS = ".locks"  # <out_dir>/.locks/: the folder's record lock and one lock per cell being run
+register_configs()
+
+
+fail = refuse  # the one-line refusal, exit status 2 (searchrl/multirun.py)
+
+
+def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, object, bool]:
+    """(world settings, controller label, model name, factory(config, seed) -> controller, needs observations); the
+    seed is an int or the episodes' WorldStreams (searchrl/evaluate/runner.py). The label
+    is what results are recorded under: `policy:<run>`, or the registry's label of `controller=<name>` (greedy for
+    greedy_target)."""
+    if cfg.checkpoint is not None:
+        world_dict, _, model_name = checkpoint_config(cfg.checkpoint)
+        world = WorldConfig.from_dict(world_dict)
+        run_name = checkpoint_label(cfg.checkpoint)
+        device = resolve_device(str(cfg.device))  # checked here too: analysis scripts call this function alone
+        actor = load_actor(cfg.checkpoint, world, device=device)  # loaded once, serves every cell
+
+        def policy_factory(config: WorldConfig, seed: int | WorldStreams = 0) -> PolicyController:
+            return PolicyController(actor, config, deterministic=bool(cfg.deterministic), seed=seed)
+
+        return world, f"policy:{run_name}", model_name, policy_factory, True
+    world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
+    model_name = cfg.model.name if cfg.model is not None else "b"
+    settings = OmegaConf.to_container(cfg.controller, resolve=True)
+    name = settings.pop("name")
+    try:
+        entry = heuristic(name)
+    except ConfigError as err:
+        raise ConfigError(f"{err}, or checkpoint=<model.zip>") from None
+
+    def factory(config: WorldConfig, seed: int | WorldStreams = 0) -> object:
+        return make_controller(name, config, seed=seed, settings=settings)
+
+    factory(world)  # validates the controller's parameters before any work
+    return world, entry.label, model_name, factory, False
+
+
+# With checkpoint=, the world, model and controller come from the checkpoint's run: these overrides cannot apply.
+FIXED_BY_CHECKPOINT = ("env", "world", "model", "controller")
+
+
+def scenario_of(cfg: DictConfig) -> Scenario:
+    """The evaluation's scenario (`scenario=`, conf/scenario/), ConfigError naming a bad part."""
+    node = cfg.get("scenario")
+    return Scenario.from_dict(None if node is None else OmegaConf.to_container(node, resolve=True))
+
+
+def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[int, Cell]], Path | None, Scenario]:
+    """Every check of an evaluation's settings, before any work or file: ((grid index, cell) pairs, output folder,
+    scenario). Raises
+    ConfigError naming the bad value and what is allowed."""
+    check_known_keys(cfg)  # `+grid.map_per_cell=50` composes: refused here, not run without
+    if cfg.checkpoint is not None:
+        fixed = [o for o, k in zip(overrides, override_keys(overrides), strict=True)
+                 if k.split(".")[0] in FIXED_BY_CHECKPOINT]  # fmt: skip
+        if fixed:
+            raise ConfigError(
+                f"{', '.join(fixed)} cannot apply with checkpoint={cfg.checkpoint!r}: a checkpoint is evaluated in "
+                "the world, model and action set of its run (its config.yaml); remove them"
+            )
+    keys = override_keys(overrides)
+    if cfg.checkpoint is None:
+        set_by_grid = [k for k in keys if k in SET_BY_GRID or k.startswith("env.extra_teams")]
+        if set_by_grid:
+            raise ConfigError(
+                f"{', '.join(set_by_grid)} cannot apply to an evaluation: the grid sets N, n, targets and Gaussians "
+                "per cell (grid.*), one team per world, and deterministic is for checkpoints; remove them"
+            )
+        if cfg.model is not None and not cfg.model.trainable:
+            raise ConfigError(f"+model={cfg.model.name} is not allowed: a world preset, one of a, b, c, diagonal")
+        for key, value in cfg.controller.items():
+            if isinstance(value, float):
+                need(math.isfinite(value), f"controller.{key}", value, "a finite number")
+    check_device(str(cfg.device))  # asked for and missing: refused, never run on the CPU instead
+    need(cfg.checkpoint is not None or str(cfg.device) in ("cpu", "auto"), "device", cfg.device,
+         f"cpu: controller={cfg.controller.name} runs on the CPU (device is for checkpoint=<model.zip>)")  # fmt: skip
+    need(0 <= int(cfg.seed) <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
+    need(1 <= int(cfg.threads) <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
+    need(math.isfinite(cfg.batch_mb) and cfg.batch_mb > 0, "batch_mb", cfg.batch_mb, "a number of MiB > 0")
+    need(int(cfg.bound_draws) >= 100, "bound_draws", cfg.bound_draws, "an integer >= 100 (placements per map)")
+    need(int(cfg.num_shards) >= 1, "num_shards", cfg.num_shards, "an integer >= 1")
+    need(0 <= int(cfg.shard) < int(cfg.num_shards), "shard", cfg.shard, f"0 <= shard < num_shards={cfg.num_shards}")
+    for name in ("maps_per_cell", "repeats"):
+        need(int(cfg.grid[name]) >= 1, f"grid.{name}", cfg.grid[name], "must be >= 1")
+    scenario = scenario_of(cfg)
+    cells = table2_cells(
+        list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
+        list(cfg.grid.max_agents),
+    )  # fmt: skip
+    # A subset of team sizes keeps each cell's index in the whole grid, so its maps are the grid's (map_seed)
+    agents = None if cfg.grid.get("agents") is None else [int(a) for a in cfg.grid.agents]
+    on_grid = sorted({c.n_agents for c in cells})
+    need(agents is None or (len(agents) > 0 and set(agents) <= set(on_grid)), "grid.agents", agents,
+         f"null (every N) or team sizes of the grid, from {on_grid}")  # fmt: skip
+    indexed = [(i, c) for i, c in enumerate(cells) if agents is None or c.n_agents in agents]
+    out_dir = Path(cfg.out_dir) if cfg.out_dir else None
+    return indexed, out_dir, scenario
+
+
+def check_out_dir(out_dir: Path) -> None:
+    """ConfigError unless the evaluation can write its folder, cells and locks there."""
+    try:
+        check_writable(out_dir, "out_dir", folder=True)
+        for part in ("cells", LOCKS):
+            check_writable(out_dir / part, f"out_dir/{part}", folder=True)
+        out_dir.mkdir(parents=True, exist_ok=True)  # /proc, /sys, a full disk: refused here, in one line
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
+    except OSError as err:
+        raise ConfigError(f"out_dir={str(out_dir)!r} is not allowed: its folders cannot be made there "
+                          f"({err.strerror or type(err).__name__})") from None  # fmt: skip
+
+
+@dataclass
+class Evaluation:
+    """One evaluation folder's checked plan: its cells (grid index, cell), folder, scenario and controller."""
+
+    cfg: DictConfig
+    cells: list[tuple[int, Cell]]
+    out_dir: Path
+    scenario: Scenario
+    world: WorldConfig
+    controller: str
+    model: str
+    factory: object
+    needs_observation: bool
+    shard_offset: int = 0  # a suite's folders rotate which shard runs their first cell
+
+
+def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | None = None) -> Evaluation:
+    """Every check of an evaluation, before any work or file (ConfigError naming the bad value)."""
+    cells, out_dir, scenario = check_evaluation(cfg, overrides)
+    world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
+    walls = draws_walls(scenario)
+    for index, cell in cells:  # a cell impossible for its n or N fails now, not when reached
+        try:
+            scenario.check(cell_config(world, cell))
+            factory(cell_config(world, cell))
+            for m in range(int(cfg.grid.maps_per_cell) if walls else 0):  # exact: every map its episodes will draw
+                map_prior(cell_config(world, cell), map_seed(int(cfg.seed), index, m), scenario)
+        except ConfigError as err:
+            raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
+    # Default runs/eval/<controller=…> (greedy_target's folder though its rows say greedy) or
+    # runs/eval/policy/<label>: the label is the run's path under runs/, so two runs never share a folder
+    default = controller_name.replace(":", "/") if cfg.checkpoint is not None else cfg.controller.name
+    out_dir = out_dir or default_dir or Path(f"runs/eval/{default}")
+    return Evaluation(cfg, cells, out_dir, scenario, world, controller_name, model_name, factory, needs_obs)
+
+
+def draws_walls(scenario: Scenario | ScenarioMix) -> bool:
+    """Whether some world of `scenario` draws obstacles, which are redrawn until agents and targets fit and may
+    never fit: the evaluation then draws every map before its first cell."""
+    members = getattr(scenario, "scenarios", (scenario,))
+    return any(not (isinstance(s.obstacles, IidObstacles) and s.obstacles.density <= 0) for s in members)
+
+
+def claim_evaluation(plan: Evaluation) -> None:
+    """Make the folder and record its settings (or find them equal); ConfigError / FolderBusy / OSError."""
+    check_out_dir(plan.out_dir)
+    if plan.cfg.bound_cache is not None:  # the bounds are written after a cell's episodes: refused now, not then
+        check_writable(plan.cfg.bound_cache, "bound_cache", folder=True)
+    with hold(plan.out_dir / LOCKS / "evaluation.lock", f"out_dir={str(plan.out_dir)!r}", wait_s=60):
+        claim_folder(plan.out_dir, evaluation_settings(plan.cfg, plan.controller, plan.model),
+                     option_defaults(plan.cfg))  # fmt: skip
+
+
+def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
+    """Evaluate every cell of this shard that has no result yet; returns the output directory. `overrides` are the
+    command line's (Hydra's task overrides), to refuse those a checkpoint cannot apply."""
+    plan = None
+    try:
+        plan = plan_evaluation(cfg, overrides or [])
+        claim_evaluation(plan)
+    except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException, FolderBusy) as err:
+        fail(str(err))
+    except OSError as err:  # writing the folder's record: a full disk, a read-only file system
+        fail(storage_message(err) or f"out_dir={str(plan.out_dir if plan else cfg.out_dir)!r}: {err}")
+    return run_evaluation(plan)
+
+
+def run_evaluation(plan: Evaluation) -> Path:
+    """Run the plan's cells of this shard that have no result yet (its folder claimed); returns the folder."""
+    from searchrl.threads import use_threads
+
+    cfg, out_dir, scenario, world = plan.cfg, plan.out_dir, plan.scenario, plan.world
+    on_cpu = cfg.checkpoint is not None and resolve_device(str(cfg.device)).type == "cpu"
+    use_threads(int(cfg.threads), network_on_cpu=on_cpu)  # a heuristic's or a GPU policy's world: every thread
+    mine = [(i, c) for i, c in plan.cells if (i + plan.shard_offset) % int(cfg.num_shards) == int(cfg.shard)]
+    todo = [(i, c) for i, c in mine if not (out_dir / "cells" / f"{c.key}.parquet").exists()]
+    maps, repeats = int(cfg.grid.maps_per_cell), int(cfg.grid.repeats)
+    total = sum(maps * repeats * world.max_steps * c.n_agents for _, c in todo)
+    print(f"{plan.controller}: {len(todo)} of {len(mine)} cells to run into {out_dir}", file=sys.stderr)
+    start, done_steps = time.perf_counter(), 0
+    try:  # a full disk mid-grid: the cells written stand, a rerun writes the rest
+        with tqdm(total=total, unit="agent-step", unit_scale=True, disable=not cfg.progress_bar) as bar:
+            for index, cell in todo:
+                target = out_dir / "cells" / f"{cell.key}.parquet"
+                try:  # one writer per cell: a job running the same folder elsewhere keeps the cells it has started
+                    with hold(out_dir / LOCKS / f"{cell.key}.lock", f"cell {cell.key} of {out_dir}"):
+                        if target.exists():  # finished by another job since the list was made
+                            continue
+                        remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
+                        frame = run_cell(plan.factory, world, cell, index, maps, repeats, int(cfg.seed),
+                                         float(cfg.batch_mb), plan.needs_observation, on_steps=bar.update,
+                                         scenario=scenario)  # fmt: skip
+                        seeds = frame["map_seed"].unique().tolist()
+                        bounds = cell_bounds(world, cell, seeds, int(cfg.bound_draws), cfg.bound_cache,
+                                             scenario=scenario, workers=int(cfg.threads))  # fmt: skip
+                        frame = frame.merge(bounds[["map_seed", *BOUND_COLUMNS]], on="map_seed", validate="many_to_one")
+                        for position, (name, value) in enumerate(scenario_columns(scenario, world).items()):
+                            frame.insert(position, name, value)
+                        frame.insert(0, "world", world.sensing_label)
+                        frame.insert(0, "model", plan.model)
+                        frame.insert(0, "controller", plan.controller)
+                        write_atomic(target, lambda tmp, f=frame: f.to_parquet(tmp))
+                except FolderBusy as busy:
+                    print(f"skipped: {busy}", file=sys.stderr)
+                    continue
+                done_steps += int(((frame["L"]) * cell.n_agents).sum())
+    except OSError as err:
+        message = storage_message(err)
+        if message is None:
+            raise
+        fail(f"{message}; the cells already written stay, and a rerun into {out_dir} does the rest")
+    elapsed = time.perf_counter() - start
+    if todo:
+        print(f"done in {elapsed:.1f} s; {done_steps / max(elapsed, 1e-9):,.0f} agent-steps/s "
+              f"(steps up to each episode's end)", file=sys.stderr)  # fmt: skip
+    return out_dir
+
+
+def scenario_columns(scenario: Scenario, world: WorldConfig) -> dict[str, object]:
+    """What a row records of its scenario: its label, its family of prior error ("paper" when the prior is right),
+    the family's severity, and the prior's sharpness (the variance scale of p's Gaussians, searchrl/world/prior.py)."""
+    prior = getattr(scenario, "prior", None)  # a mix has none: its rows' scale is NaN
+    scale = world.prob_variance_scale if prior is None or prior.variance_scale is None else prior.variance_scale
+    return {"scenario": scenario.label, "family": scenario.family, "severity": scenario.severity,
+            "variance_scale": float("nan") if prior is None else float(scale)}  # fmt: skip

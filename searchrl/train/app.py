@@ -1,0 +1,296 @@
+"""The training app behind `python -m searchrl.train` (searchrl/train/__main__.py): `train` runs one run, `main` is
+its Hydra task function.
+
+Trains one shared policy for all agents (parameter sharing) and writes under the run directory: the resolved
+`config.yaml`, `progress.csv` and TensorBoard logs (team metrics, losses, validation), `checkpoints/`, and at the
+end `model.zip` and `score.json` (the run's score, score.py, which `main` returns to Hydra's sweepers), every file
+written atomically. `resume=<run dir>` continues a killed run from its newest readable checkpoint with step count
+and optimiser state intact; SIGTERM or SIGINT stops it with a checkpoint (exit 143, 130). The run folder is locked
+while in use (docs/files.md).
+"""
+
+from __future__ import annotations
+
+import copy
+import signal
+import sys
+from pathlib import Path
+
+import hydra
+import pandas as pd
+from hydra.core.hydra_config import HydraConfig
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.utils import get_device
+from stable_baselines3.common.vec_env import VecEnv
+
+from searchrl.atomic import FolderBusy, hold, remove_temporaries, storage_message, write_atomic, write_text_atomic
+from searchrl.multirun import in_sweep
+from searchrl.paths import CONF_DIR
+from searchrl.schema import override_keys
+from searchrl.threads import use_threads
+from searchrl.train.build import init_weights, load_algorithm, make_algorithm, make_vec_env
+from searchrl.train.callbacks import (
+    AtomicCheckpointCallback,
+    Preemption,
+    TeamMetricsCallback,
+    ValidationCallback,
+    checkpoints,
+)
+from searchrl.train.command_line import fail
+from searchrl.train.csv_log import AppendingCSV, ContinuedClock, ResumableTensorBoard, check_log, clock_offsets
+from searchrl.train.imitation import clone, collect
+from searchrl.train.plan import Plan, make_plan
+from searchrl.train.schema import TrainConfig, register_configs, saved_config
+from searchrl.train.score import read_score, write_score
+from searchrl.world.config import ConfigError
+from searchrl.world.scenario import Scenario
+
+register_configs()
+
+
+RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints")
+
+
+def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tuple[DictConfig, Path, bool]:
+    """(config, run dir, whether it resumes).
+
+    A resumed run keeps its saved config; only RESUME_OVERRIDES may be changed on the command line (say
+    `total_timesteps=` to train longer).
+    """
+    if cfg.resume is None:
+        return cfg, output_dir, False
+    run_dir = Path(cfg.resume)
+    if not (run_dir / "config.yaml").is_file():
+        fail(f"resume={cfg.resume!r} is not a run directory: it has no config.yaml")
+    keys = override_keys(overrides)
+    other = [k for k in keys if k not in (*RESUME_OVERRIDES, "resume") and not k.startswith("hydra")]
+    if other:
+        fail(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
+    # Merged into the schema: a run saved by an older version gains new fields' defaults, and types are checked.
+    try:
+        loaded = saved_config(run_dir / "config.yaml")
+        if loaded.get("model") is None or loaded.get("algo") is None:
+            raise ValueError("it names no model or algo")
+        saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), loaded)
+    except Exception as err:  # empty, not YAML, wrong types, unreadable: the run's record is damaged
+        detail = str(err).splitlines()[0] if str(err) else type(err).__name__
+        fail(f"resume={cfg.resume!r}: its config.yaml does not fit the current schema or cannot be read ({detail})")
+    saved.resume = cfg.resume
+    for key in keys:
+        if key in RESUME_OVERRIDES:
+            saved[key] = cfg[key]
+    return saved, run_dir, True
+
+
+def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None) -> Path:
+    """Run (or resume) one training run; returns the path of the final model.zip. Every setting is checked before
+    any file is written (`make_plan`), and the run folder is locked for the whole run (a second resume of it is
+    refused). The run, top to bottom: the folder, the env, the algorithm (fresh or from the newest checkpoint), the
+    config record, the clone, the logs, the callbacks, RL, the final model and score."""
+    cfg, run_dir, resuming = resolve_run(cfg, Path(output_dir), overrides or [])
+    try:
+        plan = make_plan(cfg, [] if resuming else overrides or [])
+    except (ConfigError, ValueError, OmegaConfBaseException) as err:
+        fail(str(err))
+    for note in plan.notes:
+        print(f"note: {note}", file=sys.stderr)
+    try:
+        with hold(run_dir / ".lock", f"run folder {str(run_dir)!r}"):
+            return _train_locked(plan, run_dir, resuming)
+    except FolderBusy as err:
+        fail(str(err))
+    except OSError as err:  # a full disk mid-run: the last checkpoint stands, resume once there is space
+        message = storage_message(err)
+        if message is None:
+            raise
+        fail(f"{message}; the run resumes from its last checkpoint with resume={run_dir}")
+
+
+def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
+    cfg = plan.cfg
+    prepare_folder(cfg, run_dir, resuming)
+    env = make_vec_env(plan)
+    model, resuming = start_model(plan, run_dir, env, resuming)
+    start_step = model.num_timesteps if resuming else 0
+    if resuming:  # a damaged log is refused before anything is rewritten
+        try:
+            check_log(run_dir / "progress.csv", start_step, plan.rollout * int(cfg.log_interval))
+        except ValueError as err:
+            fail(f"resume={cfg.resume!r}: {err}")
+    record_config(cfg, run_dir)
+    if not resuming and plan.clones:
+        warm_start(plan, model, run_dir)
+    set_logs(model, run_dir, start_step if resuming else None)
+    preemption = Preemption()
+    validation = ValidationCallback(plan.world, plan.scenario, int(cfg.validation.every), int(cfg.validation.n_worlds),
+                                    int(cfg.validation.seed), bool(cfg.validation.deterministic),
+                                    at_start=(plan.clones or cfg.init is not None) and not resuming,
+                                    preemption=preemption)  # fmt: skip
+    callbacks: list[BaseCallback] = [
+        TeamMetricsCallback(),
+        AtomicCheckpointCallback(
+            run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints), preemption
+        ),
+        validation,
+    ]
+    with preemption:
+        learn(plan, model, callbacks, validation, resuming)
+    if preemption.stopped:
+        env.close()
+        name = signal.Signals(preemption.signal).name
+        print(f"stopped by {name} at {model.num_timesteps} agent-steps (checkpoints/step_{model.num_timesteps}.zip); "
+              f"continue with resume={run_dir}", file=sys.stderr)  # fmt: skip
+        sys.exit(128 + preemption.signal)  # 143 for SIGTERM, 130 for SIGINT, as a shell reports them
+    final = write_atomic(run_dir / "model.zip", lambda tmp: model.save(tmp))
+    score = write_score(run_dir, int(cfg.validation.score_last))
+    print(f"trained {model.num_timesteps} agent-steps; model: {final}; score {score['score']:.4f} (mean found "
+          f"fraction of the last {score['validations']} validations)", file=sys.stderr)  # fmt: skip
+    env.close()
+    return final
+
+
+def prepare_folder(cfg: DictConfig, run_dir: Path, resuming: bool) -> None:
+    """Refuse a folder that holds another run (or a finished one with nothing to resume from), clear what a killed
+    writer left, and set torch's and numba's threads and the device as the run records them."""
+    if not resuming and ((run_dir / "config.yaml").exists() or checkpoints(run_dir / "checkpoints")):
+        fail(f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder")
+    if resuming and not checkpoints(run_dir / "checkpoints") and (run_dir / "model.zip").exists():
+        fail(f"resume={str(run_dir)!r} is a finished run with no checkpoints/ left (a shipped folder): start a new "
+             f"run from its weights with init={run_dir / 'model.zip'}")  # fmt: skip
+    for folder in (run_dir, run_dir / "checkpoints"):  # left by a killed writer; we hold the folder's lock
+        remove_temporaries(folder)
+    cfg.device = str(get_device(cfg.device))  # recorded as used (device=auto becomes cpu or cuda)
+    use_threads(int(cfg.threads), network_on_cpu=cfg.device == "cpu")  # torch's and the world's (numba's)
+
+
+def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple[BaseAlgorithm, bool]:
+    """(the algorithm, whether it resumes): the newest readable checkpoint with its step count and optimiser state,
+    or a fresh one (from init= weights if given), also for a resume of a run killed before its first checkpoint."""
+    cfg = plan.cfg
+    if resuming:
+        model, checkpoint = load_newest_checkpoint(plan, run_dir, env)
+        if model is not None:
+            start = model.num_timesteps
+            if int(cfg.total_timesteps) < start:
+                fail(f"total_timesteps={cfg.total_timesteps} is not allowed: {run_dir} has trained {start} "
+                     f"agent-steps already ({checkpoint.name}); give total_timesteps >= {start}")  # fmt: skip
+            model.set_random_seed((int(cfg.seed) + start) % 2**32)  # new scenarios, not a replay of the first
+            print(f"resuming {run_dir} from {checkpoint.name} at {start} agent-steps", file=sys.stderr)
+            return model, True
+        aside = set_aside_logs(run_dir)
+        print(f"{run_dir} has no checkpoint yet: starting it again from step 0"
+              + (f" (the killed attempt's logs moved to {aside})" if aside else ""), file=sys.stderr)  # fmt: skip
+    model = make_algorithm(plan, env)
+    if cfg.init is not None:
+        try:
+            init_weights(model, str(cfg.init))
+        except ValueError as err:
+            fail(str(err))
+        print(f"policy weights from {cfg.init}", file=sys.stderr)
+    return model, False
+
+
+def set_aside_logs(run_dir: Path) -> Path | None:
+    """Move the logs of an attempt killed before its first checkpoint (progress.csv, tensorboard/, imitation.csv)
+    into `<run>/killed/<k>/`, so the restart from step 0 logs every step once; the folder, or None if none."""
+    logs = [run_dir / name for name in ("progress.csv", "tensorboard", "imitation.csv") if (run_dir / name).exists()]
+    if not logs:
+        return None
+    k = 0
+    while (run_dir / "killed" / str(k)).exists():
+        k += 1
+    aside = run_dir / "killed" / str(k)
+    aside.mkdir(parents=True)
+    for path in logs:
+        path.rename(aside / path.name)
+    return aside
+
+
+def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[BaseAlgorithm | None, Path | None]:
+    """The newest checkpoint of the run that loads, with its step count and optimiser state. One that cannot be
+    read (truncated by a full disk, a broken copy) is set aside as `<name>.unreadable`, said so, and the one
+    before it is tried. (None, None) if the run has none: it was killed before its first checkpoint."""
+    found = sorted(checkpoints(run_dir / "checkpoints"), reverse=True)
+    if not found:
+        return None, None
+    for _, path in found:
+        try:
+            return load_algorithm(plan, str(path), env), path
+        except OSError as err:  # cannot be read now (permission, I/O): maybe whole, so nothing is set aside
+            fail(f"resume={plan.cfg.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
+                 f"{err.strerror or err}); nothing was renamed: restore access and resume again")  # fmt: skip
+        except ValueError as err:
+            aside = path.with_name(f"{path.name}.unreadable")
+            path.rename(aside)
+            print(f"warning: {err}; set aside as {aside.name}, trying the checkpoint before it", file=sys.stderr)
+    fail(f"resume={plan.cfg.resume!r}: no checkpoint under checkpoints/ can be read (set aside as *.unreadable)")
+
+
+def record_config(cfg: DictConfig, run_dir: Path) -> None:
+    """The run's record, written once the run has started well: a resume writes back what it changed (say
+    total_timesteps) but never what it resumes from."""
+    record = copy.deepcopy(cfg)
+    record.resume = None
+    # the scenario as the run draws it, every part written out (a run made before a part existed drew its default)
+    record.scenario = Scenario.from_dict(OmegaConf.to_container(record.scenario, resolve=True)
+                                         if "scenario" in record else None).to_dict()  # fmt: skip
+    write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(record, resolve=True))
+
+
+def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:
+    """Clone the teacher into the fresh policy (imitation.py); imitation.csv records each epoch, imitation.zip the
+    clone before RL, and checkpoints/step_0.zip too, so a kill before the first RL checkpoint resumes from it."""
+    im, seed = plan.cfg.imitation, int(plan.cfg.seed)
+    demos = collect(list(plan.groups), str(plan.teacher), int(im.episodes), float(plan.cfg.algo.gamma), seed,
+                    plan.teacher_args, plan.scenario)  # fmt: skip
+    print(f"imitation: {len(demos)} sequences of {plan.teacher}, found fraction {demos.found_fraction:.3f}",
+          file=sys.stderr)  # fmt: skip
+    rows: list[dict[str, float]] = []
+
+    def record(row: dict[str, float]) -> None:
+        rows.append({**row, "teacher_found_fraction": demos.found_fraction})
+        rows[-1]["epoch"] = len(rows)
+        print(f"imitation epoch {len(rows)} ({row['phase']}): accuracy {row['accuracy']:.3f}, "
+              f"value loss {row['value_loss']:.2f}", file=sys.stderr)  # fmt: skip
+        write_text_atomic(run_dir / "imitation.csv", pd.DataFrame(rows).to_csv(index=False))
+
+    fit = (int(im.epochs), int(im.value_epochs), int(im.batch_sequences), float(im.learning_rate))
+    clone(model.policy, demos, *fit, seed, on_epoch=record, lr_schedule=str(im.lr_schedule))
+    write_atomic(run_dir / "imitation.zip", lambda tmp: model.save(tmp))  # the clone before RL, to evaluate
+    write_atomic(run_dir / "checkpoints" / "step_0.zip", lambda tmp: model.save(tmp))
+
+
+def set_logs(model: BaseAlgorithm, run_dir: Path, resume_step: int | None) -> None:
+    """One CSV across resumed segments (rows past the checkpoint dropped), plus TensorBoard; a resumed segment's
+    elapsed time and iterations continue the run's."""
+    offsets = clock_offsets(run_dir / "progress.csv", resume_step) if resume_step is not None else {}
+    csv_writer = AppendingCSV(run_dir / "progress.csv", resume_step=resume_step)
+    purge = None if resume_step is None else resume_step + 1
+    writers = [csv_writer, ResumableTensorBoard(str(run_dir / "tensorboard"), purge)]
+    model.set_logger(Logger(str(run_dir), [ContinuedClock(w, offsets) for w in writers] if offsets else writers))
+
+
+def learn(plan: Plan, model: BaseAlgorithm, callbacks: list[BaseCallback], validation: ValidationCallback,
+          resuming: bool) -> None:  # fmt: skip
+    """RL up to total_timesteps; a run without RL (total_timesteps=0, a clone only) is validated once for its
+    score."""
+    cfg = plan.cfg
+    remaining = int(cfg.total_timesteps) - model.num_timesteps
+    if remaining > 0:
+        model.learn(total_timesteps=remaining, callback=CallbackList(callbacks), log_interval=int(cfg.log_interval),
+                    reset_num_timesteps=not resuming, progress_bar=bool(cfg.progress_bar))  # fmt: skip
+    elif not resuming:
+        validation.init_callback(model)
+        validation.on_training_end()
+
+
+@hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="train")
+def main(cfg: DictConfig) -> float:
+    """Train, and return the run's score (score.py) for Hydra sweepers: `-m hydra/sweeper=optuna` maximises it."""
+    hydra_cfg = HydraConfig.get()
+    final = in_sweep(train, cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
+    return read_score(final.parent)
