@@ -112,9 +112,19 @@ def main(argv: list[str] | None = None) -> int:
             world = WorldConfig.from_dict(checkpoint_config(args.checkpoint)[0])
         else:
             world = WorldConfig(**MODELS[args.model or "b"])
-        config = replace(world, world_size=(args.n, args.n), n_agents=args.agents,
-                         n_targets=(args.targets, args.targets),
-                         n_distributions=(args.distributions, args.distributions))  # fmt: skip
+        flags = {
+            "world_size": ("--n", args.n),
+            "n_agents": ("--agents", args.agents),
+            "n_targets": ("--targets", args.targets),
+            "n_distributions": ("--distributions", args.distributions),
+        }
+        try:
+            config = replace(world, world_size=(args.n, args.n), n_agents=args.agents,
+                             n_targets=(args.targets, args.targets),
+                             n_distributions=(args.distributions, args.distributions))  # fmt: skip
+        except ConfigError as err:  # named by the flag the user gave, not by the world's field
+            field = next((f for f in flags if str(err).startswith(f"{f}=")), None)
+            raise ConfigError(f"{flags[field][0]}={flags[field][1]} ({err})" if field else str(err)) from None
         scenario = Scenario.from_dict(OmegaConf.to_container(OmegaConf.load(SCENARIOS / f"{args.scenario}.yaml")))
         scenario.check(config)
         if args.checkpoint:

@@ -356,6 +356,14 @@ def test_render_writes_an_episode_gif(tmp_path):
         render_main(["--out", str(tmp_path / "x.mp4")])
 
 
+def test_render_names_a_bad_size_by_its_flag(tmp_path, capsys):
+    for flag, value in (("--n", "4"), ("--targets", "0")):
+        with pytest.raises(SystemExit):
+            render_main([flag, value, "--out", str(tmp_path / "x.gif")])
+        assert f"error: {flag}={value} " in capsys.readouterr().err
+    assert not (tmp_path / "x.gif").exists()
+
+
 def test_paired_margins_compare_the_same_maps():
     cell = {"model": "b", "n": 40, "N": 4}
     rows = []

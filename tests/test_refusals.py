@@ -122,3 +122,35 @@ def test_the_maze_check_counts_the_free_cells_every_maze_has():
         maze = MazeObstacles(corridor=corridor, loops=0.0)
         rng = np.random.default_rng(n + corridor)
         assert {int((~maze.draw(n, rng)).sum()) for _ in range(5)} == {expected}
+
+
+def test_a_run_folder_that_cannot_be_written_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    """A resume into a checkpoints/ made read-only used to fail with a traceback after its first rollout (the test
+    runs as any user: os.access is what the check asks)."""
+    import os
+
+    from searchrl import atomic
+
+    (tmp_path / "run" / "checkpoints").mkdir(parents=True)
+    real = os.access
+    monkeypatch.setattr(atomic.os, "access", lambda p, mode: real(p, mode) and Path(p).name != "checkpoints")
+    overrides = ["+model=b", "network=small", "env.n_worlds=2", "env.world.n_agents=4", "algo.batch_size=128",
+                 "total_timesteps=256", "validation.every=0", "progress_bar=false", "threads=1"]  # fmt: skip
+    cfg = _compose("train", overrides)
+    _refused(capsys, lambda: train(cfg, tmp_path / "run", overrides), "checkpoints' is not allowed:", "not writable")
+    assert not (tmp_path / "run" / "config.yaml").exists()
+
+
+def test_a_policy_evaluated_outside_its_training_scenario_is_said_so(tmp_path, capsys):
+    from searchrl.evaluate.app import plan_evaluation
+    from searchrl.policies.checkpoint import training_scenario
+    from searchrl.world.scenario import Scenario
+
+    walls, open_grid = ROOT / "runs/reference/walls/b/model.zip", ROOT / "runs/reference/term/b/model.zip"
+    assert Scenario.from_dict(training_scenario(walls)).label.startswith("mix-")
+    assert Scenario.from_dict(training_scenario(open_grid)).label == "paper"
+    for checkpoint, said in ((walls, True), (open_grid, False)):
+        overrides = [*SLICE, f"checkpoint={checkpoint}", f"out_dir={tmp_path}"]
+        plan_evaluation(_compose("evaluate", overrides), overrides)
+        err = capsys.readouterr().err
+        assert ("was trained under scenario mix-" in err and "evaluated under paper" in err) == said, err

@@ -32,7 +32,7 @@ from searchrl.evaluate.record import claim_folder, evaluation_settings, option_d
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.multirun import refuse
-from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
+from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor, training_scenario
 from searchrl.policies.device import check_device, resolve_device
 from searchrl.schema import MAX_THREADS, check_known_keys, override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
@@ -187,6 +187,11 @@ def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | N
                 map_prior(cell_config(world, cell), map_seed(int(cfg.seed), index, m), scenario)
         except ConfigError as err:
             raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
+    if cfg.checkpoint is not None:  # a policy met outside its training distribution: said beside its results
+        trained = Scenario.from_dict(training_scenario(cfg.checkpoint)).label
+        if trained != scenario.label:
+            print(f"note: {checkpoint_label(cfg.checkpoint)} was trained under scenario {trained} (its run's "
+                  f"config.yaml) and is evaluated under {scenario.label}", file=sys.stderr)  # fmt: skip
     # Default runs/eval/<controller=…> (greedy_target's folder though its rows say greedy) or
     # runs/eval/policy/<label>: the label is the run's path under runs/, so two runs never share a folder
     default = controller_name.replace(":", "/") if cfg.checkpoint is not None else cfg.controller.name

@@ -37,6 +37,17 @@ def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
     raise FileNotFoundError(f"checkpoint={str(path)!r} has no run config.yaml beside it or one folder up")
 
 
+def training_scenario(path: str | Path) -> dict | None:
+    """The scenario mapping (`Scenario.from_dict`'s form) a checkpoint's run trained under, from its config.yaml
+    (`checkpoint_config` finds and checks it); None when the run records none (the paper's)."""
+    path = Path(path)
+    for folder in (path.parent, path.parent.parent):
+        if (folder / "config.yaml").exists():
+            node = OmegaConf.load(folder / "config.yaml").get("scenario")
+            return None if node is None else OmegaConf.to_container(node, resolve=True)
+    return None
+
+
 def checkpoint_label(path: str | Path) -> str:
     """The name a checkpoint is evaluated under: its run folder's path below the nearest folder named `runs`
     (`reference/b` for the clone, `reference/term/b` for its RL policy), or the run folder's name when no `runs`

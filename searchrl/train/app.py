@@ -27,7 +27,15 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.utils import get_device
 from stable_baselines3.common.vec_env import VecEnv
 
-from searchrl.atomic import FolderBusy, hold, remove_temporaries, storage_message, write_atomic, write_text_atomic
+from searchrl.atomic import (
+    FolderBusy,
+    check_writable,
+    hold,
+    remove_temporaries,
+    storage_message,
+    write_atomic,
+    write_text_atomic,
+)
 from searchrl.multirun import in_sweep
 from searchrl.paths import CONF_DIR
 from searchrl.schema import override_keys
@@ -161,6 +169,11 @@ def prepare_folder(cfg: DictConfig, run_dir: Path, resuming: bool) -> None:
     if resuming and not checkpoints(run_dir / "checkpoints") and (run_dir / "model.zip").exists():
         fail(f"resume={str(run_dir)!r} is a finished run with no checkpoints/ left (a shipped folder): start a new "
              f"run from its weights with init={run_dir / 'model.zip'}")  # fmt: skip
+    for folder in (run_dir, run_dir / "checkpoints"):  # a folder made read-only: said now, not after a rollout
+        try:
+            check_writable(folder, "resume" if resuming else "hydra.run.dir", folder=True)
+        except ValueError as err:
+            fail(str(err))
     for folder in (run_dir, run_dir / "checkpoints"):  # left by a killed writer; we hold the folder's lock
         remove_temporaries(folder)
     cfg.device = str(get_device(cfg.device))  # recorded as used (device=auto becomes cpu or cuda)
