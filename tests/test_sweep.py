@@ -184,3 +184,29 @@ def test_the_study_is_stored_in_the_checkout_whatever_the_working_folder(tmp_pat
     assert out.returncode == 0, out.stderr[-2000:]
     storage = yaml.safe_load(out.stdout)["storage"]  # the package's keys, printed at the top level
     assert storage == f"sqlite:///{ROOT / 'runs' / 'optuna.db'}"
+
+
+def test_a_trial_left_running_by_a_dead_sweep_is_marked_failed_at_the_next(tmp_path):
+    """A sweep killed with -9 leaves its trial RUNNING: the next sweep's first proposal marks it FAIL when its sweep
+    ran on this host and is gone (or never marked its trials), and leaves live or other hosts' sweeps alone."""
+    import os
+    import socket
+
+    import optuna
+
+    from searchrl.train.optuna_sampler import OWNER, TrialSeededTPESampler
+
+    study = optuna.create_study(storage=f"sqlite:///{tmp_path / 's.db'}", study_name="s", direction="maximize")
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    owners = {"dead": f"{socket.gethostname()}:{int(dead.stdout)}", "alive": f"{socket.gethostname()}:{os.getppid()}",
+              "elsewhere": "another-host:1", "unmarked": None}  # fmt: skip
+    for owner in owners.values():
+        trial = study.ask()
+        if owner is not None:
+            study._storage.set_trial_system_attr(trial._trial_id, OWNER, owner)
+    sampler = TrialSeededTPESampler(seed=0)
+    resumed = optuna.load_study(study_name="s", storage=f"sqlite:///{tmp_path / 's.db'}", sampler=sampler)
+    resumed.ask({"x": optuna.distributions.UniformDistribution(0, 1)})  # the new sweep's first proposal
+    states = [t.state.name for t in resumed.trials]
+    assert states == ["FAIL", "RUNNING", "RUNNING", "FAIL", "RUNNING"], states
+    assert resumed.trials[-1].system_attrs[OWNER] == f"{socket.gethostname()}:{os.getpid()}"
