@@ -1,6 +1,6 @@
 """`python -m searchrl.render [--controller NAME | --checkpoint model.zip [--device cuda]] [--out episode.gif]`
 
-NAME: a heuristic of searchrl/controllers/registry.py (surfing, greedy, greedy_target, coverage, random).
+NAME: a heuristic of searchrl/controllers/registry.py (docs/controllers.md lists them).
 
 Writes one episode as an animated GIF in the paper's colours (Fig. 1, Fig. 4): left, the true maps with all agents
 (purple), hidden (green) and found (brown) targets; right, one agent's belief, the agent ringed in black.

@@ -58,7 +58,7 @@ class EnvConfig:
 
 @dataclass
 class ModelConfig:
-    name: str = MISSING  # a, b, c, diagonal (trainable) or a heuristic (surfing, coverage, random)
+    name: str = MISSING  # a, b, c, diagonal (trainable) or a heuristic preset (conf/model/), refused by both apps
     trainable: bool = True
 
 

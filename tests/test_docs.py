@@ -155,3 +155,18 @@ def test_the_cite_check_catches_a_changed_number(tmp_path):
     [(path, quoted)] = cited_blocks(page)
     assert path == "analysis/out/claims.md" and quoted == ["- b − c: better on 3 of 30 cells"]
     assert quoted[0] not in set((ROOT / path).read_text().splitlines())
+
+
+def test_the_docs_name_only_registered_controllers_and_controllers_md_names_every_one():
+    """Names come from the registry: a `controller=<name>` or `imitation.teacher=<name>` in the README, the docs or
+    the configs is registered, and docs/controllers.md gives every registered heuristic its name in backticks."""
+    from searchrl.controllers.registry import HEURISTICS
+
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml"))]
+    for page in pages:
+        if page.name == "log.md":  # history: commands as they were run then
+            continue
+        for name in re.findall(r"(?:controller|imitation\.teacher)=([a-z_]+)\b", page.read_text()):
+            assert name in HEURISTICS or name in ("name", "null", "oracle_switch"), (page.name, name)
+    text = (ROOT / "docs" / "controllers.md").read_text()
+    assert [name for name in HEURISTICS if f"`{name}`" not in text and f"controller={name}" not in text] == []

@@ -1,2 +1,2 @@
-"""Controllers: trained policies and heuristics (information surfing, coverage, random walk) behind one batched
+"""Controllers: trained policies and heuristics (searchrl/controllers/registry.py) behind one batched
 interface, `reset(state, mask)` then `act(state, maps, vector) -> (K, N) actions`."""

@@ -1,2 +1,2 @@
-"""Evaluation on the paper's Table 2/3 grid: `python -m searchrl.evaluate controller=surfing|coverage|random` or
+"""Evaluation on the paper's Table 2/3 grid: `python -m searchrl.evaluate controller=<heuristic>` or
 `checkpoint=<run>/model.zip`."""

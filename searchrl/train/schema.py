@@ -68,7 +68,7 @@ class ValidationConfig:
 class ImitationConfig:
     """Warm start by cloning a heuristic before RL (`searchrl/train/imitation.py`); not in the paper."""
 
-    # A heuristic of searchrl/controllers/registry.py but random (surfing, greedy, greedy_target, coverage); null
+    # A heuristic of searchrl/controllers/registry.py but random (registry.TEACHERS); null
     # trains from scratch as the paper does
     teacher: str | None = None
     # Keyword arguments of the teacher's controller (those of controller=<teacher>), e.g. {horizon: 1} for greedy;
