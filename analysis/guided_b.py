@@ -49,7 +49,7 @@ from searchrl.world.state import WorldState
 
 
 # %%
-@njit(cache=True, parallel=True)
+@njit(parallel=True)  # not cached: a script's functions have no module to key a cache on
 def guidance_values(w, params, memory, radius, floor, out, threads):
     """out (K, N, 2·(A − 1)) float32 <- the guidance of every agent (module text); agents shared among threads."""
     n_slots, side = out.shape[0] * out.shape[1], w.blocked.shape[1]
@@ -59,7 +59,7 @@ def guidance_values(w, params, memory, radius, floor, out, threads):
         _guidance_span(w, params, memory, radius, floor, out, start, stop, side)
 
 
-@njit(cache=True)
+@njit
 def _guidance_span(w, params, memory, radius, floor, out, start, stop, side):
     dist, first = np.full((side, side), -1, np.int32), np.zeros((side, side), np.int64)
     queue = np.zeros((side * side, 2), np.int64)

@@ -30,6 +30,8 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import Scenario
 from tests.scripts import run_script as _script
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 # Scripts that train or evaluate a policy of their own: context_probe.py is run by tests/test_context.py on one,

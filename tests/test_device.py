@@ -16,6 +16,8 @@ from searchrl.render import main as render
 from searchrl.world.config import ConfigError
 from tests.test_faults import REFERENCE_B, _evaluate, _refused
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 CHECKPOINT = str(REFERENCE_B / "model.zip")
 MISSING = ["gpu7", "cuda:99" if torch.cuda.is_available() else "cuda"]  # malformed; a device torch does not see
 SMALL_EPISODE = ["--n", "20", "--agents", "2", "--targets", "2", "--distributions", "4", "--cell", "1"]

@@ -18,6 +18,8 @@ from searchrl.world.reset import reset_worlds
 from searchrl.world.state import allocate
 from searchrl.world.step import check_actions
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 
 def _rollout(seed: int, steps: int, config: WorldConfig, k: int = 4):
     world = SearchWorld(config, n_worlds=k, seed=seed)

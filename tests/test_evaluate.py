@@ -19,6 +19,8 @@ from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import COLUMNS
 from searchrl.paths import CONF_DIR
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parents[1]
 SLICE = ["grid.world_sizes=[20,40]", "grid.n_targets=[4,8]", "grid.n_distributions=[8,16]", "grid.max_agents=[2,1]",
          "grid.maps_per_cell=3", "grid.repeats=2", "progress_bar=false", "threads=1", "bound_draws=200",

@@ -30,6 +30,8 @@ from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE_B = ROOT / "runs" / "reference" / "b"
 SLICE = ["grid.world_sizes=[20]", "grid.n_targets=[4]", "grid.n_distributions=[8]", "grid.max_agents=[2]",

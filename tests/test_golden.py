@@ -5,9 +5,12 @@ episode fails here."""
 from __future__ import annotations
 
 import pandas as pd
+import pytest
 import torch
 
 from tests.golden_slice import GOLDEN, golden_frame
+
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
 
 
 def test_shipped_controllers_replay_their_recorded_episodes():

@@ -15,6 +15,8 @@ from sb3_contrib import RecurrentPPO
 
 from searchrl.train.callbacks import checkpoints
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parents[1]
 # A tiny run that would take hours: only the signal ends it; no periodic checkpoint (checkpoint_every beyond it).
 TINY = ["+model=b", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,20]",

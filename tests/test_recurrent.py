@@ -15,6 +15,8 @@ from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.recurrent import SequenceLstmPolicy, process_sequence
 from tests.test_teacher_term import EXTRACTOR, WORLD
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 N_SEQ, LENGTH, WIDTH, HIDDEN = 6, 9, 7, 5
 
 

@@ -24,6 +24,8 @@ from searchrl.world.observe import observe
 from searchrl.world.reset import reset_world
 from searchrl.world.state import allocate
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 REFERENCE = Path(__file__).resolve().parents[1] / "runs" / "reference"
 # Every shipped policy: the four clones of target-greedy, the RL policies the README recommends (`term/<model>`,
 # `walls/*`, `robust/b`), the paper's RL recipe (`rl/<model>`) and the ablations (`ablations/<model>_<change>`).

@@ -18,6 +18,8 @@ from searchrl.schema import unknown_keys
 from searchrl.train.app import train
 from searchrl.world.obstacles import MazeObstacles
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parents[1]
 SLICE = ["grid.world_sizes=[20]", "grid.n_targets=[4]", "grid.n_distributions=[8]", "grid.max_agents=[2]",
          "grid.maps_per_cell=2", "grid.repeats=1", "progress_bar=false", "threads=1"]  # fmt: skip

@@ -21,6 +21,8 @@ from searchrl.train.plan import make_plan
 from searchrl.train.validation import run_episodes
 from tests.test_train import TINY, _compose, _run
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 Observation = dict[str, np.ndarray]
 
 

@@ -12,6 +12,8 @@ import torch
 from searchrl.policies.checkpoint import load_checkpoint
 from searchrl.policies.slim import is_slim, main, slim_checkpoint, weights_sha256
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted((ROOT / "runs" / "reference").rglob("model.zip"))
 

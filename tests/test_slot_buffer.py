@@ -17,6 +17,8 @@ from searchrl.train.slot_buffer import SlotRolloutBuffer
 from searchrl.train.teacher_term import TeacherRecurrentPPO
 from tests.test_teacher_term import WORLD, _model
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 SHORT = replace(WORLD, max_steps=20)  # episodes of 20 steps, rollouts of 8: starts at rollout heads and inside
 
 

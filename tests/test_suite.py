@@ -15,6 +15,8 @@ from searchrl.evaluate.suite import SuiteConfig, evaluate_suite, suite_scenarios
 from searchrl.paths import CONF_DIR
 from searchrl.world.scenario import PAPER
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 TINY = {"name": "tiny", "seed": 5, "variance_scales": [1.0], "severities": [1.0],
         "grid": {"world_sizes": [20, 40], "n_targets": [4, 8], "n_distributions": [8, 16], "max_agents": [4, 4],
                  "agents": [1, 4], "maps_per_cell": 2, "repeats": 1},

@@ -18,6 +18,8 @@ from searchrl.analysis.sweep import load_jobs, mean_ci, score_table, setting_key
 from searchrl.train.score import run_score
 from tests.scripts import run_script
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ["+model=b", "total_timesteps=512", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,20]",
         "env.world.n_targets=[2,4]", "env.world.n_distributions=[4,8]", "network=small", "algo.batch_size=128",

@@ -23,6 +23,8 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from tests.test_train import TINY, _compose, _run
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 WORLD = replace(WorldConfig(), world_size=(12, 16), n_targets=(2, 3), n_distributions=(4, 6), n_agents=3,
                 max_steps=24)  # fmt: skip
 EXTRACTOR = {"conv_channels": [8, 8, 8], "vector_size": 8, "fc_sizes": [32]}

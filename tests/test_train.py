@@ -23,6 +23,8 @@ from searchrl.train.app import train
 from searchrl.train.build import load_algorithm, make_vec_env
 from searchrl.train.plan import make_plan
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parents[1]
 # A few thousand agent-steps: 2048, in rollouts of 2 worlds × 4 agents × 32 steps = 256 agent-steps.
 TINY = [

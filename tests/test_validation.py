@@ -24,6 +24,8 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import IidObstacles, Scenario
 from tests.test_train import TINY, _compose
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 SHIPPED_B = Path(__file__).resolve().parents[1] / "runs" / "reference" / "term" / "b" / "model.zip"
 
 

@@ -19,6 +19,8 @@ from searchrl.analysis.stats import (
 )
 from tests.scripts import run_script as _script
 
+pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
+
 ROOT = Path(__file__).resolve().parents[1]
 CELL = {"model": "b", "n": 40, "N": 4}
 
