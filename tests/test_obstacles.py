@@ -98,3 +98,20 @@ def test_bad_obstacle_settings_are_named(values, message):
     config = WorldConfig(world_size=(40, 40), n_targets=(8, 8), n_agents=4)
     with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(".", r"\.")):
         Scenario.from_dict({"obstacles": values}).check(config)
+
+
+class _Lowest:
+    """A generator stand-in whose `integers(low, high)` is always `low`: the recursive division made predictable."""
+
+    def integers(self, low, high=None):
+        return low
+
+
+@pytest.mark.parametrize("door", [1, 3, 5])
+def test_each_room_wall_has_a_door_exactly_door_cells_wide(door):
+    """n = 12, room_size 12, every random choice its lowest: a horizontal wall at row 1 with its door at columns
+    0..door-1, then in the lower region a vertical wall at column 1 from row 2 with its door at rows 2..door+1."""
+    walls = RoomObstacles(room_size=12, door=door).draw(12, _Lowest())
+    assert not walls[1, :door].any() and walls[1, door:].all()
+    assert not walls[2 : 2 + door, 1].any() and walls[2 + door :, 1].all()
+    assert walls.sum() == (12 - door) + (10 - door)  # nothing else: both halves are then too small to divide

@@ -145,3 +145,17 @@ def test_a_mix_picks_a_family_then_draws_that_scenarios_world():
     assert [s.label for s in walls.scenarios] == ["paper", "iid0.2c", "primal", "maze3l0.1", "rooms12d3"]
     with pytest.raises(ConfigError, match=r"scenario\.targets is not allowed with scenario\.mix"):
         Scenario.from_dict({"mix": {"families": {}}, "targets": {"kind": "prior"}})
+
+
+@pytest.mark.parametrize("severity", [0.5, 1.0])
+def test_the_uninformed_prior_changes_what_the_agents_hold_never_the_truth(severity):
+    """The targets follow p and u unchanged (truth_p is p and truth_u is u, bit for bit); the agents' u is the
+    truth's too, and their p is (1 − s)·p + s/n²."""
+    config = WorldConfig(world_size=(12, 12))
+    rng = np.random.default_rng(3)
+    p, u = rng.random((12, 12)), rng.random((12, 12))
+    p, u = p / p.sum(), u / u.sum()
+    draw = UninformedPrior(severity=severity).wrong(config, p, u, np.ones(4), np.random.default_rng(0))
+    assert draw.truth_p.tobytes() == p.tobytes() and draw.truth_u.tobytes() == u.tobytes()
+    assert draw.u.tobytes() == u.tobytes()
+    np.testing.assert_allclose(draw.p, (1 - severity) * p + severity / 144)

@@ -128,3 +128,21 @@ def test_each_family_has_a_scenario_file_with_a_label_of_its_own(name, kind):
 def test_bad_family_settings_are_named(targets, message):
     with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)")):
         Scenario.from_dict({"targets": targets}).check(WorldConfig())
+
+
+@pytest.mark.parametrize("severity", [0.0, 0.5, 1.0])
+def test_tempered_truth_follows_p_to_the_power_its_severity_sets(severity):
+    """a = 1 + severity·(power − 1): severity 0 is the paper's placement itself, draw for draw, and 0.5 with power 4
+    places from p^2.5, the same draws as placing from that map directly."""
+    from searchrl.world.truth import TemperedTargets, place_targets
+
+    rng = np.random.default_rng(0)
+    p = rng.random((12, 12)) ** 3
+    p /= p.sum()
+    u = rng.random((12, 12))
+    u /= u.sum()
+    free = np.ones((12, 12), bool)
+    got = TemperedTargets(severity=severity, power=4.0).wrong(p, u, free, 6, np.random.default_rng(5))
+    tempered = p ** (1.0 + severity * 3.0)
+    want = place_targets(tempered / tempered.sum(), u, free, 6, np.random.default_rng(5))
+    np.testing.assert_array_equal(got, want)

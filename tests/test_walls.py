@@ -114,3 +114,25 @@ def test_a_step_is_stale_when_the_footprint_holds_nothing_new():
     state.swept[0, row + 2, col] = False  # one cell of its footprint unswept again
     step(config, state, stay, rng)
     assert state.ep_stale[0] == 1 + (state.blocked[0, row + 2, col])
+
+
+def test_path_greedy_looks_no_further_than_its_radius():
+    """A little information 2 moves east and much 5 moves west: with radius 2 the west cell lies beyond every
+    footprint path_greedy scores (a footprint at 2 moves reaches 4), so it goes east; one move more of search
+    would see the west cell and turn there."""
+    config = WorldConfig(world_size=(21, 21), n_targets=(1, 1), n_distributions=(2, 2), n_agents=1)
+    world = SearchWorld(config, 1, seed=0)
+    world.reset()
+    state, h = world.state, world.state.halo
+    r0 = c0 = 10
+    state.pos[0, 0] = (r0, c0)
+    state.occupant[0][state.occupant[0] >= 0] = -1
+    state.occupant[0, r0 + h, c0 + h] = 0
+    east, west = [int(np.flatnonzero((MOVES == m).all(axis=1))[0]) for m in ((0, 1), (0, -1))]
+    for radius, expected in ((2, east), (3, west)):
+        rule = make_controller("path_greedy", config, seed=0, settings={"radius": radius})
+        rule.reset(state, np.ones(1, bool))
+        state.belief[0, 0, :] = 0.0  # the agent believes in two cells only, with u = 0 (nothing ruled out)
+        state.belief[0, 0, 0, r0 + h, c0 + 2 + h] = 0.2
+        state.belief[0, 0, 0, r0 + h, c0 - 5 + h] = 20.0
+        assert rule.act(state, *world.observation)[0, 0] == expected, radius
