@@ -77,6 +77,7 @@ def test_an_integer_world_size_is_an_n_by_n_world_everywhere() -> None:
     from hydra import compose, initialize_config_dir
 
     import searchrl
+    import searchrl.train.app
     from searchrl.envs.single_env import SearchEnv
     from searchrl.paths import CONF_DIR
     from searchrl.train.plan import team_groups

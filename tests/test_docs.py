@@ -17,7 +17,8 @@ from pathlib import Path
 import pytest
 from hydra import compose, initialize_config_dir
 
-import searchrl.evaluate.app  # noqa: F401  (registers the evaluate schemas)
+import searchrl.evaluate.app
+import searchrl.train.app  # noqa: F401  (registers the training schemas)
 from searchrl.paths import CONF_DIR
 
 ROOT = Path(__file__).resolve().parents[1]

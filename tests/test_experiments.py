@@ -14,6 +14,7 @@ import yaml
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+import searchrl.train.app  # noqa: F401  (registers the training schemas)
 from searchrl.controllers.registry import resolved
 from searchrl.paths import CONF_DIR
 from searchrl.policies.slim import weights_sha256

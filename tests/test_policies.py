@@ -7,6 +7,7 @@ import pytest
 import torch
 from hydra import compose, initialize_config_dir
 
+import searchrl.train.app  # noqa: F401  (registers the training schemas)
 from searchrl.controllers.policy import PolicyController
 from searchrl.paths import CONF_DIR
 from searchrl.policies.actor import Actor, sample_actions

@@ -12,6 +12,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+import searchrl.evaluate.app  # noqa: F401  (registers the evaluation schemas)
 from searchrl.controllers.episodes import episode_streams
 from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import (

@@ -26,6 +26,7 @@ from searchrl.policies.recurrent import process_sequence
 from searchrl.threads import use_threads
 from searchrl.train.build import make_algorithm, make_vec_env
 from searchrl.train.plan import make_plan
+from searchrl.train.schema import register_configs
 from searchrl.train.teacher_labels import TeacherLabels
 
 
@@ -65,6 +66,7 @@ def run(updates: int = 4, threads: int | None = None, network: str = "paper", ex
     overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", f"network={network}"]
     overrides += [f"machine={machine}"] if machine else []
     overrides += [f"{key}={value}" for key, value in (("threads", threads), ("device", device)) if value is not None]
+    register_configs()  # the training app's schemas, which the composed config names
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose(config_name="train", overrides=overrides)
     threads, device = int(cfg.threads), str(resolve_device(str(cfg.device)))  # `auto` read as cpu or cuda
