@@ -1,4 +1,4 @@
-"""Engine == oracle on random small scenarios: the engine's `step` and `observe` against tests/oracle.py.
+"""Engine == oracle on random small scenarios: the engine's `step` and `observe` against searchrl/world/oracle.py.
 
 Discrete results and state are compared bit for bit; floats to float32 rounding (see worldgen.RTOL), since
 the spec leaves the order of sums over cells and agents free.
@@ -13,11 +13,11 @@ from hypothesis import strategies as st
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observe
+from searchrl.world.oracle import oracle_observe, oracle_step
 from searchrl.world.reset import reset_worlds
 from searchrl.world.scenario import PAPER, IidObstacles, Scenario
 from searchrl.world.state import allocate
 from searchrl.world.step import step
-from tests.oracle import oracle_observe, oracle_step
 from tests.worldgen import ATOL, RTOL, assert_states_match, scenarios, small_configs
 
 EXACT_RESULTS = {

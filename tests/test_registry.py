@@ -112,3 +112,12 @@ def test_imitation_takes_greedy_target_and_greedy_with_teacher_args_alike():
     keys = [k for k in asdict(HEURISTICS["greedy"].schema()) if k != "name"]
     assert {k: getattr(named, k) for k in keys} == {k: getattr(spelled, k) for k in keys}
     assert make_teacher("greedy_target", world, 0, {"reach": 2}).reach == 2.0
+
+
+def test_the_library_never_reads_the_tests_folder():
+    """The reference oracle is the library's (searchrl/world/oracle.py): no module imports from tests/ or opens a
+    path under it (a doc reference to a test file is fine)."""
+    for path in (ROOT / "searchrl").rglob("*.py"):
+        text = path.read_text()
+        assert not [m for m in _imports(path) if m.split(".")[0] == "tests"], path
+        assert '/ "tests"' not in text and '"tests/' not in text, path

@@ -1,10 +1,9 @@
 """World throughput: agent-steps/s of the batched engine, at each numba thread count asked for, and of the plain
-reference oracle (tests/oracle.py), on two cases, measured in one run so their ratios are meaningful on this
+reference oracle (searchrl/world/oracle.py), on two cases, measured in one run so their ratios are meaningful on this
 machine."""
 
 from __future__ import annotations
 
-import importlib.util
 import time
 from collections.abc import Callable, Sequence
 from typing import TextIO
@@ -12,7 +11,6 @@ from typing import TextIO
 import numba
 import numpy as np
 
-from searchrl.paths import repository_root
 from searchrl.world.config import WorldConfig
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_worlds
@@ -26,14 +24,10 @@ _TABLE2 = {20: (4, 8), 40: (8, 16), 80: (16, 32), 160: (32, 64)}  # n -> (target
 
 
 def _load_oracle() -> tuple[Callable, Callable] | None:
-    """The oracle lives in tests/ (it is a test artefact); available when running from a checkout."""
-    path = repository_root() / "tests" / "oracle.py"
-    if not path.exists():
-        return None
-    spec = importlib.util.spec_from_file_location("searchrl_test_oracle", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.oracle_step, module.oracle_observe
+    """The reference oracle's step and observe (searchrl/world/oracle.py)."""
+    from searchrl.world.oracle import oracle_observe, oracle_step
+
+    return oracle_step, oracle_observe
 
 
 def max_threads() -> int:
