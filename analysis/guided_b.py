@@ -37,9 +37,9 @@ import torch
 from numba import njit, prange
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
-from searchrl.controllers.greedy import cell_information, footprint_information
+from searchrl.controllers.greedy import cell_information
 from searchrl.controllers.policy import PolicyController
-from searchrl.controllers.walls import PathGreedy, bfs
+from searchrl.controllers.walls import PathGreedy, bfs, pocket_values
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.train.teacher_labels import TeacherLabels
@@ -69,17 +69,7 @@ def _guidance_span(w, params, memory, radius, floor, out, start, stop, side):
     for slot in range(start, stop):
         k, i = slot // pos.shape[1], slot % pos.shape[1]
         r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
-        reached = bfs(w.blocked, k, r0, c0, radius, n_actions, dist, first, queue)
-        best[:] = 0.0
-        for q in range(1, reached):
-            r, c = queue[q, 0], queue[q, 1]
-            value = footprint_information(w, params, memory, k, i, r, c, r0, c0, others, 0)
-            value *= params.discount ** (dist[r, c] - 1)
-            a = first[r, c]
-            if value > best[a]:
-                best[a] = value
-        for q in range(reached):
-            dist[queue[q, 0], queue[q, 1]] = -1
+        pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, best, others)
         top = best[1:].max()
         out[k, i, :] = 0.0
         for a in range(1, n_actions):

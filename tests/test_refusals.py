@@ -17,6 +17,7 @@ from searchrl.paths import CONF_DIR
 from searchrl.schema import unknown_keys
 from searchrl.train.app import train
 from searchrl.world.obstacles import MazeObstacles
+from tests.test_faults import _refused
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
 
@@ -28,17 +29,6 @@ SLICE = ["grid.world_sizes=[20]", "grid.n_targets=[4]", "grid.n_distributions=[8
 def _compose(app: str, overrides: list[str], hydra: bool = False):
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         return compose(config_name=app, overrides=overrides, return_hydra_config=hydra)
-
-
-def _refused(capsys, call, *needles: str) -> str:
-    capsys.readouterr()
-    with pytest.raises(SystemExit) as stop:
-        call()
-    err = capsys.readouterr().err
-    assert stop.value.code == 2 and "Traceback" not in err, err
-    line = err.strip().splitlines()[-1]
-    assert line.startswith("error:") and all(n in line for n in needles), err
-    return line
 
 
 def test_a_training_key_no_schema_knows_is_refused_naming_the_nearest(tmp_path, capsys):

@@ -60,6 +60,25 @@ def bfs(blocked, k, r0, c0, limit, n_actions, dist, first, queue):
     return tail
 
 
+@njit(cache=True)
+def pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, best, others):
+    """best (A,) <- for each first move a, the best value of a cell within `radius` moves of agent i of world k at
+    padded (r0, c0) whose shortest path starts with a: its footprint information (`footprint_information`)
+    times discount^(moves − 1). dist, first, queue are `bfs`'s scratch, dist left all -1 again; others (1, 2)
+    int64 scratch (no agent is contested here)."""
+    reached = bfs(w.blocked, k, r0, c0, radius, params.n_actions, dist, first, queue)
+    best[:] = 0.0
+    for q in range(1, reached):
+        r, c = queue[q, 0], queue[q, 1]
+        value = footprint_information(w, params, memory, k, i, r, c, r0, c0, others, 0)
+        value *= params.discount ** (dist[r, c] - 1)
+        a = first[r, c]
+        if value > best[a]:
+            best[a] = value
+    for q in range(reached):
+        dist[queue[q, 0], queue[q, 1]] = -1
+
+
 @njit(cache=True, parallel=True)
 def path_greedy_actions(w, params, memory, radius, floor, fallback, out, threads):
     """out (K, N) <- PathGreedy's moves (module docstring); floor (K,): the information a cell must hold to be
@@ -89,21 +108,11 @@ def _path_greedy_span(w, params, memory, radius, floor, fallback, out, start, st
     for slot in range(start, stop):
         k, i = slot // pos.shape[1], slot % pos.shape[1]
         r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
-        reached = bfs(w.blocked, k, r0, c0, radius, n_actions, dist, first, queue)
-        best[:] = 0.0
-        for q in range(1, reached):
-            r, c = queue[q, 0], queue[q, 1]
-            value = footprint_information(w, params, memory, k, i, r, c, r0, c0, others, 0)
-            value *= params.discount ** (dist[r, c] - 1)
-            a = first[r, c]
-            if value > best[a]:
-                best[a] = value
+        pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, best, others)
         choice, score = 0, floor[k] * 13.0  # a footprint's worth: 13 cells at the floor
         for a in range(1, n_actions):
             if best[a] > score and occupant[k, r0 + MOVES[a, 0], c0 + MOVES[a, 1]] < 0:
                 choice, score = a, best[a]
-        for q in range(reached):
-            dist[queue[q, 0], queue[q, 1]] = -1
         if choice == 0:  # the pocket in reach is cleared: the nearest worthwhile cell, over the whole world
             reached = bfs(w.blocked, k, r0, c0, -1, n_actions, dist, first, queue)
             sp, su = sp_all[k, 0], su_all[k, 1]
