@@ -20,7 +20,7 @@ say "machine"
 'numpy', numpy.__version__, 'cuda', torch.cuda.is_available())"; } 2>&1 | tee -a "$LOG"
 
 say "bench train: B's recipe, machine=gpu"
-$B train --experiment rl_term_b --machine gpu --updates 3 --json 2>>"$LOG" | tee -a "$JSON"
+$B train --experiment term/b --machine gpu --updates 3 --json 2>>"$LOG" | tee -a "$JSON"
 
 say "train: +model=c machine=gpu, 60 s of it"
 timeout 60 python -m searchrl.train +model=c machine=gpu progress_bar=false hydra.run.dir=runs/train/gpu/c \
@@ -37,12 +37,12 @@ tar czf "$OUT/gpu_term_b_eval.tgz" -C runs/eval/gpu term_b 2>/dev/null
 say "bench world: 1 and 16 threads"
 $B world --threads 1,16 --seconds 2 --json 2>>"$LOG" | tee -a "$JSON"
 say "bench train: B's recipe, machine=cpu16"
-timeout 60 python -m searchrl.bench train --experiment rl_term_b --machine cpu16 --updates 1 --json 2>>"$LOG" \
+timeout 60 python -m searchrl.bench train --experiment term/b --machine cpu16 --updates 1 --json 2>>"$LOG" \
     | tee -a "$JSON"
 
 say "train: B's recipe, machine=gpu, for the time left"
 start=$(date +%s)
-timeout 80 python -m searchrl.train +experiment=rl_term_b machine=gpu progress_bar=false \
+timeout 80 python -m searchrl.train +experiment=term/b machine=gpu progress_bar=false \
     hydra.run.dir=runs/train/gpu/b >>"$LOG" 2>&1
 say "B's recipe: rc $? after $(( $(date +%s) - start )) s"
 for f in model.zip progress.csv; do cp runs/train/gpu/b/$f "$OUT/gpu_b_$f" 2>/dev/null; done

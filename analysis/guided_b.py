@@ -21,8 +21,7 @@
 # first) and trains with the training app's recipe; validation and evaluation act through the same guided
 # controller. Nothing here is in the library: the wrapper and the controller are patched into the apps.
 #
-#     python analysis/guided_b.py train +experiment=walls_term_b init=runs/reference/walls/b/model.zip \
-#         threads=1 hydra.run.dir=runs/train/guided/walls_b
+#     python analysis/guided_b.py train +experiment=research/guided_walls_b threads=1      # then guided_walls_b_ppo
 #     python analysis/guided_b.py evaluate suite=obstacles checkpoint=runs/train/guided/walls_b/model.zip \
 #         out_dir=runs/suite/obstacles/policy/guided/walls_b
 

@@ -41,6 +41,7 @@ from searchrl.evaluate.runner import run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.evaluate.suite import SuiteConfig, suite_scenarios
 from searchrl.policies.checkpoint import checkpoint_config, load_actor
+from searchrl.schema import group_option
 from searchrl.world.config import WorldConfig
 
 parser = cli.parser("Tune the hedging rules' knobs on tuning seeds", dirs=None)
@@ -85,7 +86,7 @@ CONF = Path(__file__).resolve().parents[1] / "conf"
 
 # %%
 suite = OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(SuiteConfig),
-                                               OmegaConf.load(CONF / "suite" / "prior_error.yaml")))  # fmt: skip
+                                               group_option("suite", "prior_error")))  # fmt: skip
 suite["severities"] = [0.5, 1.0]
 scenarios = suite_scenarios(suite)
 grid = suite["grid"]

@@ -13,7 +13,7 @@
 # p·(1 − u/max u), which is what greedy reads (so an uninformed p with the truth's u still counts). The student,
 # PPO with the teacher term on the mixed wrong priors, must learn from its own evidence when to trust the prior.
 #
-#     python analysis/oracle_teacher.py +experiment=rl_term_b scenario=mixed_priors '~imitation.teacher_args.reach' \
+#     python analysis/oracle_teacher.py +experiment=term/b scenario=mixed_priors '~imitation.teacher_args.reach' \
 #         init=runs/reference/term/b/model.zip imitation.teacher=oracle_switch algo.n_epochs=2 \
 #         hydra.run.dir=runs/train/robust/r3_oracle
 #

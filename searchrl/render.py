@@ -14,13 +14,13 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from omegaconf import OmegaConf
 from PIL import Image, ImageDraw
 
 from searchrl.atomic import check_writable, write_atomic
 from searchrl.controllers.episodes import episode_streams, play
 from searchrl.controllers.registry import HEURISTICS, make_controller
 from searchrl.paths import CONF_DIR
+from searchrl.schema import group_option
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.render import world_frame
@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         except ConfigError as err:  # named by the flag the user gave, not by the world's field
             field = next((f for f in flags if str(err).startswith(f"{f}=")), None)
             raise ConfigError(f"{flags[field][0]}={flags[field][1]} ({err})" if field else str(err)) from None
-        scenario = Scenario.from_dict(OmegaConf.to_container(OmegaConf.load(SCENARIOS / f"{args.scenario}.yaml")))
+        scenario = Scenario.from_dict(group_option("scenario", args.scenario))
         scenario.check(config)
         if args.checkpoint:
             actor = load_actor(args.checkpoint, config, device=device)

@@ -122,3 +122,27 @@ def register_shared_configs() -> ConfigStore:
     cs.store(group="env", name="env_schema", node=EnvConfig)
     cs.store(group="model", name="model_schema", node=ModelConfig)
     return cs
+
+
+def group_option(group: str, name: str) -> dict[str, Any]:
+    """conf/<group>/<name>.yaml as Hydra composes it (its defaults list applied: a suite's families come from
+    conf/families/), a plain mapping; for readers outside an app (render, notebooks, tests). ConfigError names an
+    option that does not exist."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.errors import MissingConfigException
+
+    from searchrl.paths import CONF_DIR
+
+    def composed() -> dict[str, Any]:
+        try:
+            node = compose(config_name=f"{group}/{name}")
+        except MissingConfigException:
+            options = ", ".join(sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml")))
+            raise ConfigError(f"{group}={name} does not exist; conf/{group}/ has {options}") from None
+        return OmegaConf.to_container(node[group], resolve=True)
+
+    if GlobalHydra.instance().is_initialized():  # inside an app or a test's compose context: its search path
+        return composed()
+    with initialize_config_dir(str(CONF_DIR), version_base="1.3"):
+        return composed()

@@ -131,9 +131,9 @@ def test_bench_train_reports_fps_and_the_shares_of_the_wall_time(capsys):
 
 
 def test_bench_train_times_a_recipe_with_the_teacher_term(capsys):
-    assert bench_main(["train", "--updates", "1", "--threads", "1", "--experiment", "rl_term_b", "--json"]) == 0
+    assert bench_main(["train", "--updates", "1", "--threads", "1", "--experiment", "term/b", "--json"]) == 0
     (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert row["case"] == "rl_term_b_cpu_threads1" and 0 < row["labels_share"] < 1 and 0 < row["update_share"] < 1
+    assert row["case"] == "term_b_cpu_threads1" and 0 < row["labels_share"] < 1 and 0 < row["update_share"] < 1
     # The raw bound of the same run: the network alone, acting and updating, in plain torch
     raw = 1 / (1 / row["raw_acting_agent_steps_per_s"] + 1 / row["raw_update_agent_steps_per_s"])
     assert row["raw_bound_agent_steps_per_s"] == pytest.approx(raw, rel=1e-3)

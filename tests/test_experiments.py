@@ -16,7 +16,7 @@ from omegaconf import OmegaConf
 
 import searchrl.train.app  # noqa: F401  (registers the training schemas)
 from searchrl.controllers.registry import resolved
-from searchrl.paths import CONF_DIR
+from searchrl.paths import CONF_DIR, recipes
 from searchrl.policies.slim import weights_sha256
 from searchrl.train.plan import make_plan
 from searchrl.train.schema import TrainConfig, saved_config
@@ -24,27 +24,18 @@ from searchrl.world.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "runs" / "reference"
-# The one table of which experiment reproduces which shipped folder (runs/reference/<folder>).
-EXPERIMENTS = {
-    "clone_a": "a",
-    "clone_b": "b",
-    "clone_c": "c",
-    "clone_diagonal": "diagonal",
-    "rl_a": "rl/a",
-    "rl_b": "rl/b",
-    "rl_c": "rl/c",
-    "rl_diagonal": "rl/diagonal",
-    "rl_b_tau0": "ablations/b_tau0",
-    "rl_term_a": "term/a",
-    "rl_term_b": "term/b",
-    "rl_term_b_epochs4": "ablations/b_term_epochs4",
-    "rl_term_c": "term/c",
-    "rl_term_diagonal": "term/diagonal",
-    "rl_term_linear_b": "ablations/b_term_linear",
-    "walls_term_b": "walls/term_b",
-    "walls_b": "walls/b",
-    "robust_b": "robust/b",
-}
+RECIPES = CONF_DIR / "experiment"
+
+
+def shipped_folder(recipe: str) -> str | None:
+    """The folder under runs/reference/ that a recipe (its path under conf/experiment/, no suffix) makes: its own
+    path, the clones' at the top (clone/b -> b); None for a research recipe (research/), which ships nothing."""
+    if recipe.startswith("research/"):
+        return None
+    return recipe.removeprefix("clone/")
+
+
+EXPERIMENTS = {name: shipped_folder(name) for name in recipes() if shipped_folder(name) is not None}
 # Settings that do not decide what is trained, so a rerun may change them: speed and place (threads, device),
 # display (progress_bar, log_interval: rows of the log, not updates), what is kept on disk (checkpoint_every,
 # keep_checkpoints), the folder a killed run continues from (resume) and how the run's score is read off its
@@ -119,10 +110,9 @@ def _kept(flat: dict[str, Any]) -> dict[str, Any]:
 def test_every_experiment_reproduces_a_shipped_folder_and_every_folder_has_one():
     shipped = sorted(str(p.parent.relative_to(REFERENCE)) for p in REFERENCE.rglob("model.zip"))
     assert sorted(EXPERIMENTS.values()) == shipped
-    assert sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml")) == sorted(EXPERIMENTS)
     readme = (REFERENCE / "README.md").read_text()
     for name, folder in EXPERIMENTS.items():
-        text = (CONF_DIR / "experiment" / f"{name}.yaml").read_text()
+        text = (RECIPES / f"{name}.yaml").read_text()
         assert text.startswith("# @package _global_\n"), name
         assert text.splitlines()[1].startswith(f"# runs/reference/{folder}:"), name  # its comment names the folder
         assert f"+experiment={name}" in readme, name
@@ -168,19 +158,19 @@ def _added_later(key: str, recorded: dict[str, Any]) -> bool:
 
 
 def test_the_command_line_composes_an_experiment():
-    """`python -m searchrl.train +experiment=clone_c --cfg job` prints the recipe without training."""
-    cmd = [sys.executable, "-m", "searchrl.train", "+experiment=clone_c", "--cfg", "job"]
+    """`python -m searchrl.train +experiment=clone/c --cfg job` prints the recipe without training."""
+    cmd = [sys.executable, "-m", "searchrl.train", "+experiment=clone/c", "--cfg", "job"]
     out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     printed = yaml.safe_load(out.stdout)
-    assert printed == _composed("clone_c")
+    assert printed == _composed("clone/c")
 
 
 @pytest.mark.parametrize("model", ["a", "b", "c", "diagonal"])
 def test_a_model_alone_is_the_papers_recipe_in_that_models_world(model):
     """`python -m searchrl.train +model=<m>` trains as the paper does (conf/train.yaml's values, RecurrentPPO from
     scratch) in model m's world, what `+model=<m>` also means to evaluation; the shipped recipes are experiments
-    (`+experiment=rl_term_<m>`), and the command line wins over a recipe."""
+    (`+experiment=term/<m>`), and the command line wins over a recipe."""
     paper = _composed("", ("+model=" + model,))
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         bare = OmegaConf.to_container(compose(config_name="train"), resolve=True)
@@ -188,6 +178,6 @@ def test_a_model_alone_is_the_papers_recipe_in_that_models_world(model):
         k: v for k, v in bare.items() if k not in ("model", "env")
     }
     assert paper["init"] is None and paper["imitation"]["teacher"] is None and paper["total_timesteps"] == 18400000
-    assert paper["model"]["name"] == model and paper["env"]["world"] == _composed(f"rl_{model}")["env"]["world"]
-    shipped = _composed("", (f"+experiment=rl_term_{model}", "total_timesteps=1000"))
+    assert paper["model"]["name"] == model and paper["env"]["world"] == _composed(f"rl/{model}")["env"]["world"]
+    shipped = _composed("", (f"+experiment=term/{model}", "total_timesteps=1000"))
     assert shipped["total_timesteps"] == 1000 and shipped["init"] == f"runs/reference/{model}/model.zip"

@@ -3,11 +3,10 @@ modes and agents that know less, each family's law, and what the search bound ma
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from searchrl.schema import group_option
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.prior import MisweightedPrior, MixturePrior, UninformedPrior
 from searchrl.world.reset import reset_world
@@ -125,10 +124,8 @@ def test_labels_and_round_trip():
 
 
 def test_a_mix_picks_a_family_then_draws_that_scenarios_world():
-    import yaml
 
-    conf = Path(__file__).resolve().parents[1] / "conf" / "scenario"
-    mix = Scenario.from_dict(yaml.safe_load((conf / "mixed_priors.yaml").read_text()))
+    mix = Scenario.from_dict(group_option("scenario", "mixed_priors"))
     # per sharpness: the prior right (once per severity, so it is picked as often as a family) and 7 families x 3
     assert len(mix.scenarios) == 2 * (3 + 7 * 3) and mix.family == "mix" and not mix.targets_follow_prior
     assert sum(s.severity == 0 for s in mix.scenarios) == 6
@@ -141,7 +138,7 @@ def test_a_mix_picks_a_family_then_draws_that_scenarios_world():
         reset_world(CONFIG, got, 0, np.random.default_rng(seed), mix)
         np.testing.assert_array_equal(got.target_pos, want.target_pos)
         np.testing.assert_array_equal(got.p, want.p)
-    walls = Scenario.from_dict(yaml.safe_load((conf / "mixed_walls.yaml").read_text()))
+    walls = Scenario.from_dict(group_option("scenario", "mixed_walls"))
     assert [s.label for s in walls.scenarios] == ["paper", "iid0.2c", "primal", "maze3l0.1", "rooms12d3"]
     with pytest.raises(ConfigError, match=r"scenario\.targets is not allowed with scenario\.mix"):
         Scenario.from_dict({"mix": {"families": {}}, "targets": {"kind": "prior"}})

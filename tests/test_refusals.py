@@ -13,7 +13,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 from searchrl.evaluate.app import evaluate
-from searchrl.paths import CONF_DIR
+from searchrl.paths import CONF_DIR, recipes
 from searchrl.schema import unknown_keys
 from searchrl.train.app import train
 from searchrl.world.obstacles import MazeObstacles
@@ -51,9 +51,8 @@ def test_an_evaluation_key_no_schema_knows_is_refused_naming_the_nearest(tmp_pat
 
 def test_every_shipped_recipe_and_app_default_knows_all_its_keys():
     """No false alarm: the keys recipes and groups write (teacher_args, scenario parts, extra_teams) all pass."""
-    recipes = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
-    assert recipes
-    for recipe in recipes:
+    assert recipes()
+    for recipe in recipes():
         assert unknown_keys(_compose("train", [f"+experiment={recipe}"])) == [], recipe
     for scenario in sorted(p.stem for p in (CONF_DIR / "scenario").glob("*.yaml")):
         assert unknown_keys(_compose("evaluate", [f"scenario={scenario}", "controller=greedy_target"])) == []

@@ -13,6 +13,7 @@ from omegaconf import OmegaConf
 from searchrl.evaluate.results import load
 from searchrl.evaluate.suite import SuiteConfig, evaluate_suite, suite_scenarios
 from searchrl.paths import CONF_DIR
+from searchrl.schema import group_option
 from searchrl.world.scenario import PAPER
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -26,7 +27,7 @@ FAST = ["progress_bar=false", "threads=1", "bound_draws=200", "bound_cache=null"
 
 
 def _suite(name: str) -> dict:
-    node = OmegaConf.merge(OmegaConf.structured(SuiteConfig), OmegaConf.load(CONF_DIR / "suite" / f"{name}.yaml"))
+    node = OmegaConf.merge(OmegaConf.structured(SuiteConfig), group_option("suite", name))
     return OmegaConf.to_container(node)
 
 

@@ -325,7 +325,7 @@ def test_a_machine_replicates_every_group_of_worlds_and_minibatches_are_whole_sl
     four times larger; env.replicas below 1 and a minibatch that is not whole slots are refused by name."""
     from searchrl.world.config import ConfigError
 
-    base, big = (make_plan(_compose(["+experiment=rl_term_b", *m])) for m in ([], ["machine=cpu16"]))
+    base, big = (make_plan(_compose(["+experiment=term/b", *m])) for m in ([], ["machine=cpu16"]))
     assert [(w.n_agents, 4 * k) for w, k in base.groups] == [(w.n_agents, k) for w, k in big.groups]
     assert big.rollout == 4 * base.rollout and big.cfg.algo.batch_size == 4 * base.cfg.algo.batch_size
     assert big.cfg.threads == 16 and big.cfg.device == "cpu"

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
+from searchrl.schema import group_option
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.scenario import Scenario
 from searchrl.world.truth import (
@@ -111,10 +111,10 @@ def test_prior_quality_is_zero_for_a_flat_prior_one_at_the_best_cell_and_minus_o
 @pytest.mark.parametrize("name, kind", [("shifted", "shifted"), ("sharper", "tempered"), ("flatter", "tempered"),
                                         ("adversarial", "adversarial"), ("off_prior", "off_prior")])  # fmt: skip
 def test_each_family_has_a_scenario_file_with_a_label_of_its_own(name, kind):
-    scenario = Scenario.from_dict(yaml.safe_load((CONF / f"{name}.yaml").read_text()))
+    scenario = Scenario.from_dict(group_option("scenario", name))
     assert scenario.targets.kind == kind and not scenario.targets_follow_prior
     scenario.check(WorldConfig())
-    labels = {Scenario.from_dict(yaml.safe_load(path.read_text())).label for path in CONF.glob("*.yaml")}
+    labels = {Scenario.from_dict(group_option("scenario", path.stem)).label for path in CONF.glob("*.yaml")}
     assert len(labels) == len(list(CONF.glob("*.yaml")))  # no two scenario files share a label
 
 

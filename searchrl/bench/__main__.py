@@ -12,7 +12,7 @@ import math
 import sys
 
 from searchrl.controllers.registry import HEURISTICS
-from searchrl.paths import CONF_DIR
+from searchrl.paths import CONF_DIR, recipes
 
 SUITES = {
     "world": "engine throughput, batched against the oracle, at numba thread counts (--threads 1,2, --seconds)",
@@ -92,8 +92,8 @@ def main(argv: list[str] | None = None) -> int:
         if value is not None and not (ok(value) and math.isfinite(value)):
             parser.error(f"{flag}={value} is not allowed: {allowed}")
     experiment = getattr(args, "experiment", None)
-    if experiment is not None and not (CONF_DIR / "experiment" / f"{experiment}.yaml").is_file():
-        known = ", ".join(sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml")))
+    if experiment is not None and experiment not in recipes():
+        known = ", ".join(recipes())
         parser.error(f"--experiment={experiment} is not allowed: one of {known}")
     checkpoint = getattr(args, "checkpoint", None)
     if checkpoint and getattr(args, "controller", None):

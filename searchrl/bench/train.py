@@ -104,7 +104,8 @@ def run(updates: int = 4, threads: int | None = None, network: str = "paper", ex
     fps = rollout * updates / wall
     acting_s, update_s = raw_acting_seconds(model, sync), raw_update_seconds(model, sync)
     raw = rollout / (acting_s + update_s)
-    name = experiment or f"recurrent_ppo_{network}_model_b_K{cfg.env.n_worlds}_N{cfg.env.world.n_agents}"
+    name = f"recurrent_ppo_{network}_model_b_K{cfg.env.n_worlds}_N{cfg.env.world.n_agents}"
+    name = experiment.replace("/", "_") if experiment else name  # term/b -> term_b
     slots = sum(k * world.n_agents for world, k in plan.groups)
     row = {"case": f"{name}_{machine or torch.device(device).type}_threads{threads}", "engine": "sb3",
            "device": device_name(device), "slots": slots, "batch_size": int(model.batch_size),
