@@ -180,14 +180,12 @@ def widened_init(model, path: str) -> None:
 
 
 def patch_apps() -> None:
-    import searchrl.evaluate.app as evaluate_app
+    import searchrl.controllers.factory as factory
     import searchrl.train.app as train_app
-    import searchrl.train.validation as validation
 
     train_app.make_vec_env = make_guided_vec_env
     train_app.init_weights = widened_init
-    validation.PolicyController = GuidedPolicyController
-    evaluate_app.PolicyController = GuidedPolicyController
+    factory.POLICY_CONTROLLER = GuidedPolicyController  # validation, evaluation and render act through it
 
 
 # %%

@@ -18,7 +18,8 @@ from PIL import Image, ImageDraw
 
 from searchrl.atomic import check_writable, write_atomic
 from searchrl.controllers.episodes import episode_streams, play
-from searchrl.controllers.registry import HEURISTICS, make_controller
+from searchrl.controllers.factory import heuristic_factory, policy_factory
+from searchrl.controllers.registry import HEURISTICS
 from searchrl.paths import CONF_DIR
 from searchrl.schema import group_option
 from searchrl.world.config import ConfigError, WorldConfig
@@ -106,7 +107,6 @@ def main(argv: list[str] | None = None) -> int:
         p.error(str(err))
     try:
         if args.checkpoint:
-            from searchrl.controllers.policy import PolicyController
             from searchrl.policies.checkpoint import checkpoint_config, load_actor
 
             world = WorldConfig.from_dict(checkpoint_config(args.checkpoint)[0])
@@ -128,15 +128,9 @@ def main(argv: list[str] | None = None) -> int:
         scenario = Scenario.from_dict(group_option("scenario", args.scenario))
         scenario.check(config)
         if args.checkpoint:
-            actor = load_actor(args.checkpoint, config, device=device)
-
-            def factory(config: WorldConfig, streams: object) -> PolicyController:
-                return PolicyController(actor, config, seed=streams)
-        else:
-            make_controller(args.controller or "surfing", config)  # its settings checked before the episode
-
-            def factory(config: WorldConfig, streams: object) -> object:
-                return make_controller(args.controller or "surfing", config, seed=streams)
+            factory = policy_factory(load_actor(args.checkpoint, config, device=device))
+        else:  # its settings checked before the episode
+            factory = heuristic_factory(args.controller or "surfing", check=config)
     except (ConfigError, FileNotFoundError, ValueError) as err:
         p.error(str(err))
     world_streams, controller_streams = episode_streams([(args.seed,)])  # an episode as evaluation plays one

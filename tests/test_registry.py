@@ -7,18 +7,28 @@ import ast
 import os
 import subprocess
 import sys
-from dataclasses import asdict, fields
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
+from typing import ClassVar
+from unittest import mock
 
+import numpy as np
 import pytest
 from hydra import compose, initialize_config_dir
+from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf
 
+from searchrl.controllers import registry
+from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.controllers.registry import HEURISTICS, TEACHERS, allowed, heuristic, make_controller, make_teacher
-from searchrl.evaluate.app import make_controller_factory
+from searchrl.evaluate.app import evaluate, make_controller_factory
+from searchrl.evaluate.results import load
+from searchrl.evaluate.schema import register_configs
 from searchrl.paths import CONF_DIR
-from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world import scenario
+from searchrl.world.config import ConfigError, WorldConfig, need
+from tests.test_evaluate import SLICE
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET_GREEDY = ["controller=greedy", "controller.horizon=3", "controller.w_p=0", "controller.w_u=0",
@@ -121,3 +131,71 @@ def test_the_library_never_reads_the_tests_folder():
         text = path.read_text()
         assert not [m for m in _imports(path) if m.split(".")[0] == "tests"], path
         assert '/ "tests"' not in text and '"tests/' not in text, path
+
+
+@dataclass(frozen=True)
+class _StripeObstacles:
+    """A toy obstacle generator: row `row` walled but for its first cell."""
+
+    kind: ClassVar[str] = "stripe"
+    row: int = 2
+
+    def __call__(self, n: int, room: int, rng: np.random.Generator) -> np.ndarray:
+        walls = np.zeros((n, n), bool)
+        walls[self.row, 1:] = True
+        return walls
+
+    def check(self, config: WorldConfig) -> None:
+        need(0 <= self.row < config.world_size[0], "scenario.obstacles.row", self.row, "a row of the smallest world")
+
+    @property
+    def label(self) -> str:
+        return f"stripe{self.row}"
+
+
+@dataclass
+class _StillConfig(ControllerConfig):
+    name: str = "still"
+    move: int = 0  # the one action every agent takes
+
+
+class _Still:
+    """A toy heuristic: every agent takes action `move` at every step."""
+
+    def __init__(self, config: WorldConfig, move: int = 0) -> None:
+        self.move = move
+
+    def reset(self, state, mask) -> None:
+        pass
+
+    def act(self, state, maps, vector, active=None) -> np.ndarray:
+        return np.full((state.n_worlds, state.n_agents), self.move, np.int64)
+
+
+def test_a_heuristic_and_an_obstacle_generator_added_through_the_public_api_run_in_evaluate(tmp_path, capsys):
+    """Adding either is its class plus one registration: `controller=still` and `scenario.obstacles.kind=stripe`
+    then compose, are checked and are evaluated like the shipped ones."""
+    with (mock.patch.dict(registry.HEURISTICS), mock.patch.object(registry, "TEACHERS", registry.TEACHERS),
+          mock.patch.dict(scenario.OBSTACLES)):  # fmt: skip
+        registry.register("still", _Still, _StillConfig, teacher=False)
+        scenario.register_part("obstacles", _StripeObstacles)
+        register_configs()  # after registering: `controller=still` needs no conf/controller/still.yaml
+        with pytest.raises(ConfigError, match="stripe"):
+            scenario.register_part("obstacles", _StripeObstacles)
+        # a scenario using it, as a conf/scenario/ file would hold it
+        ConfigStore.instance().store(
+            group="scenario", name="toy_stripe", node={"obstacles": {"kind": "stripe", "row": 3}}
+        )
+        overrides = ["controller=still", "controller.move=1", "scenario=toy_stripe"]
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            cfg = compose(config_name="evaluate", overrides=[*SLICE, f"out_dir={tmp_path}", *overrides])
+            rows = load(evaluate(cfg, overrides))
+            bad = [*SLICE, f"out_dir={tmp_path / 'bad'}", *overrides, "scenario.obstacles.row=99"]
+            with pytest.raises(SystemExit):
+                evaluate(compose(config_name="evaluate", overrides=bad), bad)
+    assert "scenario.obstacles.row=99 is not allowed" in capsys.readouterr().err
+    assert (
+        set(rows["controller"]) == {"still"} and set(rows["scenario"]) == {"stripe3"} and len(rows) == 3 * 3 * 2
+    )  # cells x maps x repeats
+    assert rows["blocked"].gt(0).any()  # agents walking north from below row 3 run into the stripe
+    assert "still" not in registry.HEURISTICS and "stripe" not in scenario.OBSTACLES  # restored for other tests

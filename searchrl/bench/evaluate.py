@@ -7,8 +7,7 @@ from __future__ import annotations
 import time
 from typing import TextIO
 
-from searchrl.controllers.policy import PolicyController
-from searchrl.controllers.registry import make_controller
+from searchrl.controllers.factory import heuristic_factory, policy_factory
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
@@ -27,11 +26,11 @@ def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = No
         use_threads(threads, network_on_cpu=str(device) == "cpu")
         world = WorldConfig.from_dict(checkpoint_config(checkpoint)[0])
         actor = load_actor(checkpoint, world, device=device)
-        factory = lambda config, seed: PolicyController(actor, config, seed=seed)  # noqa: E731
+        factory = policy_factory(actor)
         controller = f"policy:{checkpoint_label(checkpoint)}"
     else:
         name, world = controller, WorldConfig()
-        factory = lambda config, seed: make_controller(name, config, seed=seed)  # noqa: E731
+        factory = heuristic_factory(name, check=world)
     observed = checkpoint is not None
     run_cell(factory, world, cells[0], 0, 1, 1, 0, needs_observation=observed)  # warm-up: numba cache
     steps = [0]

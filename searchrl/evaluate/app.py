@@ -24,8 +24,8 @@ from omegaconf.errors import OmegaConfBaseException
 from tqdm import tqdm
 
 from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, storage_message, write_atomic
-from searchrl.controllers.policy import PolicyController
-from searchrl.controllers.registry import heuristic, make_controller
+from searchrl.controllers.factory import heuristic_factory, policy_factory
+from searchrl.controllers.registry import heuristic
 from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds, map_prior
 from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
@@ -38,7 +38,6 @@ from searchrl.schema import MAX_THREADS, check_known_keys, override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.obstacles import IidObstacles
 from searchrl.world.scenario import Scenario, ScenarioMix
-from searchrl.world.streams import WorldStreams
 
 # Set per cell by the grid, or training-only: a heuristic's evaluation refuses them rather than drop them.
 SET_BY_GRID = ("env.n_worlds", "env.world.n_agents", "env.world.world_size", "env.world.n_targets",
@@ -62,10 +61,7 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         device = resolve_device(str(cfg.device))  # checked here too: analysis scripts call this function alone
         actor = load_actor(cfg.checkpoint, world, device=device)  # loaded once, serves every cell
 
-        def policy_factory(config: WorldConfig, seed: int | WorldStreams = 0) -> PolicyController:
-            return PolicyController(actor, config, deterministic=bool(cfg.deterministic), seed=seed)
-
-        return world, f"policy:{run_name}", model_name, policy_factory, True
+        return world, f"policy:{run_name}", model_name, policy_factory(actor, bool(cfg.deterministic)), True
     world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
     model_name = cfg.model.name if cfg.model is not None else "b"
     settings = OmegaConf.to_container(cfg.controller, resolve=True)
@@ -74,12 +70,7 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         entry = heuristic(name)
     except ConfigError as err:
         raise ConfigError(f"{err}, or checkpoint=<model.zip>") from None
-
-    def factory(config: WorldConfig, seed: int | WorldStreams = 0) -> object:
-        return make_controller(name, config, seed=seed, settings=settings)
-
-    factory(world)  # validates the controller's parameters before any work
-    return world, entry.label, model_name, factory, False
+    return world, entry.label, model_name, heuristic_factory(name, settings, check=world), False
 
 
 # With checkpoint=, the world, model and controller come from the checkpoint's run: these overrides cannot apply.

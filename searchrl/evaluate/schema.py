@@ -10,6 +10,7 @@ from typing import Any
 from omegaconf import MISSING
 
 from searchrl.controllers.registry import HEURISTICS
+from searchrl.paths import CONF_DIR
 from searchrl.schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
 
 
@@ -50,7 +51,12 @@ class EvaluateConfig:
 
 
 def register_configs() -> None:
+    """The evaluation schemas in Hydra's ConfigStore, each registered heuristic's as `controller/<name>_schema`; one
+    without a conf/controller/<name>.yaml (added by `registry.register`) is also the option `controller=<name>` at
+    its schema's defaults. The app runs this at import; a script that registers a heuristic later runs it again."""
     cs = register_shared_configs()  # env and model groups are shared with training
     cs.store(name="evaluate_schema", node=EvaluateConfig)
     for name, entry in HEURISTICS.items():
         cs.store(group="controller", name=f"{name}_schema", node=entry.schema)
+        if not (CONF_DIR / "controller" / f"{name}.yaml").is_file():
+            cs.store(group="controller", name=name, node=entry.schema)

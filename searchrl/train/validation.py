@@ -20,11 +20,10 @@ from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
 from searchrl.controllers.base import RandomWalk
 from searchrl.controllers.episodes import play_episodes
-from searchrl.controllers.policy import PolicyController
+from searchrl.controllers.factory import policy_factory
 from searchrl.policies.actor import Actor, policy_copy
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import PAPER, Scenario
-from searchrl.world.streams import WorldStreams
 
 
 def run_episodes(
@@ -37,10 +36,7 @@ def run_episodes(
         factory = RandomWalk
     else:
         # Traced as evaluation's is (about 0.2 s), so both act alike to the last bit on the same device.
-        actor = Actor(policy_copy(model), device=model.device)
-
-        def factory(config: WorldConfig, streams: WorldStreams) -> PolicyController:
-            return PolicyController(actor, config, deterministic=deterministic, seed=streams)
+        factory = policy_factory(Actor(policy_copy(model), device=model.device), deterministic)
 
     keys = [(seed, 0, w, 0) for w in range(n_worlds)]
     metrics = play_episodes(factory, world_config, [seed + w for w in range(n_worlds)], keys, scenario)

@@ -78,6 +78,19 @@ class PriorGenerator(Protocol):
 
 
 TARGETS: dict[str, type] = PLACERS  # searchrl/world/truth.py
+PARTS: dict[str, dict[str, type]] = {"obstacles": OBSTACLES, "prior": PRIORS, "targets": TARGETS}
+
+
+def register_part(part: str, cls: type) -> None:
+    """Add a scenario part: `scenario.<part>.kind=<cls.kind>` with `cls`'s dataclass fields as its settings, in
+    every app and mix. `cls` is a frozen dataclass implementing the part's protocol above (ObstacleGenerator,
+    TargetPlacer or PriorGenerator). ConfigError for an unknown part or a kind registered already."""
+    need(part in PARTS, "part", part, f"one of {', '.join(PARTS)}")
+    kind = getattr(cls, "kind", None)
+    if not isinstance(kind, str) or kind in PARTS[part]:
+        raise ConfigError(f"scenario.{part}.kind={kind!r} cannot be registered: a new name is needed, "
+                          f"not one of {', '.join(PARTS[part])}")  # fmt: skip
+    PARTS[part][kind] = cls
 
 
 @dataclass(frozen=True)
@@ -145,7 +158,7 @@ class Scenario:
             raise ConfigError(f"scenario.{unknown[0]} is not allowed: a scenario has obstacles, prior and targets "
                               "(or a mix)")  # fmt: skip
         parts = {}
-        for name, kinds in (("obstacles", OBSTACLES), ("prior", PRIORS), ("targets", TARGETS)):
+        for name, kinds in PARTS.items():
             settings = dict(values.get(name) or {})
             kind = settings.pop("kind", next(iter(kinds)))
             need(kind in kinds, f"scenario.{name}.kind", kind, f"one of {', '.join(kinds)}")
