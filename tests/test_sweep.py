@@ -212,3 +212,29 @@ def test_a_trial_left_running_by_a_dead_sweep_is_marked_failed_at_the_next(tmp_p
     states = [t.state.name for t in resumed.trials]
     assert states == ["FAIL", "RUNNING", "RUNNING", "FAIL", "RUNNING"], states
     assert resumed.trials[-1].system_attrs[OWNER] == f"{socket.gethostname()}:{os.getpid()}"
+
+
+def _grid(sweep_dir: Path, *more: str) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "searchrl.train", "-m", *TINY, "seed=0,1", f"hydra.sweep.dir={sweep_dir}", *more]
+    return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.slow  # three multiruns of two tiny trainings: about 30 s
+def test_a_grid_sweep_started_again_in_its_folder_continues_it(tmp_path):
+    """Job 0 finished is not trained again, job 1 killed after a checkpoint resumes from it; a sweep of other
+    settings into the same folder fails every job with one line naming the setting, and trains nothing."""
+    sweep = tmp_path / "sweep"
+    assert _grid(sweep).returncode == 0
+    first, second = sorted(p for p in sweep.iterdir() if p.name[0].isdigit())
+    trained = (first / "model.zip").stat().st_mtime_ns
+    for name in ("model.zip", "score.json"):  # job 1 as a kill after its last checkpoint leaves it
+        (second / name).unlink()
+    again = _grid(sweep)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "holds this job's finished run: not trained again" in again.stderr
+    assert f"resuming {second} from step_" in again.stderr
+    assert (first / "model.zip").stat().st_mtime_ns == trained and (second / "score.json").is_file()
+    other = _grid(sweep, "algo.learning_rate=0.001")
+    assert other.returncode == 1
+    assert other.stderr.count("holds a run of other settings (algo.learning_rate: 0.0003 there, 0.001 now)") >= 2
+    assert (first / "model.zip").stat().st_mtime_ns == trained

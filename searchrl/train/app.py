@@ -19,6 +19,7 @@ from pathlib import Path
 import hydra
 import pandas as pd
 from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from stable_baselines3.common.base_class import BaseAlgorithm
@@ -52,15 +53,13 @@ from searchrl.train.command_line import fail
 from searchrl.train.csv_log import AppendingCSV, ContinuedClock, ResumableTensorBoard, check_log, clock_offsets
 from searchrl.train.imitation import clone, collect
 from searchrl.train.plan import Plan, make_plan
-from searchrl.train.schema import TrainConfig, register_configs, saved_config
+from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig, register_configs, saved_config
 from searchrl.train.score import read_score, write_score
+from searchrl.train.sweep_job import continued_job
 from searchrl.world.config import ConfigError
 from searchrl.world.scenario import Scenario
 
 register_configs()
-
-
-RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints")
 
 
 def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tuple[DictConfig, Path, bool]:
@@ -305,5 +304,18 @@ def learn(plan: Plan, model: BaseAlgorithm, callbacks: list[BaseCallback], valid
 def main(cfg: DictConfig) -> float:
     """Train, and return the run's score (score.py) for Hydra sweepers: `-m hydra/sweeper=optuna` maximises it."""
     hydra_cfg = HydraConfig.get()
-    final = in_sweep(train, cfg, Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task))
+    run_dir, overrides = Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task)
+    if hydra_cfg.mode == RunMode.MULTIRUN:  # a sweep started again into its folder continues it (sweep_job.py)
+        cfg, overrides, finished = in_sweep(continue_sweep_job, cfg, run_dir, overrides)
+        if finished:
+            print(f"{run_dir} holds this job's finished run: not trained again", file=sys.stderr)
+            return read_score(run_dir)
+    final = in_sweep(train, cfg, run_dir, overrides)
     return read_score(final.parent)
+
+
+def continue_sweep_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple[DictConfig, list[str], bool]:
+    try:
+        return continued_job(cfg, run_dir, overrides)
+    except ConfigError as err:
+        fail(str(err))

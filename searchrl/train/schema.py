@@ -126,6 +126,10 @@ RETIRED_SETTINGS: dict[str, object] = {
 }
 
 
+# What `resume=` (and a multirun continued into its folder) may change; every other setting is the run's own.
+RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints")
+
+
 def saved_config(path: str | Path) -> DictConfig:
     """A run's saved config.yaml without its retired settings (RETIRED_SETTINGS); ConfigError for one saved at a
     value whose behaviour is gone, ValueError if the file is no mapping."""
