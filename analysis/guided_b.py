@@ -29,6 +29,7 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 
 import gymnasium as gym
 import numpy as np
@@ -36,8 +37,10 @@ import torch
 from numba import njit, prange
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
+from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.greedy import cell_information
 from searchrl.controllers.policy import PolicyController
+from searchrl.controllers.registry import make_controller, register
 from searchrl.controllers.walls import PathGreedy, bfs, pocket_values
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
@@ -155,6 +158,30 @@ class GuidedPolicyController(PolicyController):
 
 
 # %%
+@dataclass
+class WallsOrTargetConfig(ControllerConfig):
+    name: str = "walls_or_target"
+
+
+class WallsOrTarget:
+    """A teacher chosen per world from what every agent holds (the walls its prior shows): path_greedy in a world
+    with obstacles, B's teacher (target-greedy, reach 2) in an open one: the best rule of each family."""
+
+    def __init__(self, config: WorldConfig, seed=0) -> None:
+        self.walls = make_controller("path_greedy", config, seed=seed)
+        self.open = make_controller("greedy_target", config, seed=seed, settings={"reach": 2})
+
+    def reset(self, state: WorldState, mask: np.ndarray) -> None:
+        self.walls.reset(state, mask)
+        self.open.reset(state, mask)
+
+    def act(self, state, maps, vector, active=None) -> np.ndarray:
+        h = state.halo
+        walled = np.array([state.blocked[k, h : h + n, h : h + n].any() for k, n in enumerate(state.size)])
+        return np.where(walled[:, None], self.walls.act(state, maps, vector, active),
+                        self.open.act(state, maps, vector, active))  # fmt: skip
+
+
 def make_guided_vec_env(plan, seed=None):
     """searchrl.train.build.make_vec_env with each group's worlds wrapped in `Guidance`."""
     envs = [Guidance(SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=plan.scenario))
@@ -181,6 +208,8 @@ def widened_init(model, path: str) -> None:
 
 def patch_apps() -> None:
     import searchrl.controllers.factory as factory
+
+    register("walls_or_target", WallsOrTarget, WallsOrTargetConfig)  # a teacher: imitation.teacher=walls_or_target
     import searchrl.train.app as train_app
 
     train_app.make_vec_env = make_guided_vec_env

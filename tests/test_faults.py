@@ -4,6 +4,7 @@ dropped without a word, bad values get one line before any work, and the Petting
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import shutil
@@ -123,12 +124,15 @@ def test_evaluation_killed_at_any_moment_resumes_to_the_same_results(tmp_path):
     out = tmp_path / "killed"
     cmd = [sys.executable, "-m", "searchrl.evaluate", *args, f"out_dir={out}"]
     proc = subprocess.Popen(cmd, cwd=ROOT, stderr=subprocess.PIPE, start_new_session=True)
-    deadline = time.monotonic() + 120
-    while not (out / "cells" / "n20_N2.parquet").exists():
-        assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()[-2000:]
-        time.sleep(0.01)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "cells" / "n20_N2.parquet").exists():
+            assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()[-2000:]
+            time.sleep(0.01)
+    finally:  # killed whatever happened above
+        with contextlib.suppress(ProcessLookupError):  # ended already
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
     pd.testing.assert_frame_equal(load(_evaluate(out, *args[len(SLICE) :])), whole)
 
 

@@ -25,9 +25,25 @@ TINY = ["+model=b", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_s
 ROLLOUT = 32 * 2 * 4  # algo.n_steps × K × N agent-steps
 
 
+STARTED: list[subprocess.Popen] = []
+
+
+@pytest.fixture(autouse=True)
+def _end_every_training():
+    """Whatever a test does (a failed assertion before its signal, a timeout), no training it started outlives it:
+    TINY runs train for hours unless signalled."""
+    yield
+    while STARTED:
+        process = STARTED.pop()
+        if process.poll() is None:
+            process.kill()
+            process.communicate(timeout=60)
+
+
 def _train(run: Path, *overrides: str) -> subprocess.Popen:
     cmd = [sys.executable, "-m", "searchrl.train", *overrides, f"hydra.run.dir={run}"]
-    return subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    STARTED.append(subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True))
+    return STARTED[-1]
 
 
 def _rows(run: Path) -> list[int]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
@@ -192,13 +193,16 @@ def test_resume_after_kill_loses_nothing(tmp_path):
     cmd = [sys.executable, "-m", "searchrl.train", "+model=b", *TINY, "total_timesteps=1000000",
            "checkpoint_every=1024", "validation.every=0", f"hydra.run.dir={run_dir}"]  # fmt: skip
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
-    deadline = time.monotonic() + 120
-    while not (run_dir / "checkpoints" / "step_2048.zip").exists():
-        assert proc.poll() is None, proc.stderr.read().decode()
-        assert time.monotonic() < deadline, "no checkpoint within 120 s"
-        time.sleep(0.05)
-    os.killpg(proc.pid, signal.SIGKILL)
-    proc.wait()
+    try:
+        deadline = time.monotonic() + 120
+        while not (run_dir / "checkpoints" / "step_2048.zip").exists():
+            assert proc.poll() is None, proc.stderr.read().decode()
+            assert time.monotonic() < deadline, "no checkpoint within 120 s"
+            time.sleep(0.05)
+    finally:  # killed whatever happened above: the run would train a million agent-steps
+        with contextlib.suppress(ProcessLookupError):  # ended already
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
     assert not (run_dir / "model.zip").exists()
     assert not list((run_dir / "checkpoints").glob(".*"))  # no partial file where a checkpoint should be
     # A run saved by an older version lacks newer fields: resume must fill them from the schema.
