@@ -3,6 +3,8 @@ reached eventually, and the rules' settings checked."""
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 import pytest
 
@@ -59,13 +61,57 @@ def test_a_lone_agent_reaches_every_free_cell_of_a_maze(name):
 
 
 @pytest.mark.parametrize("name, settings, message", [
-    ("path_greedy", {"radius": 9}, "radius=9"),
-    ("path_greedy", {"worth": 0.0}, "worth=0.0"),
-    ("sweep", {"spacing": -1}, "spacing=-1"),
+    ("path_greedy", {"radius": 0}, "radius=0 is not allowed: 1 <= radius <= 5 (half the view)"),
+    ("path_greedy", {"radius": 6}, "radius=6 is not allowed: 1 <= radius <= 5 (half the view)"),
+    ("path_greedy", {"worth": 0.0}, "worth=0.0 is not allowed: 0 < worth <= 1 (a share of the prior's mean)"),
+    ("path_greedy", {"worth": 1.01}, "worth=1.01 is not allowed: 0 < worth <= 1 (a share of the prior's mean)"),
+    ("sweep", {"spacing": -1}, "spacing=-1 is not allowed: 0 <= spacing <= 16 (cells)"),
+    ("sweep", {"spacing": 17}, "spacing=17 is not allowed: 0 <= spacing <= 16 (cells)"),
 ])  # fmt: skip
 def test_bad_settings_are_named(name, settings, message):
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(ValueError) as refused:
         make_controller(name, WorldConfig(), settings=settings)
+    assert str(refused.value) == message
+
+
+@pytest.mark.parametrize("name, settings", [("path_greedy", {"radius": 1, "worth": 1.0}),
+                                            ("path_greedy", {"radius": 5}), ("sweep", {"spacing": 0}),
+                                            ("sweep", {"spacing": 16})])  # fmt: skip
+def test_the_last_settings_allowed_make_a_rule(name, settings):
+    make_controller(name, WorldConfig(), settings=settings)
+
+
+WALLS = Scenario.from_dict({"obstacles": {"kind": "iid", "density": 0.2, "connected": True}})
+# sha256 (first 16 hex) of the moves of 3 worlds x 6 agents over 60 steps among iid walls (walls.py as at 23e4ee9):
+# the rules' python shells (scratch, team memory, floors, resets) as well as their kernels
+RECORDED_MOVES = {"path_greedy": "568e230f767677fe", "sweep": "db07b09cdf0521af"}
+
+
+def _moves(name: str, reset_first: bool, **kwargs) -> str:
+    config = WorldConfig(world_size=(20, 24), n_agents=6, n_targets=(4, 6), n_distributions=(3, 5))
+    world = SearchWorld(config, 3, seed=11, scenario=WALLS)
+    world.reset()
+    controller = make_controller(name, config, **kwargs)
+    if reset_first:
+        controller.reset(world.state, np.ones(3, bool))
+    maps, vector = world.observation
+    digest = hashlib.sha256()
+    for _ in range(60):
+        actions = controller.act(world.state, maps, vector)
+        digest.update(np.ascontiguousarray(actions, np.int64).tobytes())
+        transition = world.step(actions)
+        maps, vector = transition.maps, transition.vector
+        if transition.result.terminated.any() or transition.result.truncated.any():
+            controller.reset(world.state, transition.result.terminated | transition.result.truncated)
+    return digest.hexdigest()[:16]
+
+
+@pytest.mark.parametrize("name", ["path_greedy", "sweep"])
+def test_the_rules_make_their_recorded_moves_seeded_by_default_with_zero_and_without_a_first_reset(name):
+    assert _moves(name, True, seed=0) == RECORDED_MOVES[name]
+    default, zero = make_controller(name, WorldConfig()), make_controller(name, WorldConfig(), seed=0)
+    assert (default.rng.integers(0, 2**31, 8) == zero.rng.integers(0, 2**31, 8)).all()  # the default seed is 0
+    assert _moves(name, False, seed=0) == RECORDED_MOVES[name]  # the first act resets what reset would
 
 
 def test_rows_record_how_often_moves_are_blocked_and_agents_sweep_nothing_new():
