@@ -8,7 +8,7 @@ import hashlib
 import numpy as np
 import pytest
 
-from searchrl.controllers.registry import make_controller
+from searchrl.controllers.registry import HEURISTICS, make_controller
 from searchrl.controllers.switch import sweep_footprints
 from searchrl.controllers.walls import bfs
 from searchrl.world.config import WorldConfig
@@ -109,7 +109,8 @@ def _moves(name: str, reset_first: bool, **kwargs) -> str:
 @pytest.mark.parametrize("name", ["path_greedy", "sweep"])
 def test_the_rules_make_their_recorded_moves_seeded_by_default_with_zero_and_without_a_first_reset(name):
     assert _moves(name, True, seed=0) == RECORDED_MOVES[name]
-    default, zero = make_controller(name, WorldConfig()), make_controller(name, WorldConfig(), seed=0)
+    rule = HEURISTICS[name].cls
+    default, zero = rule(WorldConfig()), rule(WorldConfig(), seed=0)
     assert (default.rng.integers(0, 2**31, 8) == zero.rng.integers(0, 2**31, 8)).all()  # the default seed is 0
     assert _moves(name, False, seed=0) == RECORDED_MOVES[name]  # the first act resets what reset would
 
