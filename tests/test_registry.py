@@ -172,6 +172,7 @@ class _Still:
         return np.full((state.n_worlds, state.n_agents), self.move, np.int64)
 
 
+@pytest.mark.app  # runs the evaluation app
 def test_a_heuristic_and_an_obstacle_generator_added_through_the_public_api_run_in_evaluate(tmp_path, capsys):
     """Adding either is its class plus one registration: `controller=still` and `scenario.obstacles.kind=stripe`
     then compose, are checked and are evaluated like the shipped ones."""
