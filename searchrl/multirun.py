@@ -1,19 +1,23 @@
-"""What a multirun does with a refused job: the other jobs run, and the sweep ends with a summary and exit status 1.
+"""Refusals and stops as exceptions, and what the apps' entry points make of them: an exit status, or in a multirun
+a failed job while the other jobs run, with a summary at the sweep's end and exit status 1.
 
-Hydra's launchers go on to the next job after one that raises an Exception, and raise the first failure once the
-batch is done; a `SystemExit` (an app's one-line refusal, `refuse`) would end the whole sweep at that job instead.
-`in_sweep` turns the one into the other inside a multirun. `FailedJobs`, a Hydra callback (`hydra.callbacks` of
-conf/train.yaml and conf/evaluate.yaml), files each failed job's overrides and error line in the sweep folder and
-prints them all as the process ends, after Hydra's report of the first failure (Hydra skips `on_multirun_end`
-when a job failed): a file reaches the parent whichever process a launcher ran the job in (joblib's workers,
-submitit's nodes).
+Below the entry points nothing ends the process: a setting refused before any work raises `Refused` (its one line
+for stderr), a run stopped by a signal after its checkpoint raises `Stopped`. `in_sweep`, called by an app's Hydra
+task function, prints the refusal's line and turns either into the process's exit status (`exit_for`: 2, or 143 /
+130 after SIGTERM / SIGINT), or inside a multirun into `JobFailed`: Hydra's launchers go on to the next job after
+one that raises an Exception and raise the first failure once the batch is done. `FailedJobs`, a Hydra callback
+(`hydra.callbacks` of conf/train.yaml and conf/evaluate.yaml), files each failed job's overrides and error line in
+the sweep folder and prints them all as the process ends, after Hydra's report of the first failure (Hydra skips
+`on_multirun_end` when a job failed): a file reaches the parent whichever process a launcher ran the job in
+(joblib's workers, submitit's nodes).
 """
 
 from __future__ import annotations
 
 import atexit
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NoReturn, TypeVar
 
@@ -29,34 +33,61 @@ FAILED = ".failed"  # <sweep dir>/.failed/<job number>.txt: one line per failed 
 T = TypeVar("T")
 
 
-class Refused(SystemExit):
-    """A setting refused before any work: exit status 2, its one line already on stderr."""
+class Refused(Exception):
+    """A setting refused before any work: `message` names the value and what is allowed; exit status 2."""
+
+    code = 2
 
     def __init__(self, message: str) -> None:
-        super().__init__(2)
+        super().__init__(message)
         self.message = message
 
 
+class Stopped(Exception):
+    """A run stopped by a signal after writing its checkpoint: exit status `code` (128 + the signal's number)."""
+
+    def __init__(self, code: int) -> None:
+        super().__init__(f"stopped with exit status {code}")
+        self.code = code
+
+
 class JobFailed(RuntimeError):
-    """A multirun job that stopped with a non-zero exit status (a refusal, a signal): Hydra goes on to the next."""
+    """A multirun job that was refused or stopped: Hydra goes on to the next."""
 
 
 def refuse(message: str) -> NoReturn:
-    """Name the bad value and what is allowed, in one line on stderr, and exit with status 2 (before any work)."""
-    print(f"error: {message}", file=sys.stderr)
+    """Refuse a setting: raise `Refused(message)`; an entry point prints `error: <message>` and exits with 2."""
     raise Refused(message)
 
 
+def exit_for(error: Refused | Stopped) -> NoReturn:
+    """What an entry point makes of a refusal or a stop: the refusal's one line on stderr, the exit status."""
+    if isinstance(error, Refused):
+        print(f"error: {error.message}", file=sys.stderr)
+    raise SystemExit(error.code)
+
+
+@contextmanager
+def exits() -> Iterator[None]:
+    """`with exits():` around a call an entry point makes: a refusal or a stop ends the process (`exit_for`)."""
+    try:
+        yield
+    except (Refused, Stopped) as error:
+        exit_for(error)
+
+
 def in_sweep(task: Callable[..., T], *args: Any) -> T:
-    """task(*args); in a multirun a SystemExit with a non-zero status becomes JobFailed, so the sweep goes on (an
-    Optuna trial is marked failed, not left running)."""
+    """task(*args) for an app's Hydra task function: a refusal or a stop ends the process (`exit_for`), or in a
+    multirun fails this job only (JobFailed, after the refusal's line), so the sweep goes on (an Optuna trial is
+    marked failed, not left running)."""
     try:
         return task(*args)
-    except SystemExit as stop:
-        if HydraConfig.get().mode == RunMode.MULTIRUN and stop.code not in (0, None):
-            detail = stop.message if isinstance(stop, Refused) else f"stopped with exit status {stop.code}"
-            raise JobFailed(detail) from None
-        raise
+    except (Refused, Stopped) as error:
+        if HydraConfig.get().mode != RunMode.MULTIRUN:
+            exit_for(error)
+        if isinstance(error, Refused):
+            print(f"error: {error.message}", file=sys.stderr)
+        raise JobFailed(str(error)) from None
 
 
 class FailedJobs(Callback):

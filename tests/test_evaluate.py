@@ -17,6 +17,7 @@ from searchrl.evaluate.bound import BOUND_COLUMNS
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import COLUMNS
+from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -90,7 +91,7 @@ def test_checkpoint_settings_come_from_its_run(tmp_path, capsys):
     again = _evaluate(tmp_path / "again", f"checkpoint={model}")  # sampled actions come from the eval seed
     pd.testing.assert_frame_equal(frame, again)
     capsys.readouterr()
-    with pytest.raises(SystemExit):  # argmax actions are other episodes: not into the sampled ones' folder
+    with pytest.raises(SystemExit), exits():  # argmax actions are other episodes: not into the sampled ones' folder
         _evaluate(tmp_path / "again", f"checkpoint={model}", "deterministic=true")
     assert "deterministic: False there, True here" in capsys.readouterr().err
     from searchrl.policies.checkpoint import load_actor
@@ -101,7 +102,7 @@ def test_checkpoint_settings_come_from_its_run(tmp_path, capsys):
         load_actor(model, six)
     with zipfile.ZipFile(model, "a") as archive:  # the same path, another file (as if retrained)
         archive.writestr("note.txt", "retrained")
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit), exits():
         _evaluate(tmp_path / "again", f"checkpoint={model}")
     assert "checkpoint_sha256" in capsys.readouterr().err
 
@@ -123,7 +124,7 @@ def test_one_override_chooses_the_scenario_for_a_heuristic_and_a_checkpoint(tmp_
     )  # bound needs the prior's law
     assert (paper.map_seed.to_numpy() == off.map_seed.to_numpy()).all()
     assert not paper.found_fraction.equals(off.found_fraction) and not paper.found_fraction.equals(walls.found_fraction)
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit), exits():
         _evaluate(tmp_path / "walls", "controller=greedy", "scenario=off_prior")
     assert "scenario.targets.kind: 'prior' there, 'off_prior' here" in capsys.readouterr().err
     from tests.test_train import TINY, _run
@@ -144,7 +145,7 @@ def test_a_folder_refuses_results_of_other_settings(tmp_path, capsys):
                ("grid.repeats=3", "grid.repeats: 2 there, 3 here")]  # fmt: skip
     for override, difference in changes:
         capsys.readouterr()
-        with pytest.raises(SystemExit) as exit_:
+        with pytest.raises(SystemExit) as exit_, exits():
             _evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2", override)
         err = capsys.readouterr().err
         assert exit_.value.code == 2 and f"out_dir={str(tmp_path)!r} holds results of other settings" in err, err
@@ -217,7 +218,7 @@ def test_bad_input_fails_before_work(tmp_path, override, message, capsys):
     overrides = override.split()
     if override.startswith("controller."):  # the controller group goes before its own settings
         overrides = ["controller=coverage" if "radius" in override else "controller=greedy", override]
-    with pytest.raises(SystemExit) as exit_:
+    with pytest.raises(SystemExit) as exit_, exits():
         _evaluate(tmp_path, *overrides)
     err = capsys.readouterr().err
     assert exit_.value.code == 2 and message in err and "Traceback" not in err, err[-2000:]
@@ -237,10 +238,10 @@ def test_a_record_made_before_an_option_existed_resumes_at_its_default(tmp_path,
     _evaluate(tmp_path, "controller=greedy", "shard=0", "num_shards=2")
     record = tmp_path / "evaluation.yaml"
     record.write_text("\n".join(line for line in record.read_text().splitlines() if "age:" not in line) + "\n")
-    with pytest.raises(SystemExit) as exit_:
+    with pytest.raises(SystemExit) as exit_, exits():
         _evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2", "controller.age=0.5")
     assert exit_.value.code == 2 and "controller_args.age: '(absent)' there, 0.5 here" in capsys.readouterr().err
-    with pytest.raises(SystemExit) as exit_:
+    with pytest.raises(SystemExit) as exit_, exits():
         _evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2", "env.world.belief_age=0.5")
     assert exit_.value.code == 2 and "world.belief_age: '(absent)' there, 0.5 here" in capsys.readouterr().err
     assert len(_evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2")) == 18
@@ -305,7 +306,7 @@ def test_greedy_target_is_greedy_with_its_settings_recorded_so(tmp_path, monkeyp
     pd.testing.assert_frame_equal(resumed.sort_values(key).reset_index(drop=True),
                                   fresh.sort_values(key).reset_index(drop=True))  # fmt: skip
     capsys.readouterr()
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit), exits():
         _evaluate(tmp_path / out, "controller=greedy")  # footprint-greedy's defaults are other settings
     assert "controller_args.horizon: 3 there, 2 here" in capsys.readouterr().err
 
@@ -321,7 +322,7 @@ def test_a_damaged_cell_file_is_named_in_one_line(tmp_path):
 def test_a_bound_cache_that_cannot_be_written_is_refused_before_work_and_a_damaged_one_is_recomputed(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit), exits():
         _evaluate(tmp_path / "out", "controller=random", f"bound_cache={blocker}/bounds")
     assert "bound_cache=" in capsys.readouterr().err and not (tmp_path / "out" / "evaluation.yaml").exists()
     cache = tmp_path / "cache"

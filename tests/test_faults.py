@@ -26,6 +26,7 @@ from searchrl.atomic import hold, temporary_path
 from searchrl.envs.parallel_env import SearchParallelEnv
 from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.results import load
+from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
 from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
@@ -56,7 +57,7 @@ def _evaluate(out: Path, *overrides: str) -> Path:
 def _refused(capsys, call, *needles: str) -> str:
     """`call` exits with 2 and one `error:` line naming every needle, no traceback."""
     capsys.readouterr()
-    with pytest.raises(SystemExit) as exit_:
+    with pytest.raises(SystemExit) as exit_, exits():
         call()
     err = capsys.readouterr().err
     assert exit_.value.code == 2 and "Traceback" not in err, err
@@ -504,7 +505,7 @@ def test_a_run_folder_with_a_space_in_its_path_resumes(tmp_path, tiny_run, capsy
     run = _copy(tiny_run, tmp_path / "my run")
     check_resume_argument([f"resume='{run}'"])  # quoted for Hydra, as a shell passes it
     check_resume_argument([f'resume="{run}"'])
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit), exits():
         check_resume_argument([f"resume='{tmp_path / 'no run'}'"])
     assert "is not allowed: a run folder" in capsys.readouterr().err
 

@@ -25,6 +25,7 @@ from searchrl.controllers.registry import HEURISTICS, TEACHERS, allowed, heurist
 from searchrl.evaluate.app import evaluate, make_controller_factory
 from searchrl.evaluate.results import load
 from searchrl.evaluate.schema import register_configs
+from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
 from searchrl.world import scenario
 from searchrl.world.config import ConfigError, WorldConfig, need
@@ -192,7 +193,7 @@ def test_a_heuristic_and_an_obstacle_generator_added_through_the_public_api_run_
             cfg = compose(config_name="evaluate", overrides=[*SLICE, f"out_dir={tmp_path}", *overrides])
             rows = load(evaluate(cfg, overrides))
             bad = [*SLICE, f"out_dir={tmp_path / 'bad'}", *overrides, "scenario.obstacles.row=99"]
-            with pytest.raises(SystemExit):
+            with pytest.raises(SystemExit), exits():
                 evaluate(compose(config_name="evaluate", overrides=bad), bad)
     assert "scenario.obstacles.row=99 is not allowed" in capsys.readouterr().err
     assert (

@@ -16,6 +16,7 @@ from sb3_contrib import RecurrentPPO
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.multirun import exits
 from searchrl.train.app import train
 from searchrl.train.plan import make_plan
 from searchrl.train.validation import run_episodes
@@ -94,7 +95,7 @@ def test_resume_accepts_a_budget_not_below_the_steps_trained(tmp_path, finished,
 def test_resume_refuses_a_budget_one_rollout_below_the_steps_trained(tmp_path, finished, capsys):
     run = _killed(finished.run, tmp_path / "run")
     capsys.readouterr()
-    with pytest.raises(SystemExit) as exit_:
+    with pytest.raises(SystemExit) as exit_, exits():
         _resume(run, 1792)
     line = capsys.readouterr().err.strip().splitlines()[-1]
     assert exit_.value.code == 2 and "total_timesteps=1792 is not allowed" in line and ">= 2048" in line, line

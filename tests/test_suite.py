@@ -12,6 +12,7 @@ from omegaconf import OmegaConf
 
 from searchrl.evaluate.results import load
 from searchrl.evaluate.suite import SuiteConfig, evaluate_suite, suite_scenarios
+from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
 from searchrl.schema import group_option
 from searchrl.world.scenario import PAPER
@@ -85,7 +86,7 @@ def test_shards_split_the_suites_scenario_cells_once(tmp_path):
 
 @pytest.mark.parametrize("override", ["grid.maps_per_cell=3", "seed=1", "scenario=walls", "suite.seed=3"])
 def test_a_suite_is_frozen(tmp_path, override, capsys):
-    with pytest.raises(SystemExit) as exit_:
+    with pytest.raises(SystemExit) as exit_, exits():
         _run(tmp_path, "controller=coverage", override)
     err = capsys.readouterr().err
     assert exit_.value.code == 2 and override in err and "frozen" in err, err[-1500:]
@@ -94,7 +95,7 @@ def test_a_suite_is_frozen(tmp_path, override, capsys):
 
 def test_a_bad_family_is_named_before_any_folder(tmp_path, capsys):
     bad = {**TINY, "families": {**TINY["families"], "psychic": {"targets": {"kind": "psychic"}}}}
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit), exits():
         _run(tmp_path, "controller=coverage", suite=bad)
     assert "scenario.targets.kind='psychic' is not allowed" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())

@@ -15,6 +15,7 @@ import yaml
 from PIL import Image
 
 from searchrl.analysis.sweep import load_jobs, mean_ci, score_table, setting_keys, validation_curves
+from searchrl.multirun import exits
 from searchrl.train.score import run_score
 from tests.scripts import run_script
 
@@ -104,7 +105,7 @@ def test_a_run_without_periodic_validation_is_scored_on_its_final_model(tmp_path
     train(_compose(overrides), tmp_path, overrides)
     record = json.loads((tmp_path / "score.json").read_text())
     assert record["validations"] == 1 and record["steps"] == [512] and 0 <= record["score"] <= 1
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit), exits():
         train(_compose([*TINY, "validation.score_last=0"]), tmp_path / "bad", [])
     assert not (tmp_path / "bad").exists()
 

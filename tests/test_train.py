@@ -19,6 +19,7 @@ from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
 
+from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
 from searchrl.train.app import train
 from searchrl.train.build import load_algorithm, make_vec_env
@@ -233,7 +234,7 @@ def test_bad_input_fails_before_work(tmp_path, capsys):
 
     def refused(*args: str) -> str:
         capsys.readouterr()
-        with pytest.raises(SystemExit) as stop:
+        with pytest.raises(SystemExit) as stop, exits():
             train(_compose(list(args)), tmp_path / "x", list(args))
         assert stop.value.code == 2
         return capsys.readouterr().err

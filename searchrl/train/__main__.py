@@ -10,9 +10,11 @@ import sys
 from searchrl.omp_wait import set_wait_policy
 
 set_wait_policy(sys.argv)
+from searchrl.multirun import exits  # noqa: E402
 from searchrl.train.app import main  # noqa: E402  (loads torch: after the wait policy)
 from searchrl.train.command_line import check_resume_argument  # noqa: E402
 
 if __name__ == "__main__":
-    check_resume_argument(sys.argv[1:])
+    with exits():
+        check_resume_argument(sys.argv[1:])
     main()

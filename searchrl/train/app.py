@@ -37,7 +37,7 @@ from searchrl.atomic import (
     write_atomic,
     write_text_atomic,
 )
-from searchrl.multirun import in_sweep
+from searchrl.multirun import Stopped, in_sweep
 from searchrl.paths import CONF_DIR
 from searchrl.schema import override_keys
 from searchrl.threads import use_threads
@@ -151,7 +151,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
         name = signal.Signals(preemption.signal).name
         print(f"stopped by {name} at {model.num_timesteps} agent-steps (checkpoints/step_{model.num_timesteps}.zip); "
               f"continue with resume={run_dir}", file=sys.stderr)  # fmt: skip
-        sys.exit(128 + preemption.signal)  # 143 for SIGTERM, 130 for SIGINT, as a shell reports them
+        raise Stopped(128 + preemption.signal)  # 143 for SIGTERM, 130 for SIGINT, as a shell reports them
     final = write_atomic(run_dir / "model.zip", lambda tmp: model.save(tmp))
     score = write_score(run_dir, int(cfg.validation.score_last))
     print(f"trained {model.num_timesteps} agent-steps; model: {final}; score {score['score']:.4f} (mean found "
