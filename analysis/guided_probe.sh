@@ -5,6 +5,7 @@
 # (target-greedy, reach 2), coverage and robust/b; the open grid also against term/b. Paired comparisons into
 # analysis/out/guided_probe/<tag>/<scenario>/vs_<baseline>/; a folder already evaluated is kept (evaluations resume).
 #   bash analysis/guided_probe.sh [model.zip] [tag]     # defaults: runs/train/guided/walls_b/model.zip, walls_b
+#   BASELINES_ONLY=1 bash analysis/guided_probe.sh      # the rules and shipped policies alone, while one trains
 set -euo pipefail
 GUIDED=${1:-runs/train/guided/walls_b/model.zip}
 TAG=${2:-walls_b}
@@ -15,14 +16,14 @@ policy() { python -m searchrl.evaluate checkpoint=runs/reference/$1/model.zip $2
 probe() {  # probe <scenario name> "<overrides>" <baseline>...
   local s=$1 S=$2 O=runs/eval/guided_probe/$1
   shift 2
-  python analysis/guided_b.py evaluate checkpoint="$GUIDED" $S $P out_dir=$O/$TAG
+  [ -n "${BASELINES_ONLY:-}" ] || python analysis/guided_b.py evaluate checkpoint="$GUIDED" $S $P out_dir=$O/$TAG
   for base in "$@"; do
     case $base in
       greedy_target) rule greedy_target "$S" $O/$base controller.reach=2;;
       path_greedy|coverage) rule $base "$S" $O/$base;;
       *) policy ${base/_//} "$S" $O/$base;;  # walls_b -> walls/b, term_b -> term/b, robust_b -> robust/b
     esac
-    python analysis/compare.py $O/$TAG $O/$base --out analysis/out/guided_probe/$TAG/$s/vs_$base
+    [ -n "${BASELINES_ONLY:-}" ] || python analysis/compare.py $O/$TAG $O/$base --out analysis/out/guided_probe/$TAG/$s/vs_$base
   done
 }
 probe paper "scenario=paper" path_greedy walls_b term_b greedy_target
