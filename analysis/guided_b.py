@@ -17,6 +17,10 @@
 # - per move a: 1 where the pocket in reach holds less than the rule's floor and a is the first move of the shortest
 #   path to the nearest worthwhile cell of the whole world (the walk path_greedy would take), else 0.
 #
+# With GUIDED_EVIDENCE=1 (in training and evaluation alike) each agent also gets its world's evidence switch
+# statistics (searchrl/controllers/switch.py: the team's finds against what the prior expected where it swept), and
+# `walls_or_switch` is a teacher that follows the switch in open worlds: research/guided_b_evidence.
+#
 # The policy starts from a shipped one with the new inputs' weights at zero (so it acts exactly as that policy at
 # first) and trains with the training app's recipe; validation and evaluation act through the same guided
 # controller. Nothing here is in the library: the wrapper and the controller are patched into the apps.
@@ -28,6 +32,7 @@
 # %%
 from __future__ import annotations
 
+import os
 import sys
 from dataclasses import dataclass
 
@@ -41,11 +46,13 @@ from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.greedy import cell_information
 from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import make_controller, register
+from searchrl.controllers.switch import MIN_EXPECTED, EvidenceSwitch, sweep_footprints
 from searchrl.controllers.walls import PathGreedy, bfs, pocket_values
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.train.teacher_labels import TeacherLabels
 from searchrl.world.config import WorldConfig
+from searchrl.world.footprint import SUPPORT_DC, SUPPORT_DR, SUPPORT_G
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.state import WorldState
 
@@ -90,22 +97,38 @@ def _guidance_span(w, params, memory, radius, floor, out, start, stop, side):
                 dist[queue[q, 0], queue[q, 1]] = -1
 
 
+EVIDENCE = os.environ.get("GUIDED_EVIDENCE") == "1"  # the fourth stage's two more inputs (module text)
+
+
 class Guide:
     """path_greedy's memory for a batch of worlds and the guidance it gives: `reset` where worlds restart,
-    `values(state)` (K·N, 2·(A − 1)) float32."""
+    `values(state)` (K·N, 2·(A − 1)) float32; with EVIDENCE two more per agent, its world's evidence switch
+    statistics (searchrl/controllers/switch.py): (found + 1) / (expected + 1) over 2, clipped to [0, 1], and the
+    expected detections where the team swept over MIN_EXPECTED, clipped to [0, 1]."""
 
     def __init__(self, config: WorldConfig) -> None:
         self.rule = PathGreedy(config)
-        self.width = 2 * (config.n_actions - 1)
+        self.width = 2 * (config.n_actions - 1) + (2 if EVIDENCE else 0)
+        self.evidence = EvidenceSwitch(config) if EVIDENCE else None
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         self.rule.reset(state, mask)
+        if self.evidence is not None:
+            self.evidence.reset(state, mask)
 
     def values(self, state: WorldState) -> np.ndarray:
         out = np.zeros((state.n_worlds, state.n_agents, self.width), np.float32)
         rule = self.rule
         guidance_values(state.arrays(), rule._params, rule.remember(state), rule.radius, rule._floor, out,
                         world_threads())  # fmt: skip
+        if self.evidence is not None:  # once per step: the team's footprints of this step, as the switch sweeps
+            tracker = self.evidence
+            if tracker.left.shape != state.p.shape:
+                tracker.reset(state, np.ones(state.n_worlds, bool))
+            sweep_footprints(state.pos, state.halo, tracker.left, SUPPORT_DR, SUPPORT_DC, SUPPORT_G)
+            expected = state.n_targets * tracker.expected()
+            out[:, :, -2] = np.clip((state.n_found + 1.0) / (expected + 1.0) / 2.0, 0.0, 1.0)[:, None]
+            out[:, :, -1] = np.clip(expected / MIN_EXPECTED, 0.0, 1.0)[:, None]
         return out.reshape(state.n_worlds * state.n_agents, self.width)
 
 
@@ -182,6 +205,20 @@ class WallsOrTarget:
                         self.open.act(state, maps, vector, active))  # fmt: skip
 
 
+class WallsOrSwitch(WallsOrTarget):
+    """As WallsOrTarget, the evidence switch (threshold 0.25, tuned apart from the suites) in open worlds: B's teacher
+    until the team finds under a quarter of what the prior expected where it swept, then coverage."""
+
+    def __init__(self, config: WorldConfig, seed=0) -> None:
+        self.walls = make_controller("path_greedy", config, seed=seed)
+        self.open = make_controller("switch", config, seed=seed, settings={"threshold": 0.25})
+
+
+@dataclass
+class WallsOrSwitchConfig(ControllerConfig):
+    name: str = "walls_or_switch"
+
+
 def make_guided_vec_env(plan, seed=None):
     """searchrl.train.build.make_vec_env with each group's worlds wrapped in `Guidance`."""
     envs = [Guidance(SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=plan.scenario))
@@ -210,6 +247,7 @@ def patch_apps() -> None:
     import searchrl.controllers.factory as factory
 
     register("walls_or_target", WallsOrTarget, WallsOrTargetConfig)  # a teacher: imitation.teacher=walls_or_target
+    register("walls_or_switch", WallsOrSwitch, WallsOrSwitchConfig)
     import searchrl.train.app as train_app
 
     train_app.make_vec_env = make_guided_vec_env

@@ -6,6 +6,7 @@
 # analysis/out/guided_probe/<tag>/<scenario>/vs_<baseline>/; a folder already evaluated is kept (evaluations resume).
 #   bash analysis/guided_probe.sh [model.zip] [tag]     # defaults: runs/train/guided/walls_b/model.zip, walls_b
 #   BASELINES_ONLY=1 bash analysis/guided_probe.sh      # the rules and shipped policies alone, while one trains
+#   GUIDED_EVIDENCE=1 bash analysis/guided_probe.sh runs/train/guided/b_evidence/model.zip b_evidence
 set -euo pipefail
 GUIDED=${1:-runs/train/guided/walls_b/model.zip}
 TAG=${2:-walls_b}
