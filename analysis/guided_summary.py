@@ -34,6 +34,10 @@ out = Path(args.out or f"analysis/out/guided_probe/{args.tag}")
 KEY = ["n", "N", "map_seed", "repeat"]
 RULES = ("path_greedy", "greedy_target", "coverage")
 
+# %% [markdown]
+# Each controller against the guided policy on the maps both ran (all of them: the probe runs the same cells, maps
+# and seeds for each), and the best of the rules probed in the scenario.
+
 # %%
 rows = []
 for scenario in sorted(p for p in Path(args.probe).iterdir() if (p / args.tag).is_dir()):

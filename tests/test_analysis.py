@@ -80,6 +80,12 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
 
         args = ["+model=b", *TINY, "total_timesteps=768", "imitation.teacher=oracle_switch", "imitation.epochs=0",
                 "imitation.rl_weight=0.5", f"hydra.run.dir={out_dir / 'run'}"]  # fmt: skip
+    if notebook == "guided_summary.py":  # a probe as analysis/guided_probe.sh lays it out: one scenario, three folders
+        probe = out_dir / "probe" / "paper"
+        probe.mkdir(parents=True)
+        for name, source in (("mine", eval_dirs[2]), ("coverage", eval_dirs[1]), ("path_greedy", eval_dirs[0])):
+            (probe / name).symlink_to(source)
+        args = ["mine", "--probe", str(out_dir / "probe"), "--out", str(out_dir)]
     if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
         args = [str(eval_dirs[0].parent.parent), str(out_dir)]
     env = {
@@ -133,6 +139,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                      "moves.md": ("Blocked / stale: per family, the mean share of a team's moves a wall or agent", 4),
                      "quality.md": ("Mean found fraction per bin of prior quality (the same episodes for every", None)},
         "oracle_teacher.py": {},
+        "guided_summary.py": {"summary.md": ("Mean found fraction per scenario; beside each baseline: mine", 3),
+                              "best_rule.md": ("mine against the best rule probed in each scenario", 3)},
         "shipped.py": {"shipped.md": ("| policy | RL agent-steps | RL hours (1 core) | policy found | paper |", 6)},
         "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
                      "sweep_curves.png": (780, 480)},
