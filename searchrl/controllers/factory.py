@@ -23,14 +23,14 @@ POLICY_CONTROLLER: type[PolicyController] = PolicyController
 
 
 def heuristic_factory(
-    name: str, settings: dict[str, Any] | None = None, check: WorldConfig | None = None, key: str = "controller"
+    name: str, settings: dict[str, Any] | None = None, check: WorldConfig | None = None
 ) -> ControllerFactory:
     """The registered heuristic `name` with `settings` (plain values without `name`). With `check`, one is built in
-    that world first, so an unknown name or a refused setting is a ConfigError (naming `key`) before any work."""
+    that world first, so an unknown name or a refused setting is a ConfigError before any work."""
     settings = dict(settings or {})
 
     def factory(config: WorldConfig, seed: int | WorldStreams = 0) -> Controller:
-        return make_controller(name, config, seed=seed, settings=settings, key=key)
+        return make_controller(name, config, seed=seed, settings=settings)
 
     if check is not None:
         factory(check)
