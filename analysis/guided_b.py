@@ -43,7 +43,7 @@ from numba import njit, prange
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from searchrl.controllers.base import ControllerConfig
-from searchrl.controllers.greedy import cell_information
+from searchrl.controllers.greedy import cell_information, view_scratch
 from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import make_controller, register
 from searchrl.controllers.switch import MIN_EXPECTED, EvidenceSwitch, sweep_footprints
@@ -75,10 +75,11 @@ def _guidance_span(w, params, memory, radius, floor, out, start, stop, side):
     pos, h, n_actions = w.pos, w.halo, params.n_actions
     others = np.empty((1, 2), np.int64)
     best = np.zeros(n_actions)
+    values = view_scratch(params)
     for slot in range(start, stop):
         k, i = slot // pos.shape[1], slot % pos.shape[1]
         r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
-        pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, best, others)
+        pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, best, others, values)
         top = best[1:].max()
         out[k, i, :] = 0.0
         for a in range(1, n_actions):

@@ -98,53 +98,89 @@ def _moves_apart(dr, dc, diagonal):
     return max(abs(dr), abs(dc)) if diagonal else abs(dr) + abs(dc)
 
 
-@njit(cache=True, inline="always")  # inlined: called per cell of every footprint scored
-def cell_information(params, belief, prior, flat, sp, su, seen, known, rate, now, k, i, r, c):
-    """I(r, c) = w_p·p̂ + w_u·û + w_t·p̂·(1 − û) of agent i's belief (`WorldState.belief`; p̂ = sp·p, û = su·u, the
-    observation's scaling) at padded cell (r, c) of world k at step `now`, p̂ and û scaled by the `seen` and `age`
-    factors where GreedyMemory keeps them (seen, known; rate: its rates[k]). With params.hedge = ε > 0:
-    (1 − ε)·I + ε·flat[k]·left, flat the prior's mean I per free cell and left = belief p / prior p (`prior`,
-    `WorldState.p`) the share of the cell sensing has not yet cleared: greedy on a belief that keeps ε of its
-    mass uniform, depleted by the same sensing. The caller reads every array off the world and the memory once: a
-    kernel's read of a field per cell costs more than the cell."""
-    p_hat, u_hat = belief[k, i, 0, r, c] * sp, belief[k, i, 1, r, c] * su
-    left = belief[k, i, 0, r, c] / prior[k, r, c] if params.hedge > 0.0 and prior[k, r, c] > 0.0 else 0.0
-    if seen.shape[2] > 0:  # what the neighbours it saw there have sensed, as that sensing scales p and u
-        p_hat, u_hat, left = p_hat * seen[k, i, r, c], u_hat * seen[k, i, r, c], left * seen[k, i, r, c]
-    if known.shape[2] > 0:  # what unseen agents have likely sensed since it last saw the cell's truth
-        fresh = freshness(rate, now, known[k, i, r, c])
-        p_hat, u_hat, left = p_hat * fresh, u_hat * fresh, left * fresh
+@njit(cache=True, inline="always")  # inlined: called per cell, on scalars (an inlined call's array arguments
+def information(params, p, u, prior_p, flat_k, sp, su, seen, fresh):  # are counted in and out, ~100 ns a call)
+    """I = w_p·p̂ + w_u·û + w_t·p̂·(1 − û) of one cell of an agent's belief, p and u there (`WorldState.belief`),
+    p̂ = sp·p·seen·fresh, û = su·u·seen·fresh: the observation's scaling and the factors of what the neighbours it
+    saw have sensed there (`seen`) and what unseen agents have likely sensed since it last saw the cell's truth
+    (`fresh`), 1.0 where GreedyMemory keeps neither. With params.hedge = ε > 0: (1 − ε)·I + ε·flat_k·left, flat_k
+    the prior's mean I per free cell and left = p / prior_p (prior_p: `WorldState.p` there), scaled alike, the share
+    of the cell sensing has not yet cleared: greedy on a belief that keeps ε of its mass uniform, depleted by the
+    same sensing."""
+    p_hat, u_hat = p * sp, u * su
+    left = p / prior_p if params.hedge > 0.0 and prior_p > 0.0 else 0.0
+    p_hat, u_hat, left = p_hat * seen, u_hat * seen, left * seen
+    p_hat, u_hat, left = p_hat * fresh, u_hat * fresh, left * fresh
     info = params.w_p * p_hat + params.w_u * u_hat + params.w_t * p_hat * max(0.0, 1.0 - u_hat)
     if params.hedge > 0.0:
-        info = (1.0 - params.hedge) * info + params.hedge * flat[k] * left
+        info = (1.0 - params.hedge) * info + params.hedge * flat_k * left
     return info
 
 
-@njit(cache=True, inline="always")  # inlined: called per move and step ahead, so its arguments are not copied
-def footprint_information(w, params, memory, k, i, r, c, r0, c0, others, n_others):
-    """Σ Γ(d)·x·reach·I(r + d, c + d) of agent i's belief in world k of w (`WorldState.arrays()`) over the cells
-    within params.fov_half rows and columns of its padded position (r0, c0), what the agent sees; x = contested
-    where one of the agents at others[:n_others] (rows, cols) is fewer moves away than (r0, c0), else 1."""
-    gamma, view, contested, diagonal = params.gamma, params.fov_half, params.contested, params.n_actions > 5
-    belief, sp, su, now = w.belief, w.obs_scale[k, 0], w.obs_scale[k, 1], w.t[k]
-    reach, seen, known = memory.reach, memory.seen, memory.known
+@njit(cache=True)
+def cell_information(params, belief, prior, flat, sp, su, seen, known, rate, now, k, i, r, c):
+    """`information` of agent i's belief at padded cell (r, c) of world k at step `now`, read off the arrays:
+    belief and prior `WorldState.belief` and `.p`, flat, seen, known and rate GreedyMemory's (rate its rates[k])."""
+    seen_factor = seen[k, i, r, c] if seen.shape[2] > 0 else 1.0
+    fresh = freshness(rate, now, known[k, i, r, c]) if known.shape[2] > 0 else 1.0
+    flat_k = flat[k] if params.hedge > 0.0 else 0.0
+    return information(params, belief[k, i, 0, r, c], belief[k, i, 1, r, c], prior[k, r, c], flat_k, sp, su,
+                       seen_factor, fresh)  # fmt: skip
+
+
+@njit(cache=True)
+def view_scratch(params):
+    """values (3, W, W) float64, W = 2·(fov_half + g) + 1, Γ of radius g: `view_values`' scratch, one per thread."""
+    side = 2 * (params.fov_half + params.gamma.shape[0] // 2) + 1
+    return np.zeros((3, side, side))
+
+
+@njit(cache=True, inline="always")  # inlined: once per agent, so its arguments are not copied
+def view_values(w, params, memory, k, i, r0, c0, others, n_others, values):
+    """values (3, W, W) <- (x, reach, I) of every cell within params.fov_half rows and columns of agent i's padded
+    position (r0, c0) in world k of w (`WorldState.arrays()`), what the agent sees, centred (`view_scratch`): I its
+    belief's information (`cell_information`), reach `GreedyMemory.reach`, x = contested where one of the agents
+    at others[:n_others] (rows, cols) is fewer moves away than (r0, c0), else 1. Zero on the cells off the grid
+    and in the margin outside the view, where footprints centred in the view reach: they add nothing."""
+    view, contested, diagonal = params.fov_half, params.contested, params.n_actions > 5
+    belief, prior, sp, su, now = w.belief, w.p, w.obs_scale[k, 0], w.obs_scale[k, 1], w.t[k]
+    reach, seen, known, flat = memory.reach, memory.seen, memory.known, memory.flat
     rate = memory.rates[k] if known.shape[2] > 0 else 0.0
-    g, side = gamma.shape[0] // 2, belief.shape[3]
-    total = 0.0
-    for dr in range(-g, g + 1):
-        for dc in range(-g, g + 1):
-            rr, cc = r + dr, c + dc
-            if abs(rr - r0) > view or abs(cc - c0) > view or rr < 0 or cc < 0 or rr >= side or cc >= side:
+    margin, side = values.shape[1] // 2 - view, belief.shape[3]
+    has_seen, has_known, flat_k = seen.shape[2] > 0, known.shape[2] > 0, flat[k] if params.hedge > 0.0 else 0.0
+    values[:] = 0.0
+    for dr in range(-view, view + 1):
+        for dc in range(-view, view + 1):
+            rr, cc = r0 + dr, c0 + dc
+            if rr < 0 or cc < 0 or rr >= side or cc >= side:
                 continue
-            weight = gamma[dr + g, dc + g]
-            if weight > 0.0:
-                mine = _moves_apart(rr - r0, cc - c0, diagonal)
-                for j in range(n_others):
-                    if _moves_apart(rr - others[j, 0], cc - others[j, 1], diagonal) < mine:
-                        weight *= contested
-                        break
-                info = cell_information(params, belief, w.p, memory.flat, sp, su, seen, known, rate, now, k, i, rr, cc)
-                total += weight * reach[k, rr, cc] * info
+            x, mine = 1.0, _moves_apart(dr, dc, diagonal)
+            for j in range(n_others):
+                if _moves_apart(rr - others[j, 0], cc - others[j, 1], diagonal) < mine:
+                    x = contested
+                    break
+            vr, vc = margin + view + dr, margin + view + dc
+            values[0, vr, vc], values[1, vr, vc] = x, reach[k, rr, cc]
+            seen_factor = seen[k, i, rr, cc] if has_seen else 1.0
+            fresh = freshness(rate, now, known[k, i, rr, cc]) if has_known else 1.0
+            values[2, vr, vc] = information(params, belief[k, i, 0, rr, cc], belief[k, i, 1, rr, cc], prior[k, rr, cc],
+                                            flat_k, sp, su, seen_factor, fresh)  # fmt: skip
+
+
+@njit(cache=True, inline="always")  # inlined: called per move and step ahead
+def footprint_information(params, values, dr, dc):
+    """Σ Γ(d)·x·reach·I over the footprint centred dr, dc away from the agent whose view `values` holds
+    (`view_values`; |dr|, |dc| <= fov_half): what it would sense there, the cells it does not see counting 0."""
+    gamma = params.gamma
+    g = gamma.shape[0] // 2
+    centre = values.shape[1] // 2
+    total = 0.0
+    for fr in range(-g, g + 1):
+        for fc in range(-g, g + 1):
+            weight = gamma[fr + g, fc + g]
+            if weight > 0.0:  # terms in the order of Γ's rows, as a sum over the cells sensed
+                r, c = centre + dr + fr, centre + dc + fc
+                total += weight * values[0, r, c] * values[1, r, c] * values[2, r, c]
     return total
 
 
@@ -170,6 +206,7 @@ def _greedy_span(w, params, memory, fallback, out, first, stop):
     """`greedy_actions` for the agents first..stop-1 of the K·N, world-major (agent i of world k is k·N + i)."""
     pos, occupant, blocked, h, moves, view = w.pos, w.occupant, w.blocked, w.halo, params.moves, params.fov_half
     others = np.empty(((2 * view + 1) ** 2, 2), np.int64)
+    values = view_scratch(params)
     for slot in range(first, stop):
         k, i = slot // pos.shape[1], slot % pos.shape[1]
         r, c = pos[k, i, 0] + h, pos[k, i, 1] + h
@@ -181,6 +218,7 @@ def _greedy_span(w, params, memory, fallback, out, first, stop):
                     if j >= 0 and j != i:
                         others[n_others, 0], others[n_others, 1] = r + dr, c + dc
                         n_others += 1
+        view_values(w, params, memory, k, i, r, c, others, n_others, values)
         best, best_score = -1, 0.0
         for a in range(1, params.n_actions):
             mr, mc = moves[a, 0], moves[a, 1]
@@ -188,9 +226,7 @@ def _greedy_span(w, params, memory, fallback, out, first, stop):
                 continue
             score, weight = 0.0, 1.0
             for t in range(1, params.horizon + 1):
-                score += weight * footprint_information(
-                    w, params, memory, k, i, r + t * mr, c + t * mc, r, c, others, n_others
-                )
+                score += weight * footprint_information(params, values, t * mr, t * mc)
                 weight *= params.discount
             if score > best_score:
                 best, best_score = a, score

@@ -26,7 +26,13 @@ import numpy as np
 from numba import njit, prange
 
 from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
-from searchrl.controllers.greedy import FootprintGreedy, cell_information, footprint_information
+from searchrl.controllers.greedy import (
+    FootprintGreedy,
+    cell_information,
+    footprint_information,
+    view_scratch,
+    view_values,
+)
 from searchrl.controllers.switch import sweep_footprints
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G
@@ -61,16 +67,17 @@ def bfs(blocked, k, r0, c0, limit, n_actions, dist, first, queue):
 
 
 @njit(cache=True)
-def pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, best, others):
+def pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, best, others, values):
     """best (A,) <- for each first move a, the best value of a cell within `radius` moves of agent i of world k at
     padded (r0, c0) whose shortest path starts with a: its footprint information (`footprint_information`)
     times discount^(moves − 1). dist, first, queue are `bfs`'s scratch, dist left all -1 again; others (1, 2)
-    int64 scratch (no agent is contested here)."""
+    int64 scratch (no agent is contested here); values: `view_values`' scratch (`view_scratch`)."""
     reached = bfs(w.blocked, k, r0, c0, radius, params.n_actions, dist, first, queue)
     best[:] = 0.0
+    view_values(w, params, memory, k, i, r0, c0, others, 0, values)
     for q in range(1, reached):
         r, c = queue[q, 0], queue[q, 1]
-        value = footprint_information(w, params, memory, k, i, r, c, r0, c0, others, 0)
+        value = footprint_information(params, values, r - r0, c - c0)
         value *= params.discount ** (dist[r, c] - 1)
         a = first[r, c]
         if value > best[a]:
@@ -105,10 +112,11 @@ def _path_greedy_span(w, params, memory, radius, floor, fallback, out, start, st
     sp_all, su_all, rate_all, now_all = w.obs_scale, w.obs_scale, memory.rates, w.t
     others = np.empty((1, 2), np.int64)
     best = np.zeros(n_actions)  # the best value of a cell each first move leads to
+    values = view_scratch(params)
     for slot in range(start, stop):
         k, i = slot // pos.shape[1], slot % pos.shape[1]
         r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
-        pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, best, others)
+        pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, best, others, values)
         choice, score = 0, floor[k] * 13.0  # a footprint's worth: 13 cells at the floor
         for a in range(1, n_actions):
             if best[a] > score and occupant[k, r0 + MOVES[a, 0], c0 + MOVES[a, 1]] < 0:
