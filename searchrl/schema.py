@@ -8,6 +8,7 @@ conf/scenario -> a plain mapping read by searchrl.world.scenario.Scenario.from_d
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
 from difflib import get_close_matches
 from typing import Any, get_type_hints
@@ -124,25 +125,43 @@ def register_shared_configs() -> ConfigStore:
     return cs
 
 
-def group_option(group: str, name: str) -> dict[str, Any]:
-    """conf/<group>/<name>.yaml as Hydra composes it (its defaults list applied: a suite's families come from
-    conf/families/), a plain mapping; for readers outside an app (render, notebooks, tests). ConfigError names an
-    option that does not exist."""
+def _compose(config_name: str, group: str) -> DictConfig:
+    """conf/<config_name>.yaml composed on its own, in the running app's (or test's) search path if Hydra is
+    initialised, else in conf/; ConfigError names an option of `group` that does not exist."""
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
     from hydra.errors import MissingConfigException
 
     from searchrl.paths import CONF_DIR
 
-    def composed() -> dict[str, Any]:
+    def composed() -> DictConfig:
         try:
-            node = compose(config_name=f"{group}/{name}")
+            with warnings.catch_warnings():  # a group file composed as a primary config: Hydra asks for `_self_`
+                warnings.filterwarnings("ignore", message=".*Defaults list is missing `_self_`")
+                return compose(config_name=config_name)
         except MissingConfigException:
             options = ", ".join(sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml")))
-            raise ConfigError(f"{group}={name} does not exist; conf/{group}/ has {options}") from None
-        return OmegaConf.to_container(node[group], resolve=True)
+            raise ConfigError(f"{group}={config_name.split('/', 1)[1]} does not exist; conf/{group}/ has "
+                              f"{options}") from None  # fmt: skip
 
-    if GlobalHydra.instance().is_initialized():  # inside an app or a test's compose context: its search path
+    if GlobalHydra.instance().is_initialized():
         return composed()
     with initialize_config_dir(str(CONF_DIR), version_base="1.3"):
         return composed()
+
+
+def group_option(group: str, name: str) -> dict[str, Any]:
+    """conf/<group>/<name>.yaml as Hydra composes it (its defaults list applied: a suite's families come from
+    conf/families/), a plain mapping; for readers outside an app (render, notebooks, tests). ConfigError names an
+    option that does not exist."""
+    return OmegaConf.to_container(_compose(f"{group}/{name}", group)[group], resolve=True)
+
+
+def model_world(name: str) -> dict[str, Any]:
+    """The world settings (`env.world`) of conf/model/<name>.yaml, one of the trainable models (a, b, c,
+    diagonal), a plain mapping; ConfigError names a model that does not exist or sets none (a heuristic's)."""
+    register_shared_configs()
+    world = OmegaConf.to_container(_compose(f"model/{name}", "model"), resolve=True).get("env", {}).get("world")
+    if not world:
+        raise ConfigError(f"model={name} sets no world (a heuristic's preset): use a, b, c or diagonal")
+    return world
