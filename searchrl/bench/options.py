@@ -1,0 +1,116 @@
+"""The options of `python -m searchrl.bench`: its parser and the checks of what it was given, each refusal one line
+(argparse's `parser.error`) before any measurement."""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+from searchrl.controllers.registry import HEURISTICS
+from searchrl.paths import CONF_DIR, recipes
+
+SUITES = {
+    "world": "engine throughput, batched against the oracle, at numba thread counts (--threads 1,2, --seconds)",
+    "memory": "bytes of world state per configuration",
+    "train": "agent-steps/s of RL and the shares of its wall time (--updates, --experiment, --machine, --device)",
+    "eval": "evaluation throughput on the grid (--controller or --checkpoint, --maps, --threads, --device)",
+    "policy": "inference of a checkpoint: SB3 predict against the traced actor (--checkpoint, --threads, --seconds, "
+    "--device)",
+}
+
+
+def parser() -> argparse.ArgumentParser:
+    """The bench's command line: one subcommand per suite, each with its own options only."""
+    parser = argparse.ArgumentParser(prog="python -m searchrl.bench", description=__doc__)
+    suites = parser.add_subparsers(dest="suite", required=True, metavar="{" + ",".join(SUITES) + "}")
+    sub = {name: suites.add_parser(name, help=text, description=text) for name, text in SUITES.items()}
+    for name, p in sub.items():
+        p.add_argument("--json", action="store_true", help="print one JSON object per case")
+        if name in ("world", "policy"):
+            p.add_argument("--seconds", type=float, default=3.0, help="time budget per engine or case (0, 3600]")
+        if name in ("train", "eval", "policy"):
+            p.add_argument(
+                "--threads",
+                type=int,
+                default=None if name == "train" else 2,
+                help="torch threads (1 to 256)" + (": the machine's, else 2" if name == "train" else ""),
+            )
+    sub["world"].add_argument("--threads", dest="world_threads", action="append", metavar="N[,N...]",
+                              help="numba threads, each measured in the same run: 2, 1,2 or repeated (default: all)"
+                              )  # fmt: skip
+    sub["train"].add_argument("--updates", type=int, default=4, help="timed rollouts + updates (1 to 1000)")
+    sub["train"].add_argument("--network", choices=["paper", "small"], default="paper", help="network config")
+    sub["train"].add_argument("--experiment", help="a recipe of conf/experiment/ instead of model B with --network")
+    sub["train"].add_argument("--device", help="torch device (cpu, cuda, cuda:1): the machine's, else cpu")
+    sub["train"].add_argument(
+        "--machine",
+        choices=sorted(p.stem for p in (CONF_DIR / "machine").glob("*.yaml")),
+        help="settings for a machine (conf/machine/): slots per step, minibatch, threads, device",
+    )
+    sub["eval"].add_argument("--controller", choices=list(HEURISTICS),
+                             help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
+    sub["eval"].add_argument("--maps", type=int, default=10, help="maps per cell (1 to 1000)")
+    sub["eval"].add_argument("--checkpoint", help="a policy model.zip instead of --controller")
+    sub["policy"].add_argument("--checkpoint", required=True, help="a model.zip, e.g. runs/reference/b/model.zip")
+    for name in ("eval", "policy"):  # of a checkpoint's network: a heuristic runs on the CPU
+        sub[name].add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:<index>, mps or auto")
+    return parser
+
+
+def _device(parser: argparse.ArgumentParser, device: str, checkpoint: str | None) -> str:
+    """eval's and policy's --device, checked as evaluation checks its `device=` (parser.error, one line): "cpu" as
+    given, or the torch device it names. torch is imported only where a policy runs or a device is named."""
+    if not checkpoint and device == "cpu":
+        return device
+    from searchrl.policies.device import resolve_device
+    from searchrl.world.config import ConfigError
+
+    try:
+        resolved = str(resolve_device(device, "--device"))
+    except ConfigError as err:
+        parser.error(str(err))
+    if not checkpoint and device != "auto":
+        parser.error(f"--device={device!r} is not allowed: cpu without --checkpoint (a heuristic runs on the CPU)")
+    return resolved
+
+
+def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[str, list[int]]:
+    """(device, world threads) of parsed `args`, every option checked: ranges, the recipe, --controller against
+    --checkpoint, the device, the checkpoint read (a corrupt file or run config named), the world's thread counts."""
+    checks = [  # (name, value, ok, allowed) for the options this suite has
+        ("--seconds", "seconds", lambda v: 0 < v <= 3600, "0 < seconds <= 3600"),
+        ("--threads", "threads", lambda v: 1 <= v <= 256, "1 <= threads <= 256"),
+        ("--updates", "updates", lambda v: 1 <= v <= 1000, "1 <= updates <= 1000"),
+        ("--maps", "maps", lambda v: 1 <= v <= 1000, "1 <= maps <= 1000"),
+    ]
+    for flag, attr, ok, allowed in checks:
+        value = getattr(args, attr, None)
+        if value is not None and not (ok(value) and math.isfinite(value)):
+            parser.error(f"{flag}={value} is not allowed: {allowed}")
+    experiment = getattr(args, "experiment", None)
+    if experiment is not None and experiment not in recipes():
+        known = ", ".join(recipes())
+        parser.error(f"--experiment={experiment} is not allowed: one of {known}")
+    checkpoint = getattr(args, "checkpoint", None)
+    if checkpoint and getattr(args, "controller", None):
+        parser.error("--controller cannot apply with --checkpoint: give one of them")
+    device, threads = "cpu", []
+    if args.suite in ("eval", "policy"):
+        device = _device(parser, args.device, checkpoint)
+    if checkpoint:  # read it now: a corrupt file or run config is named before any measurement
+        from searchrl.policies.checkpoint import checkpoint_config, load_checkpoint
+
+        try:
+            load_checkpoint(checkpoint, checkpoint_config(checkpoint)[1], device="cpu")
+        except (ValueError, FileNotFoundError) as err:
+            parser.error(str(err))
+    if args.suite == "world":
+        from searchrl.bench import world
+
+        try:  # "1,2" and repeated flags alike; each count within what numba can run here
+            threads = list(dict.fromkeys(t for text in args.world_threads or [] for t in world.thread_counts(text)))
+        except ValueError as err:
+            parser.error(str(err))
+        for t in (t for t in threads if not 1 <= t <= world.max_threads()):
+            parser.error(f"--threads={t} is not allowed: 1 <= threads <= {world.max_threads()} (numba's threads here)")
+    return device, threads
