@@ -13,7 +13,7 @@ from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_world, reset_worlds
 from searchrl.world.scenario import PAPER, Scenario
-from searchrl.world.state import WorldState, allocate
+from searchrl.world.state import WorldState, allocate, copy_world
 from searchrl.world.step import StepResult, step
 from searchrl.world.streams import WorldStreams
 
@@ -62,8 +62,13 @@ class SearchWorld:
         and start cells), stepped with draws from its own stream (`streams`, one per world), never reset again."""
         need(len(streams) == len(map_seeds), "streams", len(streams), f"one per map seed ({len(map_seeds)})")
         world = cls(config, len(map_seeds), scenario=scenario, auto_reset=False, observe=observe)
+        drawn: dict[int, int] = {}  # map seed -> the world drawn from it
         for k, seed in enumerate(map_seeds):
-            reset_world(config, world.state, k, np.random.default_rng(seed), scenario)
+            if seed in drawn:  # a repeat of a map: its seed draws the same world again, copied instead (a large
+                copy_world(world.state, drawn[seed], k)  # map's Gaussians cost more than its episode's steps)
+            else:
+                reset_world(config, world.state, k, np.random.default_rng(seed), scenario)
+                drawn[seed] = k
         world.rng = streams
         world.observation = world._observe()
         return world
