@@ -20,6 +20,8 @@
 # With GUIDED_EVIDENCE=1 (in training and evaluation alike) each agent also gets its world's evidence switch
 # statistics (searchrl/controllers/switch.py: the team's finds against what the prior expected where it swept), and
 # `walls_or_switch` is a teacher that follows the switch in open worlds: research/guided_b_evidence.
+# With GUIDED_PLAN=1 (the evidence statistics too) each agent also gets the move coverage's team plan gives it, one-hot:
+# the lane the switch would walk once it has turned, which an 11×11 window cannot show: research/guided_b_plan.
 #
 # The policy starts from a shipped one with the new inputs' weights at zero (so it acts exactly as that policy at
 # first) and trains with the training app's recipe; validation and evaluation act through the same guided
@@ -43,6 +45,7 @@ from numba import njit, prange
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from searchrl.controllers.base import ControllerConfig
+from searchrl.controllers.coverage import GeometricCoverage
 from searchrl.controllers.greedy import cell_information, view_scratch
 from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import make_controller, register
@@ -98,24 +101,29 @@ def _guidance_span(w, params, memory, radius, floor, out, start, stop, side):
                 dist[queue[q, 0], queue[q, 1]] = -1
 
 
-EVIDENCE = os.environ.get("GUIDED_EVIDENCE") == "1"  # the fourth stage's two more inputs (module text)
+PLAN = os.environ.get("GUIDED_PLAN") == "1"  # the fifth stage's coverage move (module text); with the evidence
+EVIDENCE = PLAN or os.environ.get("GUIDED_EVIDENCE") == "1"  # the fourth stage's two more inputs (module text)
 
 
 class Guide:
     """path_greedy's memory for a batch of worlds and the guidance it gives: `reset` where worlds restart,
     `values(state)` (K·N, 2·(A − 1)) float32; with EVIDENCE two more per agent, its world's evidence switch
     statistics (searchrl/controllers/switch.py): (found + 1) / (expected + 1) over 2, clipped to [0, 1], and the
-    expected detections where the team swept over MIN_EXPECTED, clipped to [0, 1]."""
+    expected detections where the team swept over MIN_EXPECTED, clipped to [0, 1]; with PLAN, A − 1 more, one-hot,
+    the move coverage's team plan gives the agent (its lane of the whole world; all 0 where it stays)."""
 
     def __init__(self, config: WorldConfig) -> None:
         self.rule = PathGreedy(config)
-        self.width = 2 * (config.n_actions - 1) + (2 if EVIDENCE else 0)
+        self.plan = GeometricCoverage(config) if PLAN else None
+        self.width = 2 * (config.n_actions - 1) + (2 if EVIDENCE else 0) + (config.n_actions - 1 if PLAN else 0)
         self.evidence = EvidenceSwitch(config) if EVIDENCE else None
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         self.rule.reset(state, mask)
         if self.evidence is not None:
             self.evidence.reset(state, mask)
+        if self.plan is not None:
+            self.plan.reset(state, mask)
 
     def values(self, state: WorldState) -> np.ndarray:
         out = np.zeros((state.n_worlds, state.n_agents, self.width), np.float32)
@@ -128,8 +136,16 @@ class Guide:
                 tracker.reset(state, np.ones(state.n_worlds, bool))
             sweep_footprints(state.pos, state.halo, tracker.left, SUPPORT_DR, SUPPORT_DC, SUPPORT_G)
             expected = state.n_targets * tracker.expected()
-            out[:, :, -2] = np.clip((state.n_found + 1.0) / (expected + 1.0) / 2.0, 0.0, 1.0)[:, None]
-            out[:, :, -1] = np.clip(expected / MIN_EXPECTED, 0.0, 1.0)[:, None]
+            first = 2 * (self.rule.config.n_actions - 1)
+            out[:, :, first] = np.clip((state.n_found + 1.0) / (expected + 1.0) / 2.0, 0.0, 1.0)[:, None]
+            out[:, :, first + 1] = np.clip(expected / MIN_EXPECTED, 0.0, 1.0)[:, None]
+        if self.plan is not None:  # coverage's move, the stay (0) left out
+            if self.plan.waypoints.shape[:2] != (state.n_worlds, state.n_agents):
+                self.plan.reset(state, np.ones(state.n_worlds, bool))
+            move = self.plan.act(state, None, None)
+            first = self.width - (self.rule.config.n_actions - 1)
+            for a in range(1, self.rule.config.n_actions):
+                out[:, :, first + a - 1] = move == a
         return out.reshape(state.n_worlds * state.n_agents, self.width)
 
 

@@ -2,11 +2,13 @@
 # A probe of a guided policy (analysis/guided_b.py) on seeds no suite uses (seed 9000000): n = 40, 80 x N = 4, 16,
 # 25 maps, one repeat. Obstacles (the open grid, iid walls at 0.3, PRIMAL's law, mazes, rooms) against path_greedy
 # and walls/b; sharp wrong priors at severity 1 (every family, and the prior right) against B's teacher
-# (target-greedy, reach 2), coverage and robust/b; the open grid also against term/b. Paired comparisons into
+# (target-greedy, reach 2), coverage and robust/b (and the evidence switch where coverage wins); the open grid also
+# against term/b. Paired comparisons into
 # analysis/out/guided_probe/<tag>/<scenario>/vs_<baseline>/; a folder already evaluated is kept (evaluations resume).
 #   bash analysis/guided_probe.sh [model.zip] [tag]     # defaults: runs/train/guided/walls_b/model.zip, walls_b
 #   BASELINES_ONLY=1 bash analysis/guided_probe.sh      # the rules and shipped policies alone, while one trains
 #   GUIDED_EVIDENCE=1 bash analysis/guided_probe.sh runs/train/guided/b_evidence/model.zip b_evidence
+#   GUIDED_PLAN=1 bash analysis/guided_probe.sh runs/train/guided/b_plan/model.zip b_plan
 set -euo pipefail
 GUIDED=${1:-runs/train/guided/walls_b/model.zip}
 TAG=${2:-walls_b}
@@ -22,6 +24,7 @@ probe() {  # probe <scenario name> "<overrides>" <baseline>...
     case $base in
       greedy_target) rule greedy_target "$S" $O/$base controller.reach=2;;
       path_greedy|coverage) rule $base "$S" $O/$base;;
+      switch) rule switch "$S" $O/$base controller.threshold=0.25;;
       *) policy ${base/_//} "$S" $O/$base;;  # walls_b -> walls/b, term_b -> term/b, robust_b -> robust/b
     esac
     [ -n "${BASELINES_ONLY:-}" ] || python analysis/compare.py $O/$TAG $O/$base --out analysis/out/guided_probe/$TAG/$s/vs_$base
@@ -34,5 +37,9 @@ probe maze "scenario=maze" path_greedy walls_b
 probe rooms "scenario=rooms" path_greedy walls_b
 probe sharp "scenario=sharp" greedy_target coverage robust_b
 for f in adversarial flatter misweighted off_prior shifted sharper uninformed; do
-  probe $f "scenario=$f scenario.prior.variance_scale=1.0" greedy_target coverage robust_b
+  case $f in  # where coverage wins, also the evidence switch: the best rule an agent's own evidence can follow
+    adversarial|off_prior|shifted) probe $f "scenario=$f scenario.prior.variance_scale=1.0" greedy_target coverage \
+        robust_b switch;;
+    *) probe $f "scenario=$f scenario.prior.variance_scale=1.0" greedy_target coverage robust_b;;
+  esac
 done
