@@ -291,3 +291,19 @@ def test_run_cell_lets_a_policy_act_in_every_running_world_and_keeps_each_column
                                                   "stale": "float64"}  # fmt: skip
     assert frame.prior_quality.between(-1, 1).all() and frame.blocked.between(0, 1).all()
     assert frame.stale.between(0, 1).all()
+
+
+def test_play_shows_each_step_the_world_and_the_worlds_it_counts():
+    from searchrl.controllers.episodes import play
+    from searchrl.controllers.registry import make_controller
+    from searchrl.world.config import WorldConfig
+    from searchrl.world.engine import SearchWorld
+
+    config = WorldConfig(world_size=(8, 8), n_agents=2, n_targets=(1, 1), n_distributions=(1, 1), max_steps=30)
+    world_streams, controller_streams = episode_streams([(3,), (4,)])
+    world = SearchWorld.from_maps(config, [3, 4], world_streams)
+    seen: list[tuple[bool, np.ndarray]] = []
+    play(world, make_controller("random", config, controller_streams),
+         on_step=lambda stepped, counted: seen.append((stepped is world, counted.copy())))  # fmt: skip
+    assert seen and all(same for same, _ in seen)  # the world as it stands after each step
+    assert seen[0][1].all() and len(seen) <= config.max_steps  # both episodes count from the first step

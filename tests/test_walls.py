@@ -183,3 +183,12 @@ def test_path_greedy_looks_no_further_than_its_radius():
         state.belief[0, 0, 0, r0 + h, c0 + 2 + h] = 0.2
         state.belief[0, 0, 0, r0 + h, c0 - 5 + h] = 20.0
         assert rule.act(state, *world.observation)[0, 0] == expected, radius
+
+
+def test_path_greedy_takes_its_discount_and_seed():
+    """Its discount reaches the kernel's settings (the default equals target-greedy's, so only another value shows
+    it), and its seed its random fallback moves."""
+    config = WorldConfig()
+    assert make_controller("path_greedy", config, settings={"discount": 0.3})._params.discount == 0.3
+    draws = [make_controller("path_greedy", config, seed=s).rng.integers(0, 1 << 30, 8) for s in (1, 1, 2)]
+    assert (draws[0] == draws[1]).all() and (draws[0] != draws[2]).any()
