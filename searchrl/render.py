@@ -14,9 +14,9 @@ import sys
 from searchrl.atomic import check_writable
 from searchrl.controllers.registry import HEURISTICS
 from searchrl.paths import CONF_DIR
+from searchrl.schema import TRAINABLE_MODELS
 from searchrl.world.config import ConfigError
 
-MODELS = ("a", "b", "c", "diagonal")  # the trainable models (conf/model/): their worlds are the heuristics' too
 SCENARIOS = CONF_DIR / "scenario"
 
 
@@ -26,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--controller", choices=list(HEURISTICS),
                    help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
     p.add_argument("--checkpoint", help="a trained model.zip (its run's world settings are used)")
-    p.add_argument("--model", choices=MODELS, help="world settings for heuristics (default b)")
+    p.add_argument("--model", choices=TRAINABLE_MODELS, help="world settings for heuristics (default b)")
     p.add_argument("--n", type=int, default=40, help="world side")
     p.add_argument("--agents", type=int, default=8)
     p.add_argument("--targets", type=int, default=8)

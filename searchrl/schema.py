@@ -63,6 +63,7 @@ class ModelConfig:
     trainable: bool = True
 
 
+TRAINABLE_MODELS = ("a", "b", "c", "diagonal")  # conf/model/ presets with a world: the rest are heuristics'
 MAX_THREADS = 1024  # torch's intra-op threads: far more than any node's cores; refused before the folder lock
 
 
@@ -163,5 +164,5 @@ def model_world(name: str) -> dict[str, Any]:
     register_shared_configs()
     world = OmegaConf.to_container(_compose(f"model/{name}", "model"), resolve=True).get("env", {}).get("world")
     if not world:
-        raise ConfigError(f"model={name} sets no world (a heuristic's preset): use a, b, c or diagonal")
+        raise ConfigError(f"model={name} sets no world (a heuristic's preset): use {', '.join(TRAINABLE_MODELS)}")
     return world

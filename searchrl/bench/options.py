@@ -58,20 +58,17 @@ def parser() -> argparse.ArgumentParser:
 
 
 def _device(parser: argparse.ArgumentParser, device: str, checkpoint: str | None) -> str:
-    """eval's and policy's --device, checked as evaluation checks its `device=` (parser.error, one line): "cpu" as
-    given, or the torch device it names. torch is imported only where a policy runs or a device is named."""
+    """eval's and policy's --device (`policy_device`; parser.error, one line). torch is imported only where a
+    policy runs or a device is named."""
     if not checkpoint and device == "cpu":
         return device
-    from searchrl.policies.device import resolve_device
+    from searchrl.policies.device import policy_device
     from searchrl.world.config import ConfigError
 
     try:
-        resolved = str(resolve_device(device, "--device"))
+        return policy_device(device, bool(checkpoint))
     except ConfigError as err:
         parser.error(str(err))
-    if not checkpoint and device != "auto":
-        parser.error(f"--device={device!r} is not allowed: cpu without --checkpoint (a heuristic runs on the CPU)")
-    return resolved
 
 
 def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[str, list[int]]:

@@ -161,6 +161,7 @@ def view_values(w, params, memory, k, i, r0, c0, others, n_others, values):
                     break
             vr, vc = margin + view + dr, margin + view + dc
             values[0, vr, vc], values[1, vr, vc] = x, reach[k, rr, cc]
+            # cell_information's reads, done here: a call taking the arrays would count them in and out per cell
             seen_factor = seen[k, i, rr, cc] if has_seen else 1.0
             fresh = freshness(rate, now, known[k, i, rr, cc]) if has_known else 1.0
             values[2, vr, vc] = information(params, belief[k, i, 0, rr, cc], belief[k, i, 1, rr, cc], prior[k, rr, cc],

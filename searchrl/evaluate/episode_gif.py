@@ -62,13 +62,13 @@ def episode_setup(checkpoint: str | None, model: str | None, controller: str | N
     `device`, else the heuristic `controller` (default surfing) in `model`'s world (default b); `sizes` as
     `episode_world` takes them, `scenario` a conf/scenario/ name. Everything is checked here, before the episode:
     ConfigError, ValueError or FileNotFoundError name what is refused."""
-    if not checkpoint and device not in ("cpu", "auto"):
-        raise ConfigError(f"--device={device!r} is not allowed: cpu without --checkpoint (a heuristic runs on the CPU)")
-    if checkpoint:  # torch is imported only where a policy runs
-        from searchrl.policies.checkpoint import checkpoint_config, load_actor
-        from searchrl.policies.device import resolve_device
+    if checkpoint or device != "cpu":  # torch is imported only where a policy runs or a device is named
+        from searchrl.policies.device import policy_device
 
-        device = resolve_device(device, "--device")
+        device = policy_device(device, bool(checkpoint))
+    if checkpoint:
+        from searchrl.policies.checkpoint import checkpoint_config, load_actor
+
         config = episode_world(WorldConfig.from_dict(checkpoint_config(checkpoint)[0]), sizes)
     else:
         config = episode_world(model or "b", sizes)

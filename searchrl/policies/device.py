@@ -33,6 +33,15 @@ def check_device(device: str, name: str = "device") -> None:
         need(parsed.type == "cpu", name, device, ALLOWED)
 
 
+def policy_device(device: str, has_policy: bool, name: str = "--device") -> str:
+    """`device` of a command that runs either a policy's network or a heuristic (render, bench eval and policy),
+    resolved as `resolve_device`; without a policy only cpu or auto, as a heuristic runs on the CPU."""
+    resolved = str(resolve_device(device, name))
+    if not has_policy and device not in ("cpu", "auto"):
+        raise ConfigError(f"{name}={device!r} is not allowed: cpu without --checkpoint (a heuristic runs on the CPU)")
+    return resolved
+
+
 def resolve_device(device: str, name: str = "device") -> torch.device:
     """The torch device `device` names (`auto`: cuda when torch sees one, else cpu, as SB3 and training read it),
     after `check_device`."""

@@ -25,7 +25,7 @@ from searchrl.paths import CONF_DIR
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
-from searchrl.schema import MAX_THREADS, check_known_keys, override_keys
+from searchrl.schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, override_keys
 from searchrl.train.imitation import lr_factor
 from searchrl.train.schema import A2CConfig, RecurrentPPOConfig
 from searchrl.train.teacher_term import TEACHER_ALGORITHMS, check_settings
@@ -33,7 +33,6 @@ from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.scenario import Scenario, ScenarioMix
 
 ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "a2c": A2CConfig}
-TRAINABLE_MODELS = ("a", "b", "c", "diagonal")
 
 
 @dataclass(frozen=True)
