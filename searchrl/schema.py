@@ -59,11 +59,10 @@ class EnvConfig:
 
 @dataclass
 class ModelConfig:
-    name: str = MISSING  # a, b, c, diagonal (trainable) or a heuristic preset (conf/model/), refused by both apps
-    trainable: bool = True
+    name: str = MISSING  # a, b, c or diagonal: conf/model/<name>.yaml
 
 
-TRAINABLE_MODELS = ("a", "b", "c", "diagonal")  # conf/model/ presets with a world: the rest are heuristics'
+TRAINABLE_MODELS = ("a", "b", "c", "diagonal")  # the files of conf/model/
 MAX_THREADS = 1024  # torch's intra-op threads: far more than any node's cores; refused before the folder lock
 
 
@@ -72,6 +71,41 @@ def scenario_default() -> dict[str, Any]:
     the node whole. A schema default would merge its settings into every other file's parts (a maze's obstacles
     would keep iid's `density`); an empty mapping reads as the paper's (`Scenario.from_dict`)."""
     return {}
+
+
+def group_options(group: str) -> list[str]:
+    """The options of config group `group`: conf/<group>/**/*.yaml as `+<group>=` names them (`term/b`)."""
+    from searchrl.paths import CONF_DIR
+
+    folder = CONF_DIR / group
+    return sorted(p.relative_to(folder).with_suffix("").as_posix() for p in folder.rglob("*.yaml"))
+
+
+def check_group_choices(argv: list[str]) -> None:
+    """Before Hydra reads the command line: every `[+]group=option` names an option that exists, else a refusal
+    (`multirun.Refused`) in one line with the nearest option, where Hydra's own is a page of search paths. A sweep's
+    comma-separated options are each checked; sweep functions (`choice(...)`) and Hydra's own groups are left to
+    Hydra. A heuristic asked for as a model is pointed to `controller=`."""
+    from searchrl.controllers.registry import HEURISTICS
+    from searchrl.multirun import refuse
+    from searchrl.paths import CONF_DIR
+
+    for arg in argv:
+        key, eq, value = arg.lstrip("+").partition("=")
+        if not eq or not key or key.split("/")[0] == "hydra" or not (CONF_DIR / key).is_dir() or "(" in value:
+            continue
+        options = group_options(key)
+        for option in value.split(","):
+            option = option.strip().strip("'\"")
+            if option in options or option == "null":
+                continue
+            listed = ", ".join(options) if len(options) <= 12 else f"the {len(options)} files of conf/{key}/"
+            if key == "model" and option in HEURISTICS:
+                refuse(f"{arg} is not allowed: {option} is a heuristic controller, not a model; evaluate it with "
+                       f"`python -m searchrl.evaluate controller={option}`; models: {listed}")  # fmt: skip
+            near = get_close_matches(option, options, n=1, cutoff=0.6)
+            hint = f" (did you mean {key}={near[0]}?)" if near else ""
+            refuse(f"{arg} is not allowed: conf/{key}/ has no {option!r}{hint}; options: {listed}")
 
 
 def override_keys(overrides: list[str]) -> list[str]:

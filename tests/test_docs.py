@@ -171,3 +171,39 @@ def test_the_docs_name_only_registered_controllers_and_controllers_md_names_ever
             assert name in HEURISTICS or name in ("name", "null", "oracle_switch"), (page.name, name)
     text = (ROOT / "docs" / "controllers.md").read_text()
     assert [name for name in HEURISTICS if f"`{name}`" not in text and f"controller={name}" not in text] == []
+
+
+GROUPS = ("scenario", "suite", "model", "experiment", "machine", "algo", "network", "world", "teacher", "families")
+
+
+def test_the_docs_name_only_group_options_that_exist():
+    """A `<group>=<option>` in the README, the docs, the configs or the analysis scripts names a file of conf/<group>/
+    (schema.group_options): a renamed scenario, suite, recipe or model cannot leave a stale command behind."""
+    from searchrl.schema import group_options
+
+    options = {group: set(group_options(group)) for group in GROUPS}
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml")),
+             *sorted((ROOT / "analysis").glob("*.py")), *sorted((ROOT / "analysis").glob("*.sh"))]  # fmt: skip
+    stale = []
+    for page in pages:
+        if page.name == "log.md":  # history: commands as they were run then
+            continue
+        text = page.read_text()
+        if page.suffix == ".py":  # a notebook's commands are in its comments; its code's `world=` is a Python name
+            text = "\n".join(line for line in text.splitlines() if line.lstrip().startswith("#"))
+        for group, name in re.findall(
+            rf"(?<![\w.]){'|'.join(GROUPS).join('()')}=([a-z0-9_]+(?:/[a-z0-9_]+)*)(?![\w/<{{$*,])", text
+        ):
+            if name not in options[group] and name not in ("null", "none"):
+                stale.append(f"{page.relative_to(ROOT)}: {group}={name}")
+    assert not stale, stale
+
+
+def test_the_settings_reference_names_every_scenario_and_suite():
+    """docs/options.md, the settings' reference, names every scenario file and every suite."""
+    from searchrl.schema import group_options
+
+    text = (ROOT / "docs" / "options.md").read_text()
+    missing = [f"{g}={o}" for g in ("scenario", "suite") for o in group_options(g) if f"`{o}`" not in text
+               and f"{g}={o}" not in text]  # fmt: skip
+    assert not missing, missing

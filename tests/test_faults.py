@@ -28,6 +28,7 @@ from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.results import load
 from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
+from searchrl.schema import check_group_choices
 from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
@@ -397,7 +398,6 @@ def test_a_run_killed_before_its_first_checkpoint_resumes_from_step_0(tmp_path, 
         (["deterministic=true"], "deterministic cannot apply"),
         (["env.n_worlds=7"], "env.n_worlds cannot apply"),
         (["controller=random", "+controller.horizon=3"], "controller.horizon=3 is not allowed"),
-        (["+model=surfing"], "+model=surfing is not allowed"),
         (["controller.w_p=nan"], "controller.w_p=nan"),
         (["controller=greedy", "controller.w_p=inf"], "controller.w_p=inf"),
         (["seed=99999999999999999999"], "seed=99999999999999999999"),
@@ -409,6 +409,40 @@ def test_a_run_killed_before_its_first_checkpoint_resumes_from_step_0(tmp_path, 
 def test_evaluation_settings_that_cannot_apply_are_refused(tmp_path, capsys, overrides, needle):
     _refused(capsys, lambda: _evaluate(tmp_path / "eval", *overrides), needle)
     assert not (tmp_path / "eval").exists()
+
+
+@pytest.mark.parametrize(
+    "argv, needles",
+    [
+        (["controller=greedy", "+model=surfing"], ["+model=surfing", "heuristic controller", "controller=surfing"]),
+        (["+experiment=term/bb"], ["+experiment=term/bb", "did you mean experiment=term/b?"]),
+        (["scenario=wals", "seed=3"], ["scenario=wals", "did you mean scenario=walls?", "files of conf/scenario/"]),
+        (["-m", "controller=surfing,coverag"], ["controller=surfing,coverag", "'coverag'", "controller=coverage?"]),
+        (["suite=prior_eror"], ["conf/suite/ has no 'prior_eror'", "suite=prior_error?"]),
+    ],
+)  # fmt: skip
+def test_a_group_option_that_does_not_exist_is_one_line_before_hydra(capsys, argv, needles):
+    _refused(capsys, lambda: check_group_choices(argv), *needles)
+
+
+def test_group_options_that_exist_and_what_hydra_checks_pass_the_command_line_check():
+    check_group_choices(["+experiment=term/b", "scenario=walls", "-m", "controller=surfing,coverage", "+model=b",
+                         "suite=null", "hydra/launcher=joblib", "controller=choice(surfing,nope)", "~scenario",
+                         "env.world.fov=5", "machine=gpu", "algo=a2c"])  # fmt: skip
+
+
+def test_the_apps_name_a_missing_group_option_before_hydra(tmp_path):
+    cmd = [
+        sys.executable,
+        "-m",
+        "searchrl.evaluate",
+        "scenario=wals",
+        f"out_dir={tmp_path}/e",
+        f"hydra.run.dir={tmp_path}/h",
+    ]
+    out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "did you mean scenario=walls?" in out.stderr
+    assert not any(tmp_path.iterdir())
 
 
 def test_evaluation_output_folders_are_checked_first(tmp_path, capsys):

@@ -228,9 +228,10 @@ def test_resume_after_kill_loses_nothing(tmp_path):
 
 def test_bad_input_fails_before_work(tmp_path, capsys):
     """One line, exit status 2, no run folder: through the command line once, then through the app in-process."""
-    cmd = [sys.executable, "-m", "searchrl.train", f"hydra.run.dir={tmp_path}/x"]
+    cmd = [sys.executable, "-m", "searchrl.train", "+model=surfing", f"hydra.run.dir={tmp_path}/x"]
     out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 2 and "trainable models: a, b, c, diagonal" in out.stderr
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "heuristic controller" in out.stderr
+    assert "searchrl.evaluate controller=surfing" in out.stderr and not (tmp_path / "x").exists()
 
     def refused(*args: str) -> str:
         capsys.readouterr()
@@ -239,7 +240,7 @@ def test_bad_input_fails_before_work(tmp_path, capsys):
         assert stop.value.code == 2
         return capsys.readouterr().err
 
-    assert "not trainable" in (err := refused("+model=surfing")) and "searchrl.evaluate" in err
+    assert "trainable models: a, b, c, diagonal" in refused()
     assert "fov=4" in refused("+model=c", "env.world.fov=4")
     assert "algo.batch_size=0" in refused("+model=c", "algo.batch_size=0")
     assert "no config.yaml" in refused("+model=c", f"resume={tmp_path}")

@@ -104,8 +104,6 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[
                 f"{', '.join(set_by_grid)} cannot apply to an evaluation: the grid sets N, n, targets and Gaussians "
                 "per cell (grid.*), one team per world, and deterministic is for checkpoints; remove them"
             )
-        if cfg.model is not None and not cfg.model.trainable:
-            raise ConfigError(f"+model={cfg.model.name} is not allowed: a world preset, one of a, b, c, diagonal")
         for key, value in cfg.controller.items():
             if isinstance(value, float):
                 need(math.isfinite(value), f"controller.{key}", value, "a finite number")

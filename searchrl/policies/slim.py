@@ -1,12 +1,9 @@
 """Shipped checkpoints without what only a resumed training needs.
 
-An SB3 `model.zip` holds, beside the policy's weights (`policy.pth`), the optimiser's moments
-(`policy.optimizer.pth`, twice the weights) and the last rollout's observations (`_last_obs` in `data`, one
-observation per slot: 1.3 MB for 384 slots). Initialising a run from a checkpoint (`init=`), evaluating it and
-rendering it read only the weights and the settings; resuming a training reads the rest, and a training run's own
-checkpoints keep it. `slim_checkpoint` writes the same zip with the optimiser's state emptied (its parameter groups
-kept, so SB3 loads the file as it is) and the last observations dropped; every other member is copied byte for byte,
-so `weights_sha256`, the digest of the `policy.pth` member, is the same before and after.
+A `model.zip` holds, beside the weights (`policy.pth`), the optimiser's moments (twice the weights) and the last
+rollout (`_last_obs`: 1.3 MB for 384 slots), which only a resumed training reads; a run's own checkpoints keep them.
+`slim_checkpoint` empties the optimiser's state (its parameter groups kept, so SB3 loads the file as it is), drops the
+last rollout and copies every other member byte for byte: `weights_sha256`, the digest of `policy.pth`, is unchanged.
 
     python -m searchrl.policies.slim runs/reference      # every model.zip below, in place
 """
@@ -44,20 +41,16 @@ def is_slim(path: str | Path) -> bool:
 
 def slim_checkpoint(path: str | Path, out: str | Path | None = None) -> Path:
     """Write `path` without optimiser moments and last rollout to `out` (default: in place, atomically)."""
-    path = Path(path)
     with zipfile.ZipFile(path) as archive:
         members = [(info, archive.read(info.filename)) for info in archive.infolist()]
     slimmed = []
     for info, content in members:
         if info.filename == "data":
             data = json.loads(content)
-            data.update({key: None for key in ROLLOUT_STATE if key in data})
-            content = json.dumps(data, indent=4).encode()
+            content = json.dumps(data | {key: None for key in ROLLOUT_STATE if key in data}, indent=4).encode()
         elif info.filename == "policy.optimizer.pth":
-            state = torch.load(io.BytesIO(content), weights_only=True)
-            state["state"] = {}  # Adam's moments and step counts; the parameter groups (rates, ids) stay
-            buffer = io.BytesIO()
-            torch.save(state, buffer)
+            buffer = io.BytesIO()  # Adam's moments and step counts emptied; the parameter groups (rates, ids) stay
+            torch.save(torch.load(io.BytesIO(content), weights_only=True) | {"state": {}}, buffer)
             content = buffer.getvalue()
         slimmed.append((info, content))
 
@@ -70,13 +63,10 @@ def slim_checkpoint(path: str | Path, out: str | Path | None = None) -> Path:
 
 
 def main(argv: list[str]) -> int:
-    if not argv:
-        print("usage: python -m searchrl.policies.slim FOLDER_OR_ZIP [...]", file=sys.stderr)
-        return 2
     paths = [p for arg in map(Path, argv) for p in (sorted(arg.rglob("model.zip")) if arg.is_dir() else [arg])]
-    missing = [str(p) for p in paths if not p.is_file()]
-    if missing:
-        print(f"slim: {missing[0]!r} is not a file (expected a model.zip or a folder holding some)", file=sys.stderr)
+    if not paths or not all(p.is_file() for p in paths):
+        bad = next((f"{str(p)!r} is not a file" for p in paths if not p.is_file()), "nothing to slim")
+        print(f"slim: {bad} (expected FOLDER_OR_ZIP [...]: a model.zip or a folder holding some)", file=sys.stderr)
         return 2
     for path in paths:
         before, digest = path.stat().st_size, weights_sha256(path)

@@ -21,7 +21,6 @@ from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 
 from searchrl.controllers.registry import make_teacher
-from searchrl.paths import CONF_DIR
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
@@ -110,15 +109,11 @@ def draw_walls(scenario: Scenario | ScenarioMix, groups: Sequence[tuple[WorldCon
 
 
 def check_model(cfg: DictConfig) -> None:
-    """A trainable model chosen with +model= (or an experiment that sets one)."""
-    conf = CONF_DIR / "model"
-    trainable = [m for m in sorted(p.stem for p in conf.glob("*.yaml")) if m in TRAINABLE_MODELS]
+    """A model chosen with +model= (or an experiment that sets one); the command line named one that exists
+    (`schema.check_group_choices`)."""
     if cfg.model is None:
-        raise ConfigError(f"choose a model to train with +model=<name>; trainable models: {', '.join(trainable)}")
-    if not cfg.model.trainable:
         raise ConfigError(
-            f"model {cfg.model.name!r} is a heuristic controller, not trainable: use `python -m "
-            f"searchrl.evaluate controller={cfg.model.name}`; trainable models: {', '.join(trainable)}"
+            f"choose a model to train with +model=<name>; trainable models: {', '.join(TRAINABLE_MODELS)}"
         )
 
 

@@ -123,6 +123,7 @@ RETIRED_SETTINGS: dict[str, object] = {
     "network.context_channels": ANY,  # the context stream's widths: no stream was built without env.world.context
     "network.context_size": ANY,
     "imitation.dagger_rounds": 0,
+    "model.trainable": True,  # false only in the heuristic presets conf/model/{surfing,coverage,random}, never trained
 }
 
 

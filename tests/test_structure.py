@@ -1,0 +1,109 @@
+"""The package's shape, read from its source: short entry points, no import cycle, nothing below an entry point that
+ends the process, one function for the repository's root."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "searchrl"
+MODULES = {
+    ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts): path
+    for path in PACKAGE.rglob("*.py")
+    for rel in [path.relative_to(ROOT).with_suffix("")]
+}
+# Allowed to end the process: multirun.exits (how every entry point turns Refused/Stopped into an exit status) and the
+# notebooks' command line (a notebook is a script; its refusal is its last line).
+ENDS_THE_PROCESS = {"searchrl.multirun", "searchrl.analysis.cli"}
+
+
+def _is_entry_point(path: Path) -> bool:
+    return path.name == "__main__.py" or 'if __name__ == "__main__":' in path.read_text()
+
+
+def _module_level_imports(name: str, path: Path) -> set[str]:
+    """The searchrl modules `name` imports when it is loaded (not those imported inside functions)."""
+    out: set[str] = set()
+    nodes = [
+        n
+        for top in ast.parse(path.read_text()).body
+        for n in (ast.walk(top) if isinstance(top, (ast.If, ast.Try)) else [top])
+    ]
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            out |= {alias.name for alias in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:  # relative: resolved against the module's package
+                package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+                base = ".".join(package[: len(package) - node.level + 1] + ([node.module] if node.module else []))
+            submodules = {f"{base}.{a.name}" for a in node.names if f"{base}.{a.name}" in MODULES}
+            out |= submodules if len(submodules) == len(node.names) else submodules | {base}
+    return {m for m in out if m in MODULES and m != name}
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = stack[stack.index(v) :]
+            del stack[stack.index(v) :]
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_entry_points_are_short():
+    """An entry point parses, calls the library and turns its errors into exit statuses: 80 lines at most."""
+    entry_points = [p for p in MODULES.values() if _is_entry_point(p)]
+    assert len(entry_points) >= 4  # train, evaluate, bench, render (and the checkpoint slimmer)
+    long = {str(p.relative_to(ROOT)): n for p in entry_points if (n := len(p.read_text().splitlines())) > 80}
+    assert not long, f"entry points over 80 lines: {long}"
+
+
+def test_no_import_cycle():
+    graph = {name: _module_level_imports(name, path) for name, path in MODULES.items()}
+    assert any(graph.values())  # the reader finds imports at all
+    assert not _cycles(graph)
+
+
+def test_the_cycle_finder_finds_a_cycle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert not _cycles({"a": {"b"}, "b": set()})
+
+
+def test_nothing_below_the_entry_points_ends_the_process():
+    """Below the entry points a refusal raises (multirun.Refused); only an entry point exits."""
+    for name, path in MODULES.items():
+        if _is_entry_point(path) or name in ENDS_THE_PROCESS:
+            continue
+        calls = {ast.unparse(n.func) for n in ast.walk(ast.parse(path.read_text())) if isinstance(n, ast.Call)}
+        raised = {
+            ast.unparse(n.exc) for n in ast.walk(ast.parse(path.read_text())) if isinstance(n, ast.Raise) and n.exc
+        }
+        assert not calls & {"sys.exit", "exit", "quit", "os._exit"}, name
+        assert not any(r.startswith("SystemExit") for r in raised), name
+
+
+def test_one_function_gives_the_repository_root():
+    """searchrl.paths.repository_root; no other module climbs from its own file."""
+    climbers = [name for name, path in MODULES.items() if "Path(__file__)" in path.read_text()]
+    assert climbers == ["searchrl.paths"]
