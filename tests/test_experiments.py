@@ -157,6 +157,7 @@ def _added_later(key: str, recorded: dict[str, Any]) -> bool:
     return any(s in ADDED_LATER and not any(k.startswith(f"{s}.") or k == s for k in recorded) for s in sections)
 
 
+@pytest.mark.app  # starts the training app
 def test_the_command_line_composes_an_experiment():
     """`python -m searchrl.train +experiment=clone/c --cfg job` prints the recipe without training."""
     cmd = [sys.executable, "-m", "searchrl.train", "+experiment=clone/c", "--cfg", "job"]

@@ -57,14 +57,20 @@ def test_optuna_sweeps_the_search_space_and_reports_the_best_trial(optuna_sweep)
     assert best["best_params"]["algo.learning_rate"] == pytest.approx(winner["algo.learning_rate"])
 
 
-def test_the_same_command_resumes_the_study(optuna_sweep):
+def test_the_same_command_into_the_same_folder_resumes_the_study(optuna_sweep):
+    """The new trial's job is numbered 0 again, with other parameters: it goes beside the first trial's folder."""
     import optuna
 
-    _optuna(optuna_sweep / "again", optuna_sweep / "study.db", trials=1)
+    sweep = optuna_sweep / "sweep"
+    first = load_jobs(sweep)
+    before = {p.name: (p / "model.zip").stat().st_mtime_ns for p in sweep.glob("*_b_seed0")}
+    _optuna(sweep, optuna_sweep / "study.db", trials=1)
     study = optuna.load_study(study_name="b_recurrent_ppo", storage=f"sqlite:///{optuna_sweep / 'study.db'}")
     assert len(study.trials) == 3 and all(t.state.name == "COMPLETE" for t in study.trials)
-    first = load_jobs(optuna_sweep / "sweep")
     assert study.trials[2].params["algo.learning_rate"] not in set(first["algo.learning_rate"])  # a new trial
+    assert sorted(p.name for p in sweep.glob("*_b_seed0*")) == ["0_b_seed0", "0_b_seed0.1", "1_b_seed0"]
+    assert {p.name: (p / "model.zip").stat().st_mtime_ns for p in sweep.glob("*_b_seed0")} == before  # untouched
+    assert (sweep / "0_b_seed0.1" / "model.zip").is_file()
 
 
 @pytest.mark.slow
@@ -75,7 +81,7 @@ def test_a_resumed_study_proposes_what_an_uninterrupted_one_does(optuna_sweep):
 
     storage = f"sqlite:///{optuna_sweep / 'study.db'}"
     if len(optuna.load_study(study_name="b_recurrent_ppo", storage=storage).trials) == 2:  # not resumed above yet
-        _optuna(optuna_sweep / "again_slow", optuna_sweep / "study.db", trials=1)
+        _optuna(optuna_sweep / "sweep", optuna_sweep / "study.db", trials=1)
     study = optuna.load_study(study_name="b_recurrent_ppo", storage=storage)
     _optuna(optuna_sweep / "whole", optuna_sweep / "whole.db", trials=3)
     whole = optuna.load_study(study_name="b_recurrent_ppo", storage=f"sqlite:///{optuna_sweep / 'whole.db'}")

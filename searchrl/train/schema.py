@@ -145,6 +145,20 @@ def run_dir(resume: str | None, model: str, seed: int, now: str) -> str:
     return f"{resume}/resumed/{now}" if resume else f"runs/train/{model}/{now}_seed{seed}"
 
 
+def job_subdir(sweep_dir: str, name: str, overrides: Any) -> str:
+    """A multirun job's folder under `sweep_dir` (`hydra.sweep.subdir`): `name` (`<num>_<model>_seed<seed>`) when
+    that folder is new or was made for the same overrides (a multirun continued into its folder continues its jobs:
+    searchrl/train/sweep_job.py), else `name.1`, `name.2`, ... the first that is. An Optuna study continued into
+    its folder numbers its new trials' jobs from 0 again, with other parameters: they go beside the earlier ones."""
+    wanted = [str(o) for o in overrides]
+    for k in range(10_000):
+        folder = name if k == 0 else f"{name}.{k}"
+        saved = Path(sweep_dir) / folder / ".hydra" / "overrides.yaml"
+        if not saved.is_file() or [str(o) for o in OmegaConf.load(saved)] == wanted:
+            return folder
+    raise RuntimeError(f"{sweep_dir}: 10,000 jobs named {name}.* with other overrides; sweep into another folder")
+
+
 def root_resolver() -> str:
     """`${searchrl_root:}` in a config: the checkout (`repository_root`), so a path under it does not depend on the
     folder a command is started in."""
@@ -154,6 +168,8 @@ def root_resolver() -> str:
 def register_configs() -> None:
     if not OmegaConf.has_resolver("searchrl_run_dir"):
         OmegaConf.register_new_resolver("searchrl_run_dir", run_dir)
+    if not OmegaConf.has_resolver("searchrl_job_subdir"):
+        OmegaConf.register_new_resolver("searchrl_job_subdir", job_subdir)
     if not OmegaConf.has_resolver("searchrl_root"):
         OmegaConf.register_new_resolver("searchrl_root", root_resolver)
     cs = register_shared_configs()
