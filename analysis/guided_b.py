@@ -22,6 +22,8 @@
 # `walls_or_switch` is a teacher that follows the switch in open worlds: research/guided_b_evidence.
 # With GUIDED_PLAN=1 (the evidence statistics too) each agent also gets the move coverage's team plan gives it, one-hot:
 # the lane the switch would walk once it has turned, which an 11×11 window cannot show: research/guided_b_plan.
+# `walls_or_oracle` is a privileged teacher for the same inputs: coverage from the start in an open world whose prior
+# misleads (analysis/oracle_teacher.py), so the student learns how soon its evidence can tell: research/guided_b_oracle.
 #
 # The policy starts from a shipped one with the new inputs' weights at zero (so it acts exactly as that policy at
 # first) and trains with the training app's recipe; validation and evaluation act through the same guided
@@ -236,6 +238,23 @@ class WallsOrSwitchConfig(ControllerConfig):
     name: str = "walls_or_switch"
 
 
+class WallsOrOracle(WallsOrTarget):
+    """As WallsOrTarget, a privileged teacher in open worlds (analysis/oracle_teacher.py's OracleSwitch, learning by
+    cheating): B's teacher where the prior ranks the true targets above 0.25, coverage from the first step where it
+    does not. The student sees only its evidence and coverage's move: it learns when its evidence says to turn."""
+
+    def __init__(self, config: WorldConfig, seed=0) -> None:
+        from oracle_teacher import OracleSwitch  # analysis/ is the script's folder: sys.path[0]
+
+        self.walls = make_controller("path_greedy", config, seed=seed)
+        self.open = OracleSwitch(config, threshold=0.25, seed=seed)
+
+
+@dataclass
+class WallsOrOracleConfig(ControllerConfig):
+    name: str = "walls_or_oracle"
+
+
 def make_guided_vec_env(plan, seed=None):
     """searchrl.train.build.make_vec_env with each group's worlds wrapped in `Guidance`."""
     envs = [Guidance(SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=plan.scenario))
@@ -265,6 +284,7 @@ def patch_apps() -> None:
 
     register("walls_or_target", WallsOrTarget, WallsOrTargetConfig)  # a teacher: imitation.teacher=walls_or_target
     register("walls_or_switch", WallsOrSwitch, WallsOrSwitchConfig)
+    register("walls_or_oracle", WallsOrOracle, WallsOrOracleConfig)
     import searchrl.train.app as train_app
 
     train_app.make_vec_env = make_guided_vec_env

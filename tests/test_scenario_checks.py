@@ -4,6 +4,9 @@ fails here. The exact room checks are hit at equality: the largest team that fit
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
 import pytest
 
 from searchrl.world.config import ConfigError, WorldConfig
@@ -178,3 +181,62 @@ def test_a_mix_names_its_first_unknown_key_carries_obstacles_and_gives_its_spec_
     with pytest.raises(ConfigError) as refused:
         ScenarioMix.from_spec({"families": {"shifted": SHIFTED}, "severities": [2.0]})
     assert str(refused.value).startswith("scenario.mix.severities=[2.0] is not allowed")
+
+
+def test_a_scenario_names_its_label_family_and_severity_from_its_parts():
+    """The label joins the parts' labels (obstacles, prior, targets) with "+", "paper" when none has one; the
+    family joins the families drawn above severity 0; the severity is the largest."""
+    assert Scenario().label == "paper" and Scenario().family == "paper" and Scenario().severity == 0.0
+    both = Scenario(obstacles=IidObstacles(density=0.2), prior=UninformedPrior(severity=0.25),
+                    targets=ShiftedTargets(severity=0.5))  # fmt: skip
+    parts = [IidObstacles(density=0.2).label, UninformedPrior(severity=0.25).label, ShiftedTargets(severity=0.5).label]
+    assert all(parts) and both.label == "+".join(parts)
+    assert both.family == "uninformed+shifted" and both.severity == 0.5
+    assert Scenario(prior=UninformedPrior(severity=0.0), targets=ShiftedTargets(severity=0.5)).family == "shifted"
+    assert Scenario(targets=ShiftedTargets(severity=0.0)).family == "paper"
+    assert Scenario.from_dict(both.to_dict()) == both and both.pick(None) is both  # a scenario draws nothing
+    assert Scenario.from_dict(None) == Scenario.from_dict({}) == Scenario.from_dict({"mix": None}) == Scenario()
+
+
+def test_a_mix_is_named_by_its_members_picks_one_per_draw_and_follows_the_prior_only_if_all_do():
+    right = ScenarioMix.from_spec({"families": {}, "severities": [], "obstacles": {"kind": "maze", "corridor": 3}})
+    wrong = ScenarioMix.from_spec({"families": {"shifted": SHIFTED}, "severities": [0.5, 1.0]})
+    assert right.family == wrong.family == "mix" and math.isnan(wrong.severity)
+    assert right.label.startswith("mix-") and len(right.label) == len("mix-") + 8 and right.label != wrong.label
+    assert ScenarioMix.from_spec({"families": {"shifted": SHIFTED}, "severities": [0.5, 1.0]}).label == wrong.label
+    assert right.targets_follow_prior and not wrong.targets_follow_prior
+    # the right prior once per severity, then the family at each: picked uniformly by one integer per reset
+    assert [s.severity for s in wrong.scenarios] == [0.0, 0.0, 0.5, 1.0]
+    rng, again = np.random.default_rng(3), np.random.default_rng(3)
+    assert [wrong.pick(rng) for _ in range(20)] == [wrong.scenarios[int(again.integers(4))] for _ in range(20)]
+    explicit = ScenarioMix.from_spec({"severities": [0.5, 1.0], "scenarios": [{"obstacles": {"kind": "primal"}}]})
+    assert [type(s.obstacles).__name__ for s in explicit.scenarios].count("PrimalObstacles") == 2  # weighed as one
+    assert Scenario.from_dict({"mix": {"families": {}}, "targets": None, "prior": None}) == ScenarioMix.from_spec(
+        {"families": {}}
+    )
+
+
+def test_a_registered_part_kind_is_read_by_name_and_a_taken_or_unknown_one_is_refused():
+    from dataclasses import dataclass
+
+    from searchrl.world import scenario
+
+    @dataclass(frozen=True)
+    class _Again(IidObstacles):
+        kind = "iid"
+
+    with pytest.raises(ConfigError) as refused:
+        scenario.register_part("obstacles", _Again)
+    assert str(refused.value).startswith("scenario.obstacles.kind='iid' cannot be registered: a new name is needed")
+    with pytest.raises(ConfigError, match=r"^part=.walls. is not allowed: one of obstacles, prior, targets$"):
+        scenario.register_part("walls", _Again)
+
+    @dataclass(frozen=True)
+    class _Dense(IidObstacles):
+        kind = "dense_test"
+
+    try:
+        scenario.register_part("obstacles", _Dense)
+        assert Scenario.from_dict({"obstacles": {"kind": "dense_test", "density": 0.3}}).obstacles == _Dense(0.3)
+    finally:
+        scenario.PARTS["obstacles"].pop("dense_test", None)

@@ -93,6 +93,14 @@ def test_a_suite_is_frozen(tmp_path, override, capsys):
     assert not any(tmp_path.iterdir())
 
 
+def test_an_empty_out_dir_is_refused_not_taken_for_the_default(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the default folder would be runs/suite/... under it
+    with pytest.raises(SystemExit), exits():
+        _run(tmp_path / "unused", "controller=coverage", "out_dir=")
+    assert "out_dir='' is not allowed: a folder" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
+
+
 def test_a_bad_family_is_named_before_any_folder(tmp_path, capsys):
     bad = {**TINY, "families": {**TINY["families"], "psychic": {"targets": {"kind": "psychic"}}}}
     with pytest.raises(SystemExit), exits():

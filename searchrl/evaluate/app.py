@@ -129,7 +129,9 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[
     need(agents is None or (len(agents) > 0 and set(agents) <= set(on_grid)), "grid.agents", agents,
          f"null (every N) or team sizes of the grid, from {on_grid}")  # fmt: skip
     indexed = [(i, c) for i, c in enumerate(cells) if agents is None or c.n_agents in agents]
-    out_dir = Path(cfg.out_dir) if cfg.out_dir else None
+    need(cfg.out_dir is None or str(cfg.out_dir).strip() != "", "out_dir", cfg.out_dir,
+         "a folder (leave it out for runs/eval/<controller or policy>)")  # fmt: skip
+    out_dir = Path(cfg.out_dir) if cfg.out_dir is not None else None
     return indexed, out_dir, scenario
 
 

@@ -74,7 +74,9 @@ def evaluate_suite(cfg: DictConfig, overrides: list[str]) -> list[Path]:
                               "grid, seed and scenarios are conf/suite/); remove them, or evaluate with grid.* and "
                               "scenario=… without suite=")  # fmt: skip
         suite = OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(SuiteConfig), cfg.suite), resolve=True)
-        base = Path(cfg.out_dir) if cfg.out_dir else suite_default_dir(cfg, suite["name"])
+        need(cfg.out_dir is None or str(cfg.out_dir).strip() != "", "out_dir", cfg.out_dir,
+             "a folder (leave it out for runs/suite/<suite>/<controller or policy>)")  # fmt: skip
+        base = Path(cfg.out_dir) if cfg.out_dir is not None else suite_default_dir(cfg, suite["name"])
         scenarios = suite_scenarios(suite)
         for offset, scenario in enumerate(scenarios):
             one = copy.deepcopy(cfg)

@@ -19,9 +19,9 @@ from searchrl.world.config import WorldConfig
 def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
     """(world settings, algorithm name, model name) from the run directory of a checkpoint: `<run>/model.zip` or
     `<run>/checkpoints/step_*.zip`, next to or above which the run's `config.yaml` lies."""
-    path = Path(path)
-    if not path.is_file():
+    if not str(path).strip() or not Path(path).is_file():  # checkpoint= (empty) is Path("."), a folder
         raise FileNotFoundError(f"checkpoint={str(path)!r} does not exist (expected a model.zip of a run)")
+    path = Path(path)
     for folder in (path.parent, path.parent.parent):
         if (folder / "config.yaml").exists():
             try:
