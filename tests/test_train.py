@@ -243,6 +243,8 @@ def test_bad_input_fails_before_work(tmp_path, capsys):
     assert "trainable models: a, b, c, diagonal" in refused()
     assert "fov=4" in refused("+model=c", "env.world.fov=4")
     assert "algo.batch_size=0" in refused("+model=c", "algo.batch_size=0")
+    assert "error: validation.every=-1 is not allowed: >= 0 agent-steps" in refused("+model=c", "validation.every=-1")
+    assert "error: validation.score_last=0 is not allowed: >= 1" in refused("+model=c", "validation.score_last=0")
     assert "no config.yaml" in refused("+model=c", f"resume={tmp_path}")
     (tmp_path / "bad" / "checkpoints").mkdir(parents=True)
     (tmp_path / "bad" / "config.yaml").write_text("seed: not-a-number\n")

@@ -187,10 +187,10 @@ def check_numbers(cfg: DictConfig) -> None:
             f"total_timesteps={cfg.total_timesteps!r} is not allowed: must be >= 1, or 0 with imitation.teacher "
             "or init (a run without RL)"
         )
-    if int(cfg.validation.every) < 0 or int(cfg.validation.n_worlds) < 1 or int(cfg.validation.score_last) < 1:
-        raise ConfigError(
-            f"validation={dict(cfg.validation)!r} is not allowed: every >= 0, n_worlds >= 1 and score_last >= 1"
-        )
+    need(int(cfg.validation.every) >= 0, "validation.every", cfg.validation.every,
+         ">= 0 agent-steps between validations (0: only the final model's)")  # fmt: skip
+    for key in ("n_worlds", "score_last"):
+        need(int(cfg.validation[key]) >= 1, f"validation.{key}", cfg.validation[key], ">= 1")
 
 
 def check_init(cfg: DictConfig) -> None:
