@@ -62,6 +62,10 @@ def test_finished_worlds_reset_alone_with_final_observation_and_metrics():
             remaining = (before.n_targets - before.n_found)[done]
             assert (tr.final_vector[done][:, :, 2] <= remaining[:, None] / before.n_targets[done][:, None]).all()
         assert (world.state.t[~done] == before.t[~done] + 1).all()
+        # Only the reset worlds are observed again: the step's observation is the whole state's, bit for bit.
+        maps, vector = observe(config, world.state)
+        np.testing.assert_array_equal(tr.maps, maps)
+        np.testing.assert_array_equal(tr.vector, vector)
 
 
 def test_metrics_accumulate_team_totals():

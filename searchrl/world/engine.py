@@ -10,7 +10,7 @@ import numpy as np
 
 from searchrl.world.config import WorldConfig, check_seed, is_int, need
 from searchrl.world.metrics import episode_metrics
-from searchrl.world.observe import observation_buffers, observe
+from searchrl.world.observe import observation_buffers, observe, observe_worlds
 from searchrl.world.reset import reset_world, reset_worlds
 from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.state import WorldState, allocate, copy_world
@@ -103,7 +103,8 @@ class SearchWorld:
                     self._final[0][done] = maps[done]
                     self._final[1][done] = vector[done]
                 reset_worlds(self.config, self.state, done, self.rng, self.scenario)
-                maps, vector = self._observe()
+                if self.observes:  # only the reset worlds changed since the step's observation
+                    maps, vector = observe_worlds(self.config, self.state, self._obs, np.flatnonzero(done))
         self.observation = (maps, vector)
         final = self._final if self.auto_reset else (maps, vector)
         return Transition(maps, vector, result, final[0], final[1], metrics)

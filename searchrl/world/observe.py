@@ -46,6 +46,21 @@ def observe(
     return maps, vec
 
 
+def observe_worlds(config: WorldConfig, state: WorldState, out: tuple[np.ndarray, np.ndarray],
+                   worlds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """`observe` of the worlds listed in `worlds` (int64 indices) into `out`, the others' rows left as they are:
+    after a step has observed every world and a few were reset, only those have changed."""
+    maps, vec = out
+    _observe_listed(state.arrays(), maps, vec, np.asarray(worlds, np.int64))
+    return maps, vec
+
+
+@njit(cache=CACHE)
+def _observe_listed(w, maps, vec, worlds):
+    for k in worlds:  # a few worlds: in this thread, no parallel region to start
+        _observe_span(w, maps, vec, k, k + 1)
+
+
 @njit(cache=CACHE, parallel=True)
 def observe_into(w, maps, vec, threads):
     """Observation of §3.2.1 of the state w (`WorldState.arrays()`) into maps (K,N,C,F,F) float32 and vec (K,N,3)
