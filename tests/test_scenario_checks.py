@@ -196,6 +196,13 @@ def test_a_scenario_names_its_label_family_and_severity_from_its_parts():
     assert Scenario(targets=ShiftedTargets(severity=0.0)).family == "paper"
     assert Scenario.from_dict(both.to_dict()) == both and both.pick(None) is both  # a scenario draws nothing
     assert Scenario.from_dict(None) == Scenario.from_dict({}) == Scenario.from_dict({"mix": None}) == Scenario()
+    with pytest.raises(ConfigError) as refused:
+        Scenario.from_dict({"walls": {}, "zones": {}})
+    assert str(refused.value) == ("scenario.walls is not allowed: a scenario has obstacles, prior and targets "
+                                  "(or a mix)")  # fmt: skip
+    with pytest.raises(ConfigError) as refused:
+        Scenario.from_dict({"targets": {"kind": "prior", "spread": 2}})
+    assert str(refused.value) == "scenario.targets.spread=2 is not allowed: targets of kind prior take no settings"
 
 
 def test_a_mix_is_named_by_its_members_picks_one_per_draw_and_follows_the_prior_only_if_all_do():
@@ -214,6 +221,10 @@ def test_a_mix_is_named_by_its_members_picks_one_per_draw_and_follows_the_prior_
     assert Scenario.from_dict({"mix": {"families": {}}, "targets": None, "prior": None}) == ScenarioMix.from_spec(
         {"families": {}}
     )
+    with pytest.raises(ConfigError) as refused:
+        Scenario.from_dict({"mix": {"families": {}}, "targets": {"kind": "prior"}})
+    assert str(refused.value) == ("scenario.targets is not allowed with scenario.mix: a mix draws whole scenarios "
+                                  "(set the part in its families, or null it)")  # fmt: skip
 
 
 def test_a_registered_part_kind_is_read_by_name_and_a_taken_or_unknown_one_is_refused():
@@ -227,7 +238,14 @@ def test_a_registered_part_kind_is_read_by_name_and_a_taken_or_unknown_one_is_re
 
     with pytest.raises(ConfigError) as refused:
         scenario.register_part("obstacles", _Again)
-    assert str(refused.value).startswith("scenario.obstacles.kind='iid' cannot be registered: a new name is needed")
+    assert str(refused.value) == ("scenario.obstacles.kind='iid' cannot be registered: a new name is needed, not one "
+                                  f"of {', '.join(scenario.PARTS['obstacles'])}")  # fmt: skip
+
+    class _Nameless:  # no `kind`: refused the same way, not an AttributeError
+        pass
+
+    with pytest.raises(ConfigError, match=r"^scenario\.prior\.kind=None cannot be registered"):
+        scenario.register_part("prior", _Nameless)
     with pytest.raises(ConfigError, match=r"^part=.walls. is not allowed: one of obstacles, prior, targets$"):
         scenario.register_part("walls", _Again)
 
