@@ -73,14 +73,6 @@ def scenario_default() -> dict[str, Any]:
     return {}
 
 
-def group_options(group: str) -> list[str]:
-    """The options of config group `group`: conf/<group>/**/*.yaml as `+<group>=` names them (`term/b`)."""
-    from searchrl.paths import CONF_DIR
-
-    folder = CONF_DIR / group
-    return sorted(p.relative_to(folder).with_suffix("").as_posix() for p in folder.rglob("*.yaml"))
-
-
 def check_group_choices(argv: list[str]) -> None:
     """Before Hydra reads the command line: every `[+]group=option` names an option that exists, else a refusal
     (`multirun.Refused`) in one line with the nearest option, where Hydra's own is a page of search paths. A sweep's
@@ -88,7 +80,7 @@ def check_group_choices(argv: list[str]) -> None:
     Hydra. A heuristic asked for as a model is pointed to `controller=`."""
     from searchrl.controllers.registry import HEURISTICS
     from searchrl.multirun import refuse
-    from searchrl.paths import CONF_DIR
+    from searchrl.paths import CONF_DIR, group_options
 
     for arg in argv:
         key, eq, value = arg.lstrip("+").partition("=")
@@ -167,7 +159,7 @@ def _compose(config_name: str, group: str) -> DictConfig:
     from hydra.core.global_hydra import GlobalHydra
     from hydra.errors import MissingConfigException
 
-    from searchrl.paths import CONF_DIR
+    from searchrl.paths import CONF_DIR, group_options
 
     def composed() -> DictConfig:
         try:
@@ -175,7 +167,7 @@ def _compose(config_name: str, group: str) -> DictConfig:
                 warnings.filterwarnings("ignore", message=".*Defaults list is missing `_self_`")
                 return compose(config_name=config_name)
         except MissingConfigException:
-            options = ", ".join(sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml")))
+            options = ", ".join(group_options(group))
             raise ConfigError(f"{group}={config_name.split('/', 1)[1]} does not exist; conf/{group}/ has "
                               f"{options}") from None  # fmt: skip
 
@@ -198,5 +190,5 @@ def model_world(name: str) -> dict[str, Any]:
     register_shared_configs()
     world = OmegaConf.to_container(_compose(f"model/{name}", "model"), resolve=True).get("env", {}).get("world")
     if not world:
-        raise ConfigError(f"model={name} sets no world (a heuristic's preset): use {', '.join(TRAINABLE_MODELS)}")
+        raise ConfigError(f"model={name} sets no world (env.world): use {', '.join(TRAINABLE_MODELS)}")
     return world

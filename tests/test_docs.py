@@ -179,7 +179,7 @@ GROUPS = ("scenario", "suite", "model", "experiment", "machine", "algo", "networ
 def test_the_docs_name_only_group_options_that_exist():
     """A `<group>=<option>` in the README, the docs, the configs or the analysis scripts names a file of conf/<group>/
     (schema.group_options): a renamed scenario, suite, recipe or model cannot leave a stale command behind."""
-    from searchrl.schema import group_options
+    from searchrl.paths import group_options
 
     options = {group: set(group_options(group)) for group in GROUPS}
     pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml")),
@@ -199,9 +199,16 @@ def test_the_docs_name_only_group_options_that_exist():
     assert not stale, stale
 
 
+def test_the_trainable_models_are_the_files_of_conf_model():
+    from searchrl.paths import group_options
+    from searchrl.schema import TRAINABLE_MODELS
+
+    assert group_options("model") == sorted(TRAINABLE_MODELS)
+
+
 def test_the_settings_reference_names_every_scenario_and_suite():
     """docs/options.md, the settings' reference, names every scenario file and every suite."""
-    from searchrl.schema import group_options
+    from searchrl.paths import group_options
 
     text = (ROOT / "docs" / "options.md").read_text()
     missing = [f"{g}={o}" for g in ("scenario", "suite") for o in group_options(g) if f"`{o}`" not in text

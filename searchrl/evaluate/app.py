@@ -129,10 +129,14 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[
     need(agents is None or (len(agents) > 0 and set(agents) <= set(on_grid)), "grid.agents", agents,
          f"null (every N) or team sizes of the grid, from {on_grid}")  # fmt: skip
     indexed = [(i, c) for i, c in enumerate(cells) if agents is None or c.n_agents in agents]
+    return indexed, given_out_dir(cfg, "runs/eval/<controller or policy>"), scenario
+
+
+def given_out_dir(cfg: DictConfig, default: str) -> Path | None:
+    """`out_dir=` as a folder, None when left out (the app's `default`); an empty one is refused, not taken for it."""
     need(cfg.out_dir is None or str(cfg.out_dir).strip() != "", "out_dir", cfg.out_dir,
-         "a folder (leave it out for runs/eval/<controller or policy>)")  # fmt: skip
-    out_dir = Path(cfg.out_dir) if cfg.out_dir is not None else None
-    return indexed, out_dir, scenario
+         f"a folder (leave it out for {default})")  # fmt: skip
+    return None if cfg.out_dir is None else Path(cfg.out_dir)
 
 
 def check_out_dir(out_dir: Path) -> None:

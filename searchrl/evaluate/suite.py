@@ -20,7 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from searchrl.atomic import FolderBusy, storage_message
-from searchrl.evaluate.app import claim_evaluation, fail, plan_evaluation, run_evaluation
+from searchrl.evaluate.app import claim_evaluation, fail, given_out_dir, plan_evaluation, run_evaluation
 from searchrl.evaluate.schema import GridConfig
 from searchrl.schema import override_keys
 from searchrl.world.config import ConfigError, need
@@ -74,9 +74,7 @@ def evaluate_suite(cfg: DictConfig, overrides: list[str]) -> list[Path]:
                               "grid, seed and scenarios are conf/suite/); remove them, or evaluate with grid.* and "
                               "scenario=… without suite=")  # fmt: skip
         suite = OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(SuiteConfig), cfg.suite), resolve=True)
-        need(cfg.out_dir is None or str(cfg.out_dir).strip() != "", "out_dir", cfg.out_dir,
-             "a folder (leave it out for runs/suite/<suite>/<controller or policy>)")  # fmt: skip
-        base = Path(cfg.out_dir) if cfg.out_dir is not None else suite_default_dir(cfg, suite["name"])
+        base = given_out_dir(cfg, "runs/suite/<suite>/<controller or policy>") or suite_default_dir(cfg, suite["name"])
         scenarios = suite_scenarios(suite)
         for offset, scenario in enumerate(scenarios):
             one = copy.deepcopy(cfg)
