@@ -3,6 +3,8 @@ agent or target on a wall, PRIMAL's density law, mazes and rooms as their laws s
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -115,3 +117,26 @@ def test_each_room_wall_has_a_door_exactly_door_cells_wide(door):
     assert not walls[1, :door].any() and walls[1, door:].all()
     assert not walls[2 : 2 + door, 1].any() and walls[2 + door :, 1].all()
     assert walls.sum() == (12 - door) + (10 - door)  # nothing else: both halves are then too small to divide
+
+
+@pytest.mark.parametrize("generator, what", [
+    (PrimalObstacles(), "PRIMAL's walls"),
+    (RoomObstacles(4, 1), "rooms of 4"),
+    (MazeObstacles(9, 0.0), "scenario.obstacles.corridor=9"),
+    (IidObstacles(0.5, connected=True), "scenario.obstacles.density=0.5 with connected=true"),
+    (IidObstacles(0.5), "scenario.obstacles.density=0.5"),
+])  # fmt: skip
+def test_a_world_whose_walls_never_leave_room_is_refused_naming_the_generator(generator, what):
+    """A 20x20 world holds 400 agents and targets only without a wall: after its 100 draws the generator says so."""
+    message = f"{what} is not allowed here: 100 draws left fewer than 400 free cells (agents and targets) of 20x20"
+    with pytest.raises(ConfigError, match=f"^{re.escape(message)}$"):
+        generator(20, 400, np.random.default_rng(0))
+
+
+def test_exactly_as_many_free_cells_as_agents_and_targets_is_room_enough():
+    """A maze without loops frees the same cells in every draw: at n = 20, corridor 9, 2x2 squares of 81 cells and
+    the 3 openings of 9 of its spanning tree, 351 cells. A team of 351 fits; of 352 it is refused."""
+    maze = MazeObstacles(corridor=9, loops=0.0)
+    assert (~maze(20, 351, np.random.default_rng(0))).sum() == 351
+    with pytest.raises(ConfigError, match="fewer than 352 free cells"):
+        maze(20, 352, np.random.default_rng(0))

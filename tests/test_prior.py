@@ -73,6 +73,7 @@ def test_uninformed_agents_hold_a_flat_prior_while_the_targets_stay_where_the_pa
         np.testing.assert_array_equal(got.u, want.u)  # u cannot say "no information" (prior.py); it stays
         assert np.allclose(got.belief[0, :, 0], got.p[0])  # the agents start from it
         assert prior_qualities(got)[0] == 0.0  # a flat prior ranks every cell alike: no better than uniform
+        assert prior_qualities(got).dtype == np.float64
     half, _ = _draw(Scenario(prior=UninformedPrior(severity=0.5)), 0)
     full, _ = _draw(PAPER, 0)
     np.testing.assert_allclose(_inner(half, half.p), 0.5 * _inner(full, full.p) + 0.5 / 900, rtol=1e-6)

@@ -31,8 +31,10 @@ ALLOWED = [
     (RoomObstacles(room_size=4, door=1), W),
     (RoomObstacles(room_size=20, door=19), W),
     (RoomObstacles(room_size=1024, door=1023), WorldConfig(world_size=(1024, 1024))),
+    (RoomObstacles(room_size=4, door=1), WorldConfig(world_size=(10, 10), n_agents=64, n_targets=(16, 16))),  # 80
     (OffPriorTargets(severity=0.0), W),
     (OffPriorTargets(severity=1.0), W),
+    (ShiftedTargets(severity=1), W),  # an integer, as YAML reads `severity: 1`
     (AdversarialTargets(severity=1.0), W),
     (ShiftedTargets(distance=1.0), W),
     (TemperedTargets(power=0.0), W),
@@ -78,6 +80,9 @@ REFUSED = [
      "room_size (cells)"),
     (RoomObstacles(room_size=21), W, "scenario.obstacles.room_size=21 is not allowed: at most the smallest world's "
      "side n=20: a larger room is never divided, and the world is one open room"),
+    (RoomObstacles(room_size=4, door=1), WorldConfig(world_size=(10, 10), n_agents=65, n_targets=(16, 16)),
+     f"scenario.obstacles.room_size=4 is not allowed: {ROOM} 81 must fit the about 80 free cells of the smallest "
+     "world (n=10)"),
     (OffPriorTargets(severity=1.01), W, "scenario.targets.severity=1.01 is not allowed: 0 <= severity <= 1 (0: the "
      "paper's placement; 1: the family's most wrong prior)"),
     (AdversarialTargets(severity=-0.01), W, "scenario.targets.severity=-0.01 is not allowed: 0 <= severity <= 1 (0: "
@@ -96,6 +101,10 @@ REFUSED = [
      "paper's placement; 1: the family's most wrong prior)"),
     (MixturePrior(variance_scale=0.0), W, "scenario.prior.variance_scale=0.0 is not allowed: null (the world's "
      "prob_variance_scale) or 0 < scale <= 1e6"),
+    (MixturePrior(variance_scale=1e6 + 0.5), W, "scenario.prior.variance_scale=1000000.5 is not allowed: null (the "
+     "world's prob_variance_scale) or 0 < scale <= 1e6"),
+    (ShiftedTargets(severity="high"), W, "scenario.targets.severity='high' is not allowed: 0 <= severity <= 1 (0: the "
+     "paper's placement; 1: the family's most wrong prior)"),
     (MixturePrior(variance_scale=1.01e6), W, "scenario.prior.variance_scale=1010000.0 is not allowed: null (the "
      "world's prob_variance_scale) or 0 < scale <= 1e6"),
     (MixturePrior(variance_scale=0.05), W, "scenario.prior.variance_scale=0.05 is not allowed: scale · smallest n must "
@@ -104,6 +113,8 @@ REFUSED = [
      "paper's prior; 1: the family's most wrong)"),
     (UninformedPrior(severity=-0.01), W, "scenario.prior.severity=-0.01 is not allowed: 0 <= severity <= 1 (0: the "
      "paper's prior; 1: the family's most wrong)"),
+    (UninformedPrior(variance_scale=0.05), W, "scenario.prior.variance_scale=0.05 is not allowed: scale · smallest n "
+     "must exceed variance_floor=1.0"),
     (UninformedPrior(variance_scale=0.0), W, "scenario.prior.variance_scale=0.0 is not allowed: null (the world's "
      "prob_variance_scale) or 0 < scale <= 1e6"),
 ]  # fmt: skip

@@ -130,8 +130,8 @@ def test_bad_family_settings_are_named(targets, message):
         Scenario.from_dict({"targets": targets}).check(WorldConfig())
 
 
-@pytest.mark.parametrize("severity", [0.0, 0.5, 1.0])
-def test_tempered_truth_follows_p_to_the_power_its_severity_sets(severity):
+@pytest.mark.parametrize("severity, power", [(0.0, 4.0), (0.5, 4.0), (1.0, 4.0), (1.0, 2.0), (0.5, 0.0)])
+def test_tempered_truth_follows_p_to_the_power_its_severity_sets(severity, power):
     """a = 1 + severity·(power − 1): severity 0 is the paper's placement itself, draw for draw, and 0.5 with power 4
     places from p^2.5, the same draws as placing from that map directly."""
     from searchrl.world.truth import TemperedTargets, place_targets
@@ -142,7 +142,48 @@ def test_tempered_truth_follows_p_to_the_power_its_severity_sets(severity):
     u = rng.random((12, 12))
     u /= u.sum()
     free = np.ones((12, 12), bool)
-    got = TemperedTargets(severity=severity, power=4.0).wrong(p, u, free, 6, np.random.default_rng(5))
-    tempered = p ** (1.0 + severity * 3.0)
+    got = TemperedTargets(severity=severity, power=power).wrong(p, u, free, 6, np.random.default_rng(5))
+    tempered = p ** (1.0 + severity * (power - 1.0))
     want = place_targets(tempered / tempered.sum(), u, free, 6, np.random.default_rng(5))
     np.testing.assert_array_equal(got, want)
+
+
+def test_adversarial_ties_take_the_mirrored_masses_in_cell_order(monkeypatch):
+    """Cells of equal p are ranked in row-major order (a stable sort): of two tied cells the earlier takes the larger
+    mirrored mass, so the upside-down map does not depend on how a sort orders ties."""
+    drawn_from = []
+
+    def remember_weights(severity, weights, p, u, free, count, rng):
+        drawn_from.append(weights)
+        return np.zeros((0, 2), np.int64)
+
+    monkeypatch.setattr("searchrl.world.truth._replace_share", remember_weights)
+    p = np.random.default_rng(0).integers(1, 4, (40, 40)).astype(float)  # three values: 1,600 cells, many ties
+    p /= p.sum()
+    AdversarialTargets(1.0).wrong(p, p, np.ones((40, 40), bool), 4, np.random.default_rng(0))
+    values = p.ravel().tolist()
+    ranked = sorted(range(len(values)), key=lambda cell: (values[cell], cell))  # lowest first, ties by cell
+    want = np.empty(len(values))
+    want[ranked] = sorted(values, reverse=True)
+    np.testing.assert_array_equal(drawn_from[0].ravel(), want)
+
+
+def test_weights_that_leave_no_mass_on_the_free_cells_left_place_uniformly():
+    """A replaced target is drawn from the weights over the free cells left, or uniformly where they hold no mass
+    there (as without weights): the same draws as `OffPriorTargets`' uniform placement."""
+    from searchrl.world.truth import _replace_share
+
+    p, u, free = _bump(n=12)
+    no_mass = np.zeros((12, 12))
+    got = _replace_share(1.0, no_mass, p, u, free, 5, np.random.default_rng(3))
+    np.testing.assert_array_equal(got, _replace_share(1.0, None, p, u, free, 5, np.random.default_rng(3)))
+
+
+def test_no_target_is_no_cell_and_a_map_without_room_for_them_is_named():
+    p, u, free = _bump(n=12)
+    none = place_targets(p, u, free, 0, np.random.default_rng(0))
+    assert none.shape == (0, 2) and none.dtype == np.int64
+    two_cells = np.zeros((12, 12), bool)
+    two_cells[3, 4] = two_cells[7, 1] = True  # three targets cannot take distinct cells of two
+    with pytest.raises(RuntimeError, match=r"^could not place 3 targets in 1000 batches \(maps too peaked\?\)$"):
+        place_targets(p, u, two_cells, 3, np.random.default_rng(0))

@@ -21,12 +21,14 @@ def gaussian_components(
     dx = (coords[None, :] - mu[:, 0:1]) / sx[:, None]  # (m, n) over x
     dy = (coords[None, :] - mu[:, 1:2]) / sy[:, None]  # (m, n) over y
     one_minus = 1.0 - rho**2
-    quad = (
-        dx[:, None, :] ** 2 + dy[:, :, None] ** 2 - 2.0 * rho[:, None, None] * dx[:, None, :] * dy[:, :, None]
-    )  # (m, n_y, n_x)
-    return (
-        np.exp(-quad / (2.0 * one_minus[:, None, None])) / (2.0 * np.pi * sx * sy * np.sqrt(one_minus))[:, None, None]
-    )
+    # exp(-quad / (2(1 - ρ²))) / (2π σx σy √(1 - ρ²)), worked in place in one (m, n_y, n_x) array: at n = 160 each
+    # temporary is 13 MB. The same operations in the same order, so the same bits (a negated divisor is exact).
+    density = dx[:, None, :] ** 2 + dy[:, :, None] ** 2
+    density -= 2.0 * rho[:, None, None] * dx[:, None, :] * dy[:, :, None]
+    np.divide(density, -(2.0 * one_minus)[:, None, None], out=density)
+    np.exp(density, out=density)
+    density /= (2.0 * np.pi * sx * sy * np.sqrt(one_minus))[:, None, None]
+    return density
 
 
 def gaussian_mixture(

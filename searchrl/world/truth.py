@@ -70,8 +70,8 @@ def finite(value: object) -> bool:
 def _replace_share(severity: float, weights: np.ndarray | None, p: np.ndarray, u: np.ndarray, free: np.ndarray,
                    count: int, rng: np.random.Generator) -> np.ndarray:  # fmt: skip
     """Targets of which each, with probability `severity`, is drawn from `weights` over the free cells left
-    (uniform when None) instead of the prior's placement. Draws: `count` uniforms, the prior's placement of the
-    others, then the replaced ones' cells without replacement."""
+    (uniform when None, or when they hold no mass there) instead of the prior's placement. Draws: `count`
+    uniforms, the prior's placement of the others, then the replaced ones' cells without replacement."""
     off = int((rng.random(count) < severity).sum())
     placed = place_targets(p, u, free, count - off, rng) if off < count else np.zeros((0, 2), np.int64)
     left = free.copy()
