@@ -26,10 +26,12 @@ from searchrl.atomic import hold, temporary_path
 from searchrl.envs.parallel_env import SearchParallelEnv
 from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.results import load
+from searchrl.evaluate.schema import EvaluateConfig
 from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
-from searchrl.schema import check_group_choices
+from searchrl.schema import check_group_choices, check_override_types
 from searchrl.train.app import train
+from searchrl.train.schema import TrainConfig
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
@@ -433,17 +435,47 @@ def test_group_options_that_exist_and_what_hydra_checks_pass_the_command_line_ch
                          "env.world.fov=5", "machine=gpu", "algo=a2c"])  # fmt: skip
 
 
-def test_the_apps_name_a_missing_group_option_before_hydra(tmp_path):
-    cmd = [
-        sys.executable,
-        "-m",
-        "searchrl.evaluate",
-        "scenario=wals",
-        f"out_dir={tmp_path}/e",
-        f"hydra.run.dir={tmp_path}/h",
-    ]
+@pytest.mark.parametrize(
+    "argv, schema, needles",
+    [
+        (["grid.repeats=1.5"], EvaluateConfig, ["grid.repeats=1.5 is not allowed", "could not be converted to Int"]),
+        (["-m", "controller=surfing", "grid.repeats=1,1.5"], EvaluateConfig,
+         ["grid.repeats=1.5 (of grid.repeats=1,1.5) is not allowed"]),
+        (["seed=abc"], TrainConfig, ["seed=abc is not allowed", "'abc' of type 'str'"]),
+        (["env.world.fov=x"], TrainConfig, ["env.world.fov=x is not allowed"]),
+        (["total_timesteps=1e6"], TrainConfig, ["total_timesteps=1e6 is not allowed"]),
+        (["validation.every=true"], TrainConfig, ["validation.every=true is not allowed"]),
+    ],
+)  # fmt: skip
+def test_a_value_its_setting_cannot_take_is_one_line_before_hydra(capsys, argv, schema, needles):
+    _refused(capsys, lambda: check_override_types(argv, schema), *needles)
+
+
+def test_values_of_their_types_and_settings_the_schema_leaves_untyped_pass_the_type_check():
+    check_override_types(["grid.world_sizes=[20,40]", "controller.w_p=0.5", "seed=3", "device=cuda", "-m",
+                          "scenario.obstacles.density=0.3", "+foo=1", "threads=1,2", "hydra.run.dir=x", "~suite",
+                          "grid.repeats=choice(1,2)", "checkpoint=null", "out_dir=${hydra:runtime.cwd}/e",
+                          "controller=surfing", "grid.maps_per_cell=range(1,3)", "batch_mb=512"],
+                         EvaluateConfig)  # fmt: skip
+    check_override_types(["algo.n_epochs=2", "network.lstm_hidden=64", "env.n_worlds=2", "total_timesteps=4096",
+                          "+model=b", "algo.learning_rate=tag(log,interval(1e-5,1e-3))", "env.world.fov=11",
+                          "+experiment=term/b", "machine=gpu"], TrainConfig)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["scenario=wals"], "did you mean scenario=walls?"),
+        (["-m", "controller=surfing", "grid.repeats=1.5,1"], "grid.repeats=1.5 (of grid.repeats=1.5,1) is not allowed"),
+    ],
+)  # fmt: skip
+def test_the_apps_name_a_missing_group_option_or_a_mistyped_value_before_hydra(tmp_path, args, needle):
+    """Hydra's refusal of either is a page or five lines, and in a multirun it ends the sweep at that job: here the
+    command is refused in one line and nothing is written."""
+    cmd = [sys.executable, "-m", "searchrl.evaluate", *args, f"out_dir={tmp_path}/e", f"hydra.run.dir={tmp_path}/h",
+           f"hydra.sweep.dir={tmp_path}/s"]  # fmt: skip
     out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "did you mean scenario=walls?" in out.stderr
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and needle in out.stderr, out.stderr
     assert not any(tmp_path.iterdir())
 
 

@@ -1,8 +1,9 @@
 """`python -m searchrl.train +model=<a|b|c|diagonal> [algo=a2c] [network=small] [scenario=...] [key=value ...]`
 or `python -m searchrl.train +experiment=<recipe>` (conf/experiment/, the recipe of a shipped policy).
 
-The entry point: the OpenMP wait policy (before torch loads), a `resume=` that is not a folder and a group option
-that does not exist named before Hydra reads them, then the app (searchrl/train/app.py: what a run does and writes).
+The entry point: the OpenMP wait policy (before torch loads), a `resume=` that is not a folder, a group option that
+does not exist and a value its setting cannot take named before Hydra reads them, then the app
+(searchrl/train/app.py: what a run does and writes).
 """
 
 import sys
@@ -11,12 +12,14 @@ from searchrl.omp_wait import set_wait_policy
 
 set_wait_policy(sys.argv)
 from searchrl.multirun import exits  # noqa: E402
-from searchrl.schema import check_group_choices  # noqa: E402
+from searchrl.schema import check_group_choices, check_override_types  # noqa: E402
 from searchrl.train.app import main  # noqa: E402  (loads torch: after the wait policy)
 from searchrl.train.command_line import check_resume_argument  # noqa: E402
+from searchrl.train.schema import TrainConfig  # noqa: E402
 
 if __name__ == "__main__":
     with exits():
         check_resume_argument(sys.argv[1:])
         check_group_choices(sys.argv[1:])
+        check_override_types(sys.argv[1:], TrainConfig)
     main()
