@@ -100,38 +100,6 @@ def check_group_choices(argv: list[str]) -> None:
             refuse(f"{arg} is not allowed: conf/{key}/ has no {option!r}{hint}; options: {listed}")
 
 
-def check_override_types(argv: list[str], schema: type) -> None:
-    """Before Hydra reads the command line: a value that a setting typed by the app's `schema` (a dataclass) cannot
-    take (`grid.repeats=1.5`, `seed=abc`, one value of a sweep's list) is refused in one line. Hydra's refusal is five
-    lines, and in a multirun it comes at that job's turn and ends the sweep, the valid jobs after it never run.
-    Settings the schema leaves untyped (a group's own, `+key` additions), Hydra's and sweep functions it cannot list
-    (Optuna's intervals) are left to Hydra and the apps."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-    from omegaconf.errors import OmegaConfBaseException, ValidationError
-
-    from searchrl.multirun import refuse
-    from searchrl.paths import CONF_DIR
-
-    typed, parser = OmegaConf.structured(schema), OverridesParser.create()
-    for arg in argv:
-        key, eq, _ = arg.partition("=")
-        if not eq or key.startswith(("+", "~", "-")) or key.split(".")[0] == "hydra" or (CONF_DIR / key).is_dir():
-            continue
-        try:
-            override = parser.parse_override(arg)
-            values = list(override.sweep_iterator()) if override.is_sweep_override() else [override.value()]
-        except Exception:  # Hydra's grammar and its sweep functions: Hydra names what is wrong with them
-            continue
-        for value in values:
-            try:
-                OmegaConf.update(typed, key, value, merge=True)
-            except ValidationError as error:
-                given = f"{key}={value} (of {arg})" if len(values) > 1 else arg
-                refuse(f"{given} is not allowed: {str(error).splitlines()[0]}")
-            except OmegaConfBaseException:  # a key the schema does not type: the apps' unknown-key check names it
-                break
-
-
 def override_keys(overrides: list[str]) -> list[str]:
     """The keys a command line's Hydra overrides set: `+a.b=1`, `~a.b`, `a.b=1` -> `a.b`."""
     return [o.split("=", 1)[0].lstrip("+~") for o in overrides]

@@ -23,15 +23,14 @@ from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
 
 from searchrl.atomic import hold, temporary_path
+from searchrl.compose_check import check_jobs_compose
 from searchrl.envs.parallel_env import SearchParallelEnv
 from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.results import load
-from searchrl.evaluate.schema import EvaluateConfig
 from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
-from searchrl.schema import check_group_choices, check_override_types
+from searchrl.schema import check_group_choices
 from searchrl.train.app import train
-from searchrl.train.schema import TrainConfig
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 
@@ -436,30 +435,42 @@ def test_group_options_that_exist_and_what_hydra_checks_pass_the_command_line_ch
 
 
 @pytest.mark.parametrize(
-    "argv, schema, needles",
+    "argv, app, needles",
     [
-        (["grid.repeats=1.5"], EvaluateConfig, ["grid.repeats=1.5 is not allowed", "could not be converted to Int"]),
-        (["-m", "controller=surfing", "grid.repeats=1,1.5"], EvaluateConfig,
+        (["grid.repeats=1.5"], "evaluate", ["grid.repeats=1.5 is not allowed", "could not be converted to Int"]),
+        (["-m", "controller=surfing", "grid.repeats=1,1.5"], "evaluate",
          ["grid.repeats=1.5 (of grid.repeats=1,1.5) is not allowed"]),
-        (["seed=abc"], TrainConfig, ["seed=abc is not allowed", "'abc' of type 'str'"]),
-        (["env.world.fov=x"], TrainConfig, ["env.world.fov=x is not allowed"]),
-        (["total_timesteps=1e6"], TrainConfig, ["total_timesteps=1e6 is not allowed"]),
-        (["validation.every=true"], TrainConfig, ["validation.every=true is not allowed"]),
+        (["controller=surfing", "controller.w_p=abc"], "evaluate", ["controller.w_p=abc is not allowed", "to Float"]),
+        (["-m", "controller=surfing,coverage", "controller.radius=x"], "evaluate", ["controller.radius=x"]),
+        (["seed=abc"], "train", ["seed=abc is not allowed", "'abc' of type 'str'"]),
+        (["+model=b", "env.world.fov=x"], "train", ["env.world.fov=x is not allowed"]),
+        (["+experiment=term/b", "total_timesteps=1e6"], "train", ["total_timesteps=1e6 is not allowed"]),
+        (["network.lstm_hiden=64"], "train", ["network.lstm_hiden=64 is not allowed", "not in 'NetworkConfig'"]),
     ],
 )  # fmt: skip
-def test_a_value_its_setting_cannot_take_is_one_line_before_hydra(capsys, argv, schema, needles):
-    _refused(capsys, lambda: check_override_types(argv, schema), *needles)
+def test_a_job_that_cannot_compose_is_one_line_before_hydra(capsys, argv, app, needles):
+    _refused(capsys, lambda: check_jobs_compose(argv, app), *needles)
 
 
-def test_values_of_their_types_and_settings_the_schema_leaves_untyped_pass_the_type_check():
-    check_override_types(["grid.world_sizes=[20,40]", "controller.w_p=0.5", "seed=3", "device=cuda", "-m",
-                          "scenario.obstacles.density=0.3", "+foo=1", "threads=1,2", "hydra.run.dir=x", "~suite",
-                          "grid.repeats=choice(1,2)", "checkpoint=null", "out_dir=${hydra:runtime.cwd}/e",
-                          "controller=surfing", "grid.maps_per_cell=range(1,3)", "batch_mb=512"],
-                         EvaluateConfig)  # fmt: skip
-    check_override_types(["algo.n_epochs=2", "network.lstm_hidden=64", "env.n_worlds=2", "total_timesteps=4096",
-                          "+model=b", "algo.learning_rate=tag(log,interval(1e-5,1e-3))", "env.world.fov=11",
-                          "+experiment=term/b", "machine=gpu"], TrainConfig)  # fmt: skip
+def test_jobs_that_compose_and_what_only_the_sweeper_draws_pass_the_compose_check():
+    check_jobs_compose(["grid.world_sizes=[20,40]", "controller=surfing", "controller.w_p=0.5", "seed=3", "-m",
+                        "device=cuda", "scenario.obstacles.density=0.3", "+foo=1", "threads=1,2", "hydra.run.dir=x",
+                        "grid.repeats=choice(1,2)", "checkpoint=null", "out_dir=${hydra:runtime.cwd}/e",
+                        "grid.maps_per_cell=range(1,3)", "hydra/launcher=joblib"], "evaluate")  # fmt: skip
+    check_jobs_compose(
+        [
+            "algo.n_epochs=2",
+            "+model=b",
+            "algo.learning_rate=tag(log,interval(1e-5,1e-3))",
+            "env.world.fov=11",
+            "machine=gpu",
+            "total_timesteps=4096",
+            "-m",
+            "seed=0,1",
+        ],
+        "train",
+    )
+    check_jobs_compose(["+experiment=term/b", "--cfg", "job", "seed=abc"], "train")  # other flags: Hydra's to check
 
 
 @pytest.mark.parametrize(

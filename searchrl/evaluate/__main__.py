@@ -1,7 +1,7 @@
 """`python -m searchrl.evaluate controller=<name> [+model=...]`, `checkpoint=<model.zip>` or `suite=<name> ...`
 
 `<name>` is a heuristic of searchrl/controllers/registry.py. The entry point: the OpenMP wait policy (before torch
-loads), a group option that does not exist and a value its setting cannot take named before Hydra reads them, then
+loads), a group option that does not exist and a job that cannot compose named before Hydra runs them, then
 one grid (searchrl/evaluate/app.py) or a suite's scenarios (searchrl/evaluate/suite.py); a refused job of a multirun
 lets the others run (searchrl/multirun.py).
 """
@@ -15,12 +15,12 @@ import hydra  # noqa: E402
 from hydra.core.hydra_config import HydraConfig  # noqa: E402
 from omegaconf import DictConfig  # noqa: E402
 
+from searchrl.compose_check import check_jobs_compose  # noqa: E402
 from searchrl.evaluate.app import evaluate  # noqa: E402  (loads torch: after the wait policy)
-from searchrl.evaluate.schema import EvaluateConfig  # noqa: E402
 from searchrl.evaluate.suite import evaluate_suite  # noqa: E402
 from searchrl.multirun import exits, in_sweep  # noqa: E402
 from searchrl.paths import CONF_DIR  # noqa: E402
-from searchrl.schema import check_group_choices, check_override_types  # noqa: E402
+from searchrl.schema import check_group_choices  # noqa: E402
 
 
 @hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="evaluate")
@@ -32,5 +32,5 @@ def main(cfg: DictConfig) -> None:
 if __name__ == "__main__":
     with exits():
         check_group_choices(sys.argv[1:])
-        check_override_types(sys.argv[1:], EvaluateConfig)
+        check_jobs_compose(sys.argv[1:], "evaluate")
     main()

@@ -2,7 +2,7 @@
 or `python -m searchrl.train +experiment=<recipe>` (conf/experiment/, the recipe of a shipped policy).
 
 The entry point: the OpenMP wait policy (before torch loads), a `resume=` that is not a folder, a group option that
-does not exist and a value its setting cannot take named before Hydra reads them, then the app
+does not exist and a job that cannot compose named before Hydra runs them, then the app
 (searchrl/train/app.py: what a run does and writes).
 """
 
@@ -11,15 +11,15 @@ import sys
 from searchrl.omp_wait import set_wait_policy
 
 set_wait_policy(sys.argv)
+from searchrl.compose_check import check_jobs_compose  # noqa: E402
 from searchrl.multirun import exits  # noqa: E402
-from searchrl.schema import check_group_choices, check_override_types  # noqa: E402
+from searchrl.schema import check_group_choices  # noqa: E402
 from searchrl.train.app import main  # noqa: E402  (loads torch: after the wait policy)
 from searchrl.train.command_line import check_resume_argument  # noqa: E402
-from searchrl.train.schema import TrainConfig  # noqa: E402
 
 if __name__ == "__main__":
     with exits():
         check_resume_argument(sys.argv[1:])
         check_group_choices(sys.argv[1:])
-        check_override_types(sys.argv[1:], TrainConfig)
+        check_jobs_compose(sys.argv[1:], "train")
     main()

@@ -1,0 +1,91 @@
+"""Every job of a command line composes, checked before Hydra runs it.
+
+Hydra composes a run's config from its command line when the run starts, and a multirun's jobs one at a time as the
+launcher reaches them. A value its setting cannot take (`grid.repeats=1.5`, `controller.w_p=abc`, one value of a
+sweep's list) is then five lines of Hydra's, and in a multirun it ends the sweep at that job: the valid jobs after
+it never run. `check_jobs_compose` composes the command line with Hydra's own compose API first, each value of each
+swept setting in turn, and refuses in one line naming the value.
+"""
+
+from __future__ import annotations
+
+import re
+
+# Hydra's flags that take no value; any other flag (`--cfg job`, `--config-name x`, `--info`) leaves the check to Hydra
+_PLAIN_FLAGS = {"-m", "--multirun"}
+
+
+def job_variants(argv: list[str]) -> list[tuple[str, list[str]]] | None:
+    """(what is checked, the overrides of one composition) for a command line: the overrides as given, each swept
+    setting at its first value, then each other value of each swept setting with the rest at their first; None for
+    a command line with flags other than -m. Hydra's own settings (`hydra.*`, `hydra/...`) are left out, and so are
+    sweeps that cannot be listed (an Optuna interval: the sweeper draws its values)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    if any(arg.startswith("-") and arg not in _PLAIN_FLAGS for arg in argv):
+        return None
+    parser = OverridesParser.create()
+    fixed: list[str] = []
+    swept: list[tuple[str, str, list[str]]] = []  # (argument, key element, values as override text)
+    for arg in argv:
+        if arg in _PLAIN_FLAGS or arg.lstrip("+~").startswith("hydra"):
+            continue
+        try:
+            override = parser.parse_override(arg)
+        except Exception:  # Hydra's grammar: Hydra names what is wrong with it
+            return None
+        if not override.is_sweep_override():
+            fixed.append(arg)
+            continue
+        try:
+            swept.append((arg, override.get_key_element(), list(override.sweep_string_iterator())))
+        except Exception:  # an interval or another sweep no list can hold
+            continue
+    first = [f"{key}={values[0]}" for _, key, values in swept]
+    variants = [("", fixed + first)]
+    for index, (arg, key, values) in enumerate(swept):
+        for value in values[1:]:
+            variants.append(
+                (f"{key}={value} (of {arg})", fixed + first[:index] + [f"{key}={value}"] + first[index + 1 :])
+            )
+    return variants
+
+
+def check_jobs_compose(argv: list[str], config_name: str) -> None:
+    """Compose the app `config_name` (conf/<config_name>.yaml, its schemas registered) from `argv` as each of its
+    `job_variants`; the first that fails is refused in one line (`multirun.Refused`) naming the value."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    from searchrl.multirun import refuse
+    from searchrl.paths import CONF_DIR
+
+    variants = job_variants(argv)
+    if variants is None:
+        return
+    failure = None
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3", job_name="compose_check"):
+        for what, overrides in variants:
+            try:
+                compose(config_name=config_name, overrides=overrides)
+            except Exception as error:  # Hydra's ConfigCompositionException, OmegaConf's validation errors
+                failure = (what, error)
+                break
+    GlobalHydra.instance().clear()
+    if failure is not None:
+        what, error = failure
+        lines = [str(error).strip()] + ([str(error.__cause__).strip()] if error.__cause__ else [])
+        message = "; ".join(line.splitlines()[0] for line in lines if line)
+        merging = re.match(r"Error merging override (\S+); (.*)", message)
+        if merging and not what:  # the first composition: a value as given, or a sweep's first
+            named, message = merging.group(1), merging.group(2)
+            key = named.partition("=")[0]
+            of = [arg for arg in argv if arg.partition("=")[0] == key and arg != named]
+            what = f"{named} (of {of[0]})" if of else named
+        elif merging:
+            message = merging.group(2)
+        unknown = re.match(r"Could not override '([^']+)'\.?; (.*)", message)
+        if unknown:
+            given = [arg for arg in argv if arg.lstrip("+~").partition("=")[0] == unknown.group(1)]
+            what, message = what or (given[0] if given else unknown.group(1)), unknown.group(2)
+        refuse(f"{what or 'the command line'} is not allowed: {message}")
