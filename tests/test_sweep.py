@@ -229,7 +229,9 @@ def _grid(sweep_dir: Path, *more: str) -> subprocess.CompletedProcess:
 @pytest.mark.slow  # three multiruns of two tiny trainings: about 30 s
 def test_a_grid_sweep_started_again_in_its_folder_continues_it(tmp_path):
     """Job 0 finished is not trained again, job 1 killed after a checkpoint resumes from it; a sweep of other
-    settings into the same folder fails every job with one line naming the setting, and trains nothing."""
+    overrides into the same folder trains each job beside the old one (`<job>.1`); a job whose folder holds a run of
+    the same overrides but other settings (a default changed since) fails with one line naming the setting, and
+    trains nothing."""
     sweep = tmp_path / "sweep"
     assert _grid(sweep).returncode == 0
     first, second = sorted(p for p in sweep.iterdir() if p.name[0].isdigit())
@@ -241,7 +243,16 @@ def test_a_grid_sweep_started_again_in_its_folder_continues_it(tmp_path):
     assert "holds this job's finished run: not trained again" in again.stderr
     assert f"resuming {second} from step_" in again.stderr
     assert (first / "model.zip").stat().st_mtime_ns == trained and (second / "score.json").is_file()
-    other = _grid(sweep, "algo.learning_rate=0.001")
-    assert other.returncode == 1
-    assert other.stderr.count("holds a run of other settings (algo.learning_rate: 0.0003 there, 0.001 now)") >= 2
+    beside = _grid(sweep, "algo.learning_rate=0.001")
+    assert beside.returncode == 0, beside.stderr[-3000:]
+    jobs = sorted(p.name for p in sweep.iterdir() if p.name[0].isdigit())
+    assert jobs == sorted([first.name, f"{first.name}.1", second.name, f"{second.name}.1"])
+    assert (first / "model.zip").stat().st_mtime_ns == trained
+    saved = first / "config.yaml"  # as if the default learning rate had changed since job 0 ran
+    assert "learning_rate: 0.0003" in saved.read_text()
+    saved.write_text(saved.read_text().replace("learning_rate: 0.0003", "learning_rate: 0.0005"))
+    other = _grid(sweep)
+    assert other.returncode == 1, other.stderr[-3000:]
+    assert f"{first} holds a run of other settings (algo.learning_rate: 0.0005 there, 0.0003 now)" in other.stderr
+    assert f"{second} holds a run of other" not in other.stderr  # job 1's run is of these settings: not trained again
     assert (first / "model.zip").stat().st_mtime_ns == trained
