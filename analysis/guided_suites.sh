@@ -11,20 +11,22 @@ guided() { GUIDED_PLAN=1 python analysis/guided_b.py evaluate suite=$1 checkpoin
     out_dir=runs/suite/$1/policy/guided/b_plan; }
 rule() { local s=$1; shift; python -m searchrl.evaluate suite=$s +model=b $T "$@"; }
 policy() { python -m searchrl.evaluate suite=$1 checkpoint=runs/reference/$2/model.zip $T; }
-for suite in "${@:-obstacles prior_error}"; do
-  for s in $suite; do
-    guided $s
-    case $s in
-      obstacles)
-        rule $s controller=path_greedy
-        rule $s controller=greedy_target controller.reach=2
-        policy $s walls/b;;
-      prior_error)
-        rule $s controller=greedy_target controller.reach=2
-        rule $s controller=coverage
-        rule $s controller=switch controller.threshold=0.25
-        policy $s robust/b;;
-    esac
-    python analysis/suite.py runs/suite/$s --focus policy:train/guided/b_plan --out analysis/out/suite_$s/guided_b_plan
-  done
+SUITES=${*:-obstacles prior_error}
+for s in $SUITES; do  # every name checked before any evaluation starts
+  case $s in obstacles|prior_error) ;; *) echo "error: suite $s is not allowed: obstacles or prior_error" >&2; exit 2;; esac
+done
+for s in $SUITES; do
+  guided $s
+  case $s in
+    obstacles)
+      rule $s controller=path_greedy
+      rule $s controller=greedy_target controller.reach=2
+      policy $s walls/b;;
+    prior_error)
+      rule $s controller=greedy_target controller.reach=2
+      rule $s controller=coverage
+      rule $s controller=switch controller.threshold=0.25
+      policy $s robust/b;;
+  esac
+  python analysis/suite.py runs/suite/$s --focus policy:train/guided/b_plan --out analysis/out/suite_$s/guided_b_plan
 done
