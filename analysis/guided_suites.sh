@@ -1,32 +1,49 @@
 #!/usr/bin/env bash
-# The guided policy of research/guided_b_plan (analysis/guided_b.py, GUIDED_PLAN=1) on both frozen suites, beside the
-# rules that lead them (path_greedy among walls, B's teacher on the open grid and with the prior right, coverage and
-# the evidence switch where the prior misleads) and the shipped policies, then the suites' tables and paired
-# comparisons. One core; hours. Every evaluation resumes where it stopped: run it again after an interruption.
-#   bash analysis/guided_suites.sh [obstacles|prior_error]...     # both suites by default, obstacles first
+# The guided policy of research/guided_b_plan (analysis/guided_b.py, GUIDED_PLAN=1) on the frozen suites' own maps
+# (their grid and seed: n = 40, 80, 160 x N = 1, 4, 16, 64, 50 maps per cell), beside the rules that lead each
+# scenario, then the paired tables (analysis/guided_summary.py). A plain evaluation with a suite's grid, seed and
+# scenario plays exactly that scenario's maps, so one scenario can be run alone. Every obstacle scenario; of the
+# prior-error suite's 22, the prior right and each family the probe found the policy worse than coverage, at
+# severity 1. Also the paper's 12 hard cells (100 maps each) against term/b. One core; hours; each evaluation
+# resumes where it stopped.
+#   bash analysis/guided_suites.sh                 # everything, then the tables
+#   PART=guided bash analysis/guided_suites.sh     # only the guided policy's evaluations (PART=baselines: the rest)
 set -euo pipefail
 GUIDED=${GUIDED:-runs/train/guided/b_plan/model.zip}
-T="threads=1 progress_bar=false"
-guided() { GUIDED_PLAN=1 python analysis/guided_b.py evaluate suite=$1 checkpoint="$GUIDED" $T \
-    out_dir=runs/suite/$1/policy/guided/b_plan; }
-rule() { local s=$1; shift; python -m searchrl.evaluate suite=$s +model=b $T "$@"; }
-policy() { python -m searchrl.evaluate suite=$1 checkpoint=runs/reference/$2/model.zip $T; }
-SUITES=${*:-obstacles prior_error}
-for s in $SUITES; do  # every name checked before any evaluation starts
-  case $s in obstacles|prior_error) ;; *) echo "error: suite $s is not allowed: obstacles or prior_error" >&2; exit 2;; esac
+PART=${PART:-all}
+OUT=runs/eval/guided_suite
+SUITE="grid.world_sizes=[40,80,160] grid.n_targets=[8,16,32] grid.n_distributions=[16,32,64] grid.max_agents=[64,128,256]
+       grid.agents=[1,4,16,64] grid.maps_per_cell=50 grid.repeats=1 seed=7000000 threads=1 progress_bar=false"
+HARD="grid.world_sizes=[40,80,160] grid.n_targets=[8,16,32] grid.n_distributions=[16,32,64] grid.max_agents=[2,8,32]
+      grid.maps_per_cell=100 grid.repeats=1 threads=1 progress_bar=false"  # N up to 2, 8, 32: the hard cells
+guided() { [ "$PART" = baselines ] || GUIDED_PLAN=1 python analysis/guided_b.py evaluate checkpoint="$GUIDED" $2 $3 \
+    out_dir=$1/b_plan; }
+rule() { [ "$PART" = guided ] || python -m searchrl.evaluate +model=b $3 $4 controller=$2 out_dir=$1/$2 ${5:-}; }
+term_b() { [ "$PART" = guided ] || python -m searchrl.evaluate checkpoint=runs/reference/term/b/model.zip $2 $3 \
+    out_dir=$1/term_b; }
+O=$OUT/obstacles  # the suite's scenario labels, in its order
+declare -A WALLS=([paper]="scenario=paper" [iid0.1c]="scenario=walls scenario.obstacles.density=0.1"
+  [iid0.2c]="scenario=walls" [iid0.3c]="scenario=walls scenario.obstacles.density=0.3" [primal]="scenario=primal"
+  [maze3l0.1]="scenario=maze" [rooms12d3]="scenario=rooms")
+for s in paper iid0.1c iid0.2c iid0.3c primal maze3l0.1 rooms12d3; do
+  guided $O/$s "${WALLS[$s]}" "$SUITE"
+  rule $O/$s path_greedy "${WALLS[$s]}" "$SUITE"
 done
-for s in $SUITES; do
-  guided $s
-  case $s in
-    obstacles)
-      rule $s controller=path_greedy
-      rule $s controller=greedy_target controller.reach=2
-      policy $s walls/b;;
-    prior_error)
-      rule $s controller=greedy_target controller.reach=2
-      rule $s controller=coverage
-      rule $s controller=switch controller.threshold=0.25
-      policy $s robust/b;;
-  esac
-  python analysis/suite.py runs/suite/$s --focus policy:train/guided/b_plan --out analysis/out/suite_$s/guided_b_plan
+rule $O/paper greedy_target "scenario=paper" "$SUITE" controller.reach=2  # the best rule on the open grid
+term_b $O/paper "scenario=paper" "$SUITE"
+guided $OUT/hard/paper "scenario=paper" "$HARD"
+term_b $OUT/hard/paper "scenario=paper" "$HARD"
+P=$OUT/prior_error
+declare -A WRONG=([var1]="scenario=sharp" [var1+adversarial1]="scenario=adversarial" [var1+shifted1]="scenario=shifted"
+  [var1+off_prior1]="scenario=off_prior" [var1+tempered1p0]="scenario=flatter")
+for s in var1+adversarial1 var1+shifted1 var1+off_prior1 var1 var1+tempered1p0; do
+  S="${WRONG[$s]} scenario.prior.variance_scale=1.0"
+  guided $P/$s "$S" "$SUITE"
+  rule $P/$s greedy_target "$S" "$SUITE" controller.reach=2
+  rule $P/$s coverage "$S" "$SUITE"
+  rule $P/$s switch "$S" "$SUITE" controller.threshold=0.25
+done
+[ "$PART" = all ] || exit 0
+for s in obstacles prior_error hard; do
+  python analysis/guided_summary.py b_plan --probe $OUT/$s --out analysis/out/guided_suite/$s
 done

@@ -32,7 +32,7 @@ parser.add_argument("--out", default=None)
 args = parser.parse_args()
 out = Path(args.out or f"analysis/out/guided_probe/{args.tag}")
 KEY = ["n", "N", "map_seed", "repeat"]
-RULES = ("path_greedy", "greedy_target", "coverage")
+RULES = ("path_greedy", "greedy_target", "coverage", "switch")
 
 # %% [markdown]
 # Each controller against the guided policy on the maps both ran (all of them: the probe runs the same cells, maps
