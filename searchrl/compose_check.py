@@ -69,11 +69,11 @@ def check_jobs_compose(argv: list[str], config_name: str) -> None:
             try:
                 compose(config_name=config_name, overrides=overrides)
             except Exception as error:  # Hydra's ConfigCompositionException, OmegaConf's validation errors
-                failure = (what, error)
+                failure = (what, error, _nearest_keys(compose, config_name, overrides))
                 break
     GlobalHydra.instance().clear()
     if failure is not None:
-        what, error = failure
+        what, error, nearest = failure
         lines = [str(error).strip()] + ([str(error.__cause__).strip()] if error.__cause__ else [])
         message = "; ".join(line.splitlines()[0] for line in lines if line)
         merging = re.match(r"Error merging override (\S+); (.*)", message)
@@ -88,4 +88,36 @@ def check_jobs_compose(argv: list[str], config_name: str) -> None:
         if unknown:
             given = [arg for arg in argv if arg.lstrip("+~").partition("=")[0] == unknown.group(1)]
             what, message = what or (given[0] if given else unknown.group(1)), unknown.group(2)
+        missing = re.match(r"Key '([^']+)' not in '[^']+'", message)
+        if missing and missing.group(1) in nearest:  # a misspelt setting, worded as schema.unknown_keys words it
+            near = nearest[missing.group(1)]
+            message = "no such setting" + (f" (did you mean {near}?)" if near else "")
         refuse(f"{what or 'the command line'} is not allowed: {message}")
+
+
+def _nearest_keys(compose, config_name: str, overrides: list[str]) -> dict[str, str | None]:
+    """{leaf: nearest existing setting or None} for each override `a.b.leaf=v` whose key the config composed without
+    it lacks (a misspelt setting: Hydra says only "Key 'leaf' not in 'Schema'"); {} if that config does not compose."""
+    from difflib import get_close_matches
+
+    from omegaconf import DictConfig, OmegaConf
+
+    from searchrl.paths import CONF_DIR
+
+    keys = [
+        o.partition("=")[0]
+        for o in overrides  # settings, not the group choices that shape the config
+        if "=" in o and not o.startswith(("+", "~")) and not (CONF_DIR / o.partition("=")[0]).is_dir()
+    ]
+    try:
+        cfg = compose(config_name=config_name, overrides=[o for o in overrides if o.partition("=")[0] not in keys])
+    except Exception:
+        return {}
+    nearest: dict[str, str | None] = {}
+    for key in keys:
+        parent, _, leaf = key.rpartition(".")
+        node = OmegaConf.select(cfg, parent) if parent else cfg
+        if isinstance(node, DictConfig) and leaf not in node:
+            near = get_close_matches(leaf, [str(k) for k in node], n=1, cutoff=0.6)
+            nearest[leaf] = f"{parent + '.' if parent else ''}{near[0]}" if near else None
+    return nearest

@@ -445,7 +445,13 @@ def test_group_options_that_exist_and_what_hydra_checks_pass_the_command_line_ch
         (["seed=abc"], "train", ["seed=abc is not allowed", "'abc' of type 'str'"]),
         (["+model=b", "env.world.fov=x"], "train", ["env.world.fov=x is not allowed"]),
         (["+experiment=term/b", "total_timesteps=1e6"], "train", ["total_timesteps=1e6 is not allowed"]),
-        (["network.lstm_hiden=64"], "train", ["network.lstm_hiden=64 is not allowed", "not in 'NetworkConfig'"]),
+        (["network.lstm_hiden=64"], "train",
+         ["network.lstm_hiden=64 is not allowed: no such setting (did you mean network.lstm_hidden_size?)"]),
+        (["controller=surfing", "controller.w_pp=1"], "evaluate",
+         ["controller.w_pp=1 is not allowed: no such setting (did you mean controller.w_p?)"]),
+        (["-m", "grid.map_per_cell=2,3"], "evaluate",
+         ["grid.map_per_cell=2,3 is not allowed: no such setting (did you mean grid.maps_per_cell?)"]),
+        (["network.zzz=1"], "train", ["network.zzz=1 is not allowed: no such setting"]),
     ],
 )  # fmt: skip
 def test_a_job_that_cannot_compose_is_one_line_before_hydra(capsys, argv, app, needles):
