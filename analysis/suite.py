@@ -41,7 +41,7 @@ import numpy as np
 import pandas as pd
 
 from searchrl.analysis import cli
-from searchrl.analysis.stats import bootstrap_mean_ci
+from searchrl.analysis.stats import bootstrap_mean_ci, worst_tenth
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import cell_files, load
 
@@ -147,15 +147,6 @@ if GROUP == "family":
 
 
 # %%
-def worst_tenth(frame: pd.DataFrame) -> float:
-    """Mean over the cells of the mean of the worst 10 % of maps (at least one) of each cell."""
-    tails = []
-    for _, cell in frame.groupby(["n", "N"]):
-        values = np.sort(per_map(cell).to_numpy())
-        tails.append(values[: max(1, int(np.ceil(0.1 * len(values))))].mean())
-    return float(np.mean(tails))
-
-
 groups = (["paper"] if (episodes[GROUP] == "paper").any() else []) + families
 tail_rows = {c: {f: f"{worst_tenth(episodes[(episodes['controller'] == c) & (episodes[GROUP] == f)]):.3f}"
                  for f in groups} for c in controllers}  # fmt: skip

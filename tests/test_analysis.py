@@ -81,11 +81,13 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
 
         args = ["+model=b", *TINY, "total_timesteps=768", "imitation.teacher=oracle_switch", "imitation.epochs=0",
                 "imitation.rl_weight=0.5", f"hydra.run.dir={out_dir / 'run'}"]  # fmt: skip
-    if notebook == "guided_summary.py":  # a probe as analysis/guided_probe.sh lays it out: one scenario, three folders
-        probe = out_dir / "probe" / "paper"
-        probe.mkdir(parents=True)
-        for name, source in (("mine", eval_dirs[2]), ("coverage", eval_dirs[1]), ("path_greedy", eval_dirs[0])):
-            (probe / name).symlink_to(source)
+    if notebook == "guided_summary.py":  # a probe as analysis/guided_probe.sh lays it out: two scenarios, then whole
+        surfing, coverage, policy = eval_dirs
+        for scenario, folders in (("paper", {"path_greedy": surfing, "coverage": coverage, "mine": policy}),
+                                  ("sharp", {"coverage": coverage, "mine": surfing})):  # fmt: skip
+            (out_dir / "probe" / scenario).mkdir(parents=True)
+            for name, source in folders.items():
+                (out_dir / "probe" / scenario / name).symlink_to(source)
         args = ["mine", "--probe", str(out_dir / "probe"), "--out", str(out_dir)]
     if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
         args = [str(eval_dirs[0].parent.parent), str(out_dir)]
@@ -140,8 +142,9 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                      "moves.md": ("Blocked / stale: per family, the mean share of a team's moves a wall or agent", 4),
                      "quality.md": ("Mean found fraction per bin of prior quality (the same episodes for every", None)},
         "oracle_teacher.py": {},
-        "guided_summary.py": {"summary.md": ("Mean found fraction per scenario; beside each baseline: mine", 3),
-                              "best_rule.md": ("mine against the best rule probed in each scenario", 3)},
+        "guided_summary.py": {"summary.md": ("Mean found fraction per scenario; beside each baseline: mine", 5),
+                              "best_rule.md": ("mine against the best rule of each scenario", 5),
+                              "tail.md": ("Worst-10 % tail: per scenario and cell", 5)},
         "shipped.py": {"shipped.md": ("| policy | RL agent-steps | RL hours (1 core) | policy found | paper |", 6)},
         "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
                      "sweep_curves.png": (780, 480)},
@@ -158,6 +161,13 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
             lines = path.read_text().splitlines()
             assert lines[0].startswith(want[0]), (name, lines[0])
             assert want[1] is None or sum(line.startswith("|") for line in lines) == want[1], name
+    if notebook == "guided_summary.py":  # whole: each map's mean over both scenarios, for the controllers of both
+        lines = (tmp_path / "summary.md").read_text().splitlines()
+        cells = [[c.strip() for c in line.strip("|").split("|")] for line in lines if line.startswith(("| s", "| w"))]
+        row = dict(zip(cells[0], cells[-1], strict=True))
+        assert cells[-1][0] == "whole", cells
+        assert row["path_greedy"] == "" and row["coverage"].endswith(", 24 maps)")  # not run under sharp
+        assert row["best rule"].startswith("coverage")
     if notebook == "missed_targets.py":  # every unfound target is counted once, in one distance bin
         rows = pd.read_csv(tmp_path / "small.csv")
         assert list(rows.cell) == ["n20_N1", "n20_N2"] and (rows.episodes == 6).all()

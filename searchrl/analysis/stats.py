@@ -44,6 +44,17 @@ def bootstrap_mean_ci(
     return float(values.mean()), float(np.quantile(means, tail)), float(np.quantile(means, 1 - tail))
 
 
+def worst_tenth(episodes: pd.DataFrame) -> float:
+    """The worst-10 % tail of episodes with columns n, N, map_seed and found_fraction: per cell (n, N), the mean of
+    its worst tenth of maps (at least one; a map's rows, its repeats or scenarios, averaged first), averaged over
+    the cells. How badly a controller can fail, where a mean hides it."""
+    tails = []
+    for _, cell in episodes.groupby(["n", "N"]):
+        values = np.sort(cell.groupby("map_seed")["found_fraction"].mean().to_numpy())
+        tails.append(values[: max(1, int(np.ceil(0.1 * len(values))))].mean())
+    return float(np.mean(tails))
+
+
 def summarize(episodes: pd.DataFrame, metric: str = "found_fraction", n_boot: int = 2000) -> pd.DataFrame:
     """One row per (controller, model, n, N): mean of `metric` with a 95 % CI. Repeats of a map are averaged
     first, so the bootstrap resamples maps, the independent units. Where episodes have their map's search bound
