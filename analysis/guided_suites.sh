@@ -3,9 +3,8 @@
 # (their grid and seed: n = 40, 80, 160 x N = 1, 4, 16, 64, 50 maps per cell), beside the rules that lead each
 # scenario, then the paired tables (analysis/guided_summary.py). A plain evaluation with a suite's grid, seed and
 # scenario plays exactly that scenario's maps, so one scenario can be run alone. Every obstacle scenario; of the
-# prior-error suite's 22, the prior right and each family the probe found the policy worse than coverage, at
-# severity 1. Also the paper's 12 hard cells (100 maps each) against term/b. One core; hours; each evaluation
-# resumes where it stopped.
+# prior-error suite's 22, the prior right and each family at severity 1. Also the paper's 12 hard cells (100 maps
+# each) against term/b. One core; hours; each evaluation resumes where it stopped.
 #   bash analysis/guided_suites.sh                 # everything, then the tables
 #   PART=guided bash analysis/guided_suites.sh     # only the guided policy's evaluations (PART=baselines: the rest)
 set -euo pipefail
@@ -35,8 +34,10 @@ guided $OUT/hard/paper "scenario=paper" "$HARD"
 term_b $OUT/hard/paper "scenario=paper" "$HARD"
 P=$OUT/prior_error
 declare -A WRONG=([var1]="scenario=sharp" [var1+adversarial1]="scenario=adversarial" [var1+shifted1]="scenario=shifted"
-  [var1+off_prior1]="scenario=off_prior" [var1+tempered1p0]="scenario=flatter")
-for s in var1+adversarial1 var1+shifted1 var1+off_prior1 var1 var1+tempered1p0; do
+  [var1+off_prior1]="scenario=off_prior" [var1+tempered1p0]="scenario=flatter" [var1+misweighted1]="scenario=misweighted"
+  [var1+tempered1p4]="scenario=sharper" [var1+uninformed1]="scenario=uninformed")
+for s in var1+adversarial1 var1+shifted1 var1+off_prior1 var1 var1+tempered1p0 var1+misweighted1 var1+tempered1p4 \
+    var1+uninformed1; do
   S="${WRONG[$s]} scenario.prior.variance_scale=1.0"
   guided $P/$s "$S" "$SUITE"
   rule $P/$s greedy_target "$S" "$SUITE" controller.reach=2
@@ -47,3 +48,4 @@ done
 for s in obstacles prior_error hard; do
   python analysis/guided_summary.py b_plan --probe $OUT/$s --out analysis/out/guided_suite/$s
 done
+python analysis/compare.py $OUT/hard/paper/b_plan $OUT/hard/paper/term_b --out analysis/out/guided_suite/hard/vs_term_b

@@ -14,7 +14,7 @@
 # (the highest mean among path_greedy, target-greedy, coverage and the evidence switch): `best_rule.md`; and each
 # controller's worst-10 % tail (per cell the mean of its worst tenth of maps, averaged over the cells): `tail.md`.
 # Where two scenarios or more were run, a last row, `whole`, takes each map's mean over every scenario, for the
-# controllers run on all of them.
+# controllers run on all of them (on the maps each ran under every one).
 #
 #     python analysis/guided_summary.py b [--probe runs/eval/guided_probe] [--out analysis/out/guided_probe/b]
 #     python analysis/guided_summary.py b_plan --probe runs/eval/guided_suite/obstacles \
@@ -53,7 +53,8 @@ for scenario in sorted(p for p in Path(args.probe).iterdir() if (p / args.tag).i
                                 for c in sorted(scenario.iterdir()) if c.is_dir()}  # fmt: skip
 if len(scenarios) > 1:
     everywhere = set.intersection(*(set(frames) for frames in scenarios.values()))
-    scenarios["whole"] = {c: pd.concat([frames[c] for frames in scenarios.values()], axis=1).mean(axis=1)
+    # each map's mean over the scenarios, on the maps a controller ran under every one of them
+    scenarios["whole"] = {c: pd.concat([frames[c] for frames in scenarios.values()], axis=1).dropna().mean(axis=1)
                           for c in sorted(everywhere)}  # fmt: skip
 
 
