@@ -69,11 +69,11 @@ def check_jobs_compose(argv: list[str], config_name: str) -> None:
             try:
                 compose(config_name=config_name, overrides=overrides)
             except Exception as error:  # Hydra's ConfigCompositionException, OmegaConf's validation errors
-                failure = (what, error, _nearest_keys(compose, config_name, overrides))
+                failure = (what, error, _misspelt_hints(compose, config_name, overrides))
                 break
     GlobalHydra.instance().clear()
     if failure is not None:
-        what, error, nearest = failure
+        what, error, hints = failure
         lines = [str(error).strip()] + ([str(error.__cause__).strip()] if error.__cause__ else [])
         message = "; ".join(line.splitlines()[0] for line in lines if line)
         merging = re.match(r"Error merging override (\S+); (.*)", message)
@@ -89,20 +89,18 @@ def check_jobs_compose(argv: list[str], config_name: str) -> None:
             given = [arg for arg in argv if arg.lstrip("+~").partition("=")[0] == unknown.group(1)]
             what, message = what or (given[0] if given else unknown.group(1)), unknown.group(2)
         missing = re.match(r"Key '([^']+)' not in '[^']+'", message)
-        if missing and missing.group(1) in nearest:  # a misspelt setting, worded as schema.unknown_keys words it
-            near = nearest[missing.group(1)]
-            message = "no such setting" + (f" (did you mean {near}?)" if near else "")
+        if missing and missing.group(1) in hints:  # a misspelt setting, worded as schema.unknown_keys words it
+            message = "no such setting" + hints[missing.group(1)]
         refuse(f"{what or 'the command line'} is not allowed: {message}")
 
 
-def _nearest_keys(compose, config_name: str, overrides: list[str]) -> dict[str, str | None]:
-    """{leaf: nearest existing setting or None} for each override `a.b.leaf=v` whose key the config composed without
-    it lacks (a misspelt setting: Hydra says only "Key 'leaf' not in 'Schema'"); {} if that config does not compose."""
-    from difflib import get_close_matches
-
+def _misspelt_hints(compose, config_name: str, overrides: list[str]) -> dict[str, str]:
+    """{leaf: its `schema.nearest` hint} for each override `a.b.leaf=v` whose key the config composed without it
+    lacks (a misspelt setting: Hydra says only "Key 'leaf' not in 'Schema'"); {} if that config does not compose."""
     from omegaconf import DictConfig, OmegaConf
 
     from searchrl.paths import CONF_DIR
+    from searchrl.schema import nearest
 
     keys = [
         o.partition("=")[0]
@@ -113,11 +111,10 @@ def _nearest_keys(compose, config_name: str, overrides: list[str]) -> dict[str, 
         cfg = compose(config_name=config_name, overrides=[o for o in overrides if o.partition("=")[0] not in keys])
     except Exception:
         return {}
-    nearest: dict[str, str | None] = {}
+    hints: dict[str, str] = {}
     for key in keys:
         parent, _, leaf = key.rpartition(".")
         node = OmegaConf.select(cfg, parent) if parent else cfg
         if isinstance(node, DictConfig) and leaf not in node:
-            near = get_close_matches(leaf, [str(k) for k in node], n=1, cutoff=0.6)
-            nearest[leaf] = f"{parent + '.' if parent else ''}{near[0]}" if near else None
-    return nearest
+            hints[leaf] = nearest(leaf, [str(k) for k in node], f"{parent}." if parent else "")
+    return hints

@@ -95,9 +95,14 @@ def check_group_choices(argv: list[str]) -> None:
             if key == "model" and option in HEURISTICS:
                 refuse(f"{arg} is not allowed: {option} is a heuristic controller, not a model; evaluate it with "
                        f"`python -m searchrl.evaluate controller={option}`; models: {listed}")  # fmt: skip
-            near = get_close_matches(option, options, n=1, cutoff=0.6)
-            hint = f" (did you mean {key}={near[0]}?)" if near else ""
+            hint = nearest(option, options, f"{key}=")
             refuse(f"{arg} is not allowed: conf/{key}/ has no {option!r}{hint}; options: {listed}")
+
+
+def nearest(word: str, options: list[str], prefix: str = "") -> str:
+    """` (did you mean <prefix><option>?)` for the option closest to a misspelt `word`, or "" where none is close."""
+    near = get_close_matches(word, options, n=1, cutoff=0.6)
+    return f" (did you mean {prefix}{near[0]}?)" if near else ""
 
 
 def override_keys(overrides: list[str]) -> list[str]:
@@ -124,10 +129,9 @@ def unknown_keys(cfg: DictConfig) -> list[str]:
         for key in node:
             name = f"{path}.{key}" if path else str(key)
             if known is not None and key not in known:
-                near = get_close_matches(str(key), known, n=1, cutoff=0.6)
                 value = node._get_node(key)
                 shown = f"{name}={value._value()!r}" if isinstance(value, ValueNode) else name
-                hint = f" (did you mean {path + '.' if path else ''}{near[0]}?)" if near else ""
+                hint = nearest(str(key), known, f"{path}." if path else "")
                 found.append(f"{shown} is not allowed: no such setting{hint}")
                 continue
             walk(node._get_node(key), name)
