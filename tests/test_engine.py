@@ -16,7 +16,7 @@ from searchrl.world.engine import SearchWorld
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_worlds
 from searchrl.world.state import allocate
-from searchrl.world.step import check_actions
+from searchrl.world.step import check_actions, numpy_sum, step
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
 
@@ -92,6 +92,39 @@ def test_metrics_accumulate_team_totals():
             total_r[k] = total_info[k] = total_pairs[k] = found[k] = 0
             checked += 1
     assert checked >= 3
+
+
+@pytest.mark.parametrize("n_agents", [1, 7, 8, 13, 130])
+def test_rewards_and_tallies_are_specs_sums_in_numpy_bit_for_bit(n_agents):
+    """The compiled step adds each agent's reward terms in SPEC.md's order and sums the team's rewards and
+    information as numpy sums a row (up to 8, to 128 and above: every branch of `numpy_sum`), so the rewards and
+    the episode's tallies equal the same formula worked in numpy, bit for bit."""
+    config = WorldConfig(world_size=(20, 20), n_targets=(2, 4), n_agents=n_agents, max_steps=12)
+    state = allocate(config, 3)
+    rng = np.random.default_rng(n_agents)
+    reset_worlds(config, state, np.ones(3, bool), rng)
+    for _ in range(10):
+        before = state.copy()
+        result = step(config, state, rng.integers(0, config.n_actions, size=(3, n_agents)), rng)
+        reward64 = (config.step_reward + config.collision_reward * result.collided
+                    + config.target_reward * result.targets_found + (config.xi / config.lam) * result.info_collected
+                    + (config.tau / config.lam) * result.comm_gain)  # fmt: skip
+        np.testing.assert_array_equal(result.reward, reward64.astype(np.float32))
+        np.testing.assert_array_equal(state.ep_return, before.ep_return + reward64.sum(axis=1))
+        np.testing.assert_array_equal(state.ep_info, before.ep_info + result.info_collected.sum(axis=1))
+        np.testing.assert_array_equal(state.ep_collisions, before.ep_collisions + result.collided.sum(axis=1))
+        np.testing.assert_array_equal(state.ep_comm_pairs, before.ep_comm_pairs + result.comm_pairs)
+        np.testing.assert_array_equal(state.t, before.t + 1)
+        np.testing.assert_array_equal(result.terminated, state.n_found == state.n_targets)
+        np.testing.assert_array_equal(result.truncated, (state.t >= config.max_steps) & ~result.terminated)
+    assert (state.ep_return != 0).all()
+
+
+def test_numpy_sum_is_numpys_sum_of_a_row_at_every_length():
+    rng = np.random.default_rng(0)
+    for count in range(1_100):
+        values = rng.normal(size=count + 5) * 10.0 ** rng.integers(-6, 6, size=count + 5)
+        assert numpy_sum(values, 3, count) == values[3 : 3 + count].sum(), count
 
 
 @pytest.mark.parametrize(

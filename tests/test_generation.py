@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from searchrl.world.config import WorldConfig
-from searchrl.world.maps import gaussian_mixture, probability_map, uncertainty_map
+from searchrl.world.maps import gaussian_components, gaussian_mixture, probability_map, uncertainty_map
 from searchrl.world.reset import reset_worlds
 from searchrl.world.scenario import IidObstacles, Scenario
 from searchrl.world.state import allocate
@@ -26,6 +26,29 @@ def test_maps_follow_eq_7_and_8():
     assert p.sum() == pytest.approx(1.0) and u.sum() == pytest.approx(1.0)
     assert p.min() >= 0.1 / 900 - 1e-15  # the η baseline: every cell keeps η / n²
     assert u.min() >= 0.0
+
+
+def _numpy_components(n, m, variance_high, variance_low, rho_max, rng):
+    """Eq. 6's m densities in plain numpy broadcasts, the formula `gaussian_components` works in compiled code."""
+    mu = rng.uniform(0.0, n - 1.0, size=(m, 2))
+    var = rng.uniform(variance_low, variance_high, size=(m, 2))
+    rho = rng.uniform(-rho_max, rho_max, size=m)
+    sx, sy = np.sqrt(var[:, 0]), np.sqrt(var[:, 1])
+    coords = np.arange(n, dtype=np.float64)
+    dx = ((coords[None, :] - mu[:, 0:1]) / sx[:, None])[:, None, :]
+    dy = ((coords[None, :] - mu[:, 1:2]) / sy[:, None])[:, :, None]
+    one_minus = (1.0 - rho**2)[:, None, None]
+    quad = dx**2 + dy**2 - 2.0 * rho[:, None, None] * dx * dy
+    return np.exp(quad / -(2.0 * one_minus)) / (2.0 * np.pi * sx * sy * np.sqrt(one_minus[:, 0, 0]))[:, None, None]
+
+
+@pytest.mark.parametrize("n, m", [(1, 1), (7, 3), (40, 16), (83, 5)])
+def test_gaussian_components_are_the_formula_in_numpy_bit_for_bit(n, m):
+    """The compiled exponent changes no bit of the maps, so no world drawn before it changes."""
+    for seed in range(5):
+        got = gaussian_components(n, m, 10.0 * n, 1.0, 0.8, np.random.default_rng(seed))
+        want = _numpy_components(n, m, 10.0 * n, 1.0, 0.8, np.random.default_rng(seed))
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
 
 
 def test_reset_writes_a_consistent_world():

@@ -21,6 +21,10 @@ from searchrl.world.step import step
 # the worlds among the threads, so the one-world case measures the cost of threads it cannot use.
 CASES = (("n40_N8_K64", 40, 8, 64), ("n160_N256_K1", 160, 256, 1))
 _TABLE2 = {20: (4, 8), 40: (8, 16), 80: (16, 32), 160: (32, 64)}  # n -> (targets, distributions)
+# Where a window's time goes. Stepping and observing are the world's parallel kernels (and the Python around them);
+# drawing the actions and resetting finished worlds run in the calling thread whatever the thread count, so their
+# share at one thread bounds what more threads can gain (Amdahl's law).
+PARTS = ("actions", "step", "observe", "reset")
 
 
 def _load_oracle() -> tuple[Callable, Callable] | None:
@@ -52,25 +56,36 @@ def case_config(n: int, n_agents: int) -> WorldConfig:
 
 
 def _steps(config: WorldConfig, state: WorldState, step_fn: Callable, observe_fn: Callable, rng: np.random.Generator,
-           seconds: float, min_steps: int) -> float:  # fmt: skip
-    """Agent-steps/s of one window: step + observe + reset of finished worlds, random actions."""
+           seconds: float, min_steps: int) -> tuple[float, dict[str, float]]:  # fmt: skip
+    """Agent-steps/s of one window: step + observe + reset of finished worlds, random actions; and the shares of
+    the window's wall time (`PARTS`) spent drawing the actions, stepping, observing and resetting."""
     n_worlds = state.n_worlds
+    spent = dict.fromkeys(PARTS, 0.0)
     steps, start = 0, time.perf_counter()
     while steps < min_steps or time.perf_counter() - start < seconds:
+        t0 = time.perf_counter()
         actions = rng.integers(0, config.n_actions, size=(n_worlds, config.n_agents))
+        t1 = time.perf_counter()
         result = step_fn(config, state, actions, rng)
+        t2 = time.perf_counter()
         observe_fn(config, state)
+        t3 = time.perf_counter()
         done = result.terminated | result.truncated
         if done.any():
             reset_worlds(config, state, done, rng)
+        t4 = time.perf_counter()
+        for part, took in zip(PARTS, (t1 - t0, t2 - t1, t3 - t2, t4 - t3), strict=True):
+            spent[part] += took
         steps += 1
-    return steps * n_worlds * config.n_agents / (time.perf_counter() - start)
+    wall = time.perf_counter() - start
+    return steps * n_worlds * config.n_agents / wall, {part: took / wall for part, took in spent.items()}
 
 
 def measure(config: WorldConfig, n_worlds: int, step_fn: Callable, observe_fn: Callable, seconds: float,
-            min_steps: int = 1, repeats: int = 3, threads: Sequence[int] = (0,)) -> dict[int, float]:  # fmt: skip
-    """Agent-steps/s of step + observe + reset of finished worlds, random actions, at each numba thread count of
-    `threads` (0: leave numba's as it is), after one warm-up step at each.
+            min_steps: int = 1, repeats: int = 3, threads: Sequence[int] = (0,)
+            ) -> dict[int, tuple[float, dict[str, float]]]:  # fmt: skip
+    """(agent-steps/s, the shares of its wall time by `PARTS`) of step + observe + reset of finished worlds, random
+    actions, at each numba thread count of `threads` (0: leave numba's as it is), after one warm-up step at each.
 
     The best of `repeats` windows of `seconds / repeats` each is reported (as `timeit` does): on a shared
     2-core machine the slower windows measure the neighbours, not the engine. The thread counts take turns window
@@ -79,8 +94,12 @@ def measure(config: WorldConfig, n_worlds: int, step_fn: Callable, observe_fn: C
     rng = np.random.default_rng(0)
     state = allocate(config, n_worlds)
     reset_worlds(config, state, np.ones(n_worlds, bool), rng)
+    # Clocks spread over an episode: worlds reset together would reset all at once every max_steps steps, and a
+    # window shorter than that would hold all of those resets or none, at random; spread, each window resets its
+    # share, as a long run does on average.
+    state.t[:] = np.arange(n_worlds) * config.max_steps // n_worlds
     before = numba.get_num_threads()
-    best = dict.fromkeys(threads, 0.0)
+    best: dict[int, tuple[float, dict[str, float]]] = {t: (0.0, {}) for t in threads}
     try:
         for t in threads:  # warm-up (numba compile or cache load, numba's threads started)
             numba.set_num_threads(t or before)
@@ -88,8 +107,8 @@ def measure(config: WorldConfig, n_worlds: int, step_fn: Callable, observe_fn: C
         for _ in range(repeats):
             for t in threads:
                 numba.set_num_threads(t or before)
-                speed = _steps(config, state, step_fn, observe_fn, rng, seconds / repeats / len(threads), min_steps)
-                best[t] = max(best[t], speed)
+                window = _steps(config, state, step_fn, observe_fn, rng, seconds / repeats / len(threads), min_steps)
+                best[t] = max(best[t], window, key=lambda speed_shares: speed_shares[0])
     finally:
         numba.set_num_threads(before)
     return best
@@ -107,15 +126,19 @@ def run(seconds: float = 3.0, threads: Sequence[int] | None = None, log: TextIO 
         buffers = observation_buffers(config, n_worlds)  # reused, as SearchWorld does
         speeds = measure(config, n_worlds, step, lambda c, s, b=buffers: observe(c, s, b), seconds, min_steps=20,
                          threads=threads)  # fmt: skip
-        first = speeds[threads[0]]
+        first, first_shares = speeds[threads[0]]
         parts = []
         for t in threads:
-            rows.append({"case": name, "engine": "batched", "threads": t, "agent_steps_per_s": round(speeds[t], 1)})
-            scaling = f", {speeds[t] / first:.2f}x" if t != threads[0] else ""
-            parts.append(f"{speeds[t]:>12,.0f} ({t} thread{'s' if t > 1 else ''}{scaling})")
+            speed, shares = speeds[t]
+            rows.append({"case": name, "engine": "batched", "threads": t, "agent_steps_per_s": round(speed, 1),
+                         **{f"{part}_share": round(share, 4) for part, share in shares.items()}})  # fmt: skip
+            scaling = f", {speed / first:.2f}x" if t != threads[0] else ""
+            parts.append(f"{speed:>12,.0f} ({t} thread{'s' if t > 1 else ''}{scaling})")
         line = f"{name:>14}: batched {' '.join(parts)} agent-steps/s"
+        serial = first_shares["actions"] + first_shares["reset"]
+        line += f" | actions + resets {serial:.0%} at {threads[0]} thread{'s' if threads[0] > 1 else ''}"
         if oracle is not None:
-            slow = measure(config, n_worlds, oracle[0], oracle[1], seconds, min_steps=1, repeats=1)[0]
+            slow = measure(config, n_worlds, oracle[0], oracle[1], seconds, min_steps=1, repeats=1)[0][0]
             rows.append({"case": name, "engine": "oracle", "threads": 1, "agent_steps_per_s": round(slow, 1)})
             line += f" | oracle {slow:>10,.0f} | ratio {first / slow:>7.1f}x (threads={threads[0]})"
         if log:

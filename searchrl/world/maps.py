@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
+
+from searchrl.world.kernels import CACHE
 
 
 def gaussian_components(
@@ -21,14 +24,26 @@ def gaussian_components(
     dx = (coords[None, :] - mu[:, 0:1]) / sx[:, None]  # (m, n) over x
     dy = (coords[None, :] - mu[:, 1:2]) / sy[:, None]  # (m, n) over y
     one_minus = 1.0 - rho**2
-    # exp(-quad / (2(1 - ρ²))) / (2π σx σy √(1 - ρ²)), worked in place in one (m, n_y, n_x) array: at n = 160 each
-    # temporary is 13 MB. The same operations in the same order, so the same bits (a negated divisor is exact).
-    density = dx[:, None, :] ** 2 + dy[:, :, None] ** 2
-    density -= 2.0 * rho[:, None, None] * dx[:, None, :] * dy[:, :, None]
-    np.divide(density, -(2.0 * one_minus)[:, None, None], out=density)
+    # exp(-quad / (2(1 - ρ²))) / (2π σx σy √(1 - ρ²)) in one (m, n_y, n_x) array: the exponent in one compiled
+    # pass, then numpy's exp and the normalisation in place. The same operations in the same order as numpy's
+    # broadcasts, so the same bits (a negated divisor is exact; tests/test_generation.py holds them).
+    density = np.empty((m, n, n), np.float64)
+    _exponents(dx, dy, 2.0 * rho, -(2.0 * one_minus), density)
     np.exp(density, out=density)
     density /= (2.0 * np.pi * sx * sy * np.sqrt(one_minus))[:, None, None]
     return density
+
+
+@njit(cache=CACHE)
+def _exponents(dx, dy, two_rho, divisor, out):
+    """out[i, y, x] = (dx[i, x]² + dy[i, y]² − (2ρ_i · dx[i, x]) · dy[i, y]) / divisor[i], eq. 6's exponent for
+    dx, dy (m, n) the standardised distances, two_rho and divisor (m,) and out (m, n, n) float64."""
+    for i in range(out.shape[0]):
+        for y in range(out.shape[1]):
+            dy2 = dy[i, y] * dy[i, y]
+            for x in range(out.shape[2]):
+                quad = dx[i, x] * dx[i, x] + dy2
+                out[i, y, x] = (quad - two_rho[i] * dx[i, x] * dy[i, y]) / divisor[i]
 
 
 def gaussian_mixture(

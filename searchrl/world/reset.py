@@ -4,9 +4,11 @@ the batched state, other worlds untouched. The order of the draws is searchrl/wo
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import team_sensing_rate
+from searchrl.world.kernels import CACHE
 from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
@@ -52,40 +54,52 @@ def reset_world(
     start = rng.choice(np.flatnonzero(free_for_agents.ravel()), size=n_agents, replace=False)
     pos = np.stack(np.divmod(start.astype(np.int64), n), axis=1)  # (N, 2)
 
-    state.size[k] = n
-    state.t[k] = 0
-    state.p[k] = 0.0
-    state.u[k] = 0.0
-    state.p[inner] = p
-    state.u[inner] = u
-    state.blocked[k] = True
-    state.blocked[inner] = ~free
-    state.age_rate[k] = config.belief_age * team_sensing_rate(state.blocked[k : k + 1], n_agents)[0]
-    state.belief[k, :, 0] = state.p[k]  # every agent starts from the prior (§3.2.1)
-    state.belief[k, :, 1] = state.u[k]
-    side = state.p.shape[1]
-    state.belief_box[k] = (side, -1, side, -1)  # empty: beliefs equal the prior
-    state.pos[k] = pos
-    state.occupant[k] = -1
-    state.occupant[k, pos[:, 0] + h, pos[:, 1] + h] = np.arange(n_agents, dtype=np.int32)
+    _write_world(state.arrays(), k, p, u, free, pos, targets)
+    if config.belief_age > 0:  # else 0: the rate (a count of free cells) is not needed
+        state.age_rate[k] = config.belief_age * team_sensing_rate(state.blocked[k : k + 1], n_agents)[0]
     state.belief_time[k] = 0  # both are (K, N, 0, 0), and this a no-op, in a world that keeps neither
     state.belief_seen[k] = 1.0
     update_freshness(config, state, k, k + 1)  # the first observation already counts the neighbours in view
-    state.target_valid[k] = False
-    state.target_found[k] = False
-    state.target_valid[k, :j] = True
-    state.target_pos[k] = 0
-    state.target_pos[k, :j] = targets
-    state.found_grid[k] = False
-    state.swept[k] = False
-    state.n_targets[k] = j
-    state.n_found[k] = 0
     state.obs_scale[k] = (_unit_scale(state.p[inner].max()), _unit_scale(state.u[inner].max()))
-    state.ep_return[k] = 0.0
-    state.ep_comm_pairs[k] = 0
-    state.ep_info[k] = 0.0
-    state.ep_collisions[k] = 0
-    state.ep_stale[k] = 0
+
+
+@njit(cache=CACHE)
+def _write_world(w, k, p, u, free, pos, targets):
+    """Write world k of w (`WorldState.arrays()`) in one compiled call: its side, the prior p and u (n, n) float64
+    as float32 inside the halo and 0 outside, the cells blocked outside `free` (n, n) bool and on the halo, every
+    agent's belief the prior (an empty belief box), the agents at pos (N, 2) int64, the targets (j, 2) int64 to
+    find, and the clock, age rate and episode tallies at 0. belief_time, belief_seen and obs_scale are left to
+    the caller."""
+    state_p, state_u, blocked, occupant, found_grid, swept = w.p, w.u, w.blocked, w.occupant, w.found_grid, w.swept
+    belief, belief_box, agent_pos, target_pos = w.belief, w.belief_box, w.pos, w.target_pos
+    target_valid, target_found = w.target_valid, w.target_found
+    n, h, side = p.shape[0], w.halo, state_p.shape[1]  # fields read once (kernels.py: no view in the loops)
+    w.size[k], w.t[k], w.age_rate[k] = n, 0, 0.0
+    for r in range(side):
+        for c in range(side):
+            inside = h <= r < h + n and h <= c < h + n
+            state_p[k, r, c] = p[r - h, c - h] if inside else 0.0
+            state_u[k, r, c] = u[r - h, c - h] if inside else 0.0
+            blocked[k, r, c] = not free[r - h, c - h] if inside else True
+            occupant[k, r, c] = -1
+            found_grid[k, r, c] = False
+            swept[k, r, c] = False
+    for i in range(pos.shape[0]):  # every agent starts from the prior (§3.2.1)
+        for r in range(side):
+            for c in range(side):
+                belief[k, i, 0, r, c] = state_p[k, r, c]
+                belief[k, i, 1, r, c] = state_u[k, r, c]
+        belief_box[k, i, 0], belief_box[k, i, 1] = side, -1  # empty: the belief equals the prior
+        belief_box[k, i, 2], belief_box[k, i, 3] = side, -1
+        agent_pos[k, i, 0], agent_pos[k, i, 1] = pos[i, 0], pos[i, 1]
+        occupant[k, pos[i, 0] + h, pos[i, 1] + h] = i
+    for s in range(target_valid.shape[1]):
+        real = s < targets.shape[0]
+        target_valid[k, s], target_found[k, s] = real, False
+        target_pos[k, s, 0] = targets[s, 0] if real else 0
+        target_pos[k, s, 1] = targets[s, 1] if real else 0
+    w.n_targets[k], w.n_found[k] = targets.shape[0], 0
+    w.ep_return[k], w.ep_comm_pairs[k], w.ep_info[k], w.ep_collisions[k], w.ep_stale[k] = 0.0, 0, 0.0, 0, 0
 
 
 def reset_worlds(config: WorldConfig, state: WorldState, mask: np.ndarray, rng: np.random.Generator,

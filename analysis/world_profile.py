@@ -1,0 +1,84 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
+
+# %% [markdown]
+# # Where one thread's world time goes (a benchmark)
+#
+# The loop of `python -m searchrl.bench world` (random actions, step, observation, resets of finished worlds; model
+# B's settings) at (n, N, K) = (40, 8, 64) on one numba thread, each call timed: the two parallel kernels
+# (`step_worlds`, `observe_into`), the Python around them, the resets and the action draws, as shares of the wall
+# time over 2,000 steps, three runs. Only the kernels share their worlds among threads; the rest runs in the calling
+# thread, so its share s bounds two threads at 1 / (s + (1 − s) / 2) (Amdahl's law). The figures of
+# docs/performance.md came from this script at 3ef57a5 and at the commit that added it, one sitting.
+#
+#     python analysis/world_profile.py
+
+# %%
+import time
+
+import numba
+import numpy as np
+
+from searchrl.bench.world import case_config
+from searchrl.world import observe as observe_module
+from searchrl.world import step as step_module
+from searchrl.world.observe import observe
+from searchrl.world.reset import reset_worlds
+from searchrl.world.state import allocate
+
+KERNELS = {"step_worlds": step_module, "observe_into": observe_module}
+spent: dict[str, float] = {}
+
+
+def timed(name, kernel):
+    def call(*args):
+        start = time.perf_counter()
+        kernel(*args)
+        spent[name] += time.perf_counter() - start
+
+    return call
+
+
+for name, module in KERNELS.items():  # the wrappers look the kernels up in their modules at each call
+    setattr(module, name, timed(name, getattr(module, name)))
+
+# %% [markdown]
+# The worlds' clocks are spread over an episode, as the bench spreads them, so each stretch of steps resets its
+# share of the worlds.
+
+# %%
+numba.set_num_threads(1)
+config, n_worlds, steps = case_config(40, 8), 64, 2_000
+for run in range(3):
+    rng = np.random.default_rng(run)
+    state = allocate(config, n_worlds)
+    reset_worlds(config, state, np.ones(n_worlds, bool), rng)
+    state.t[:] = np.arange(n_worlds) * config.max_steps // n_worlds
+    parts = dict.fromkeys(("actions", "step + observe", "resets"), 0.0)
+    for warm_up in (True, False):
+        spent.update(dict.fromkeys(KERNELS, 0.0))
+        parts.update(dict.fromkeys(parts, 0.0))
+        begin = time.perf_counter()
+        for _ in range(50 if warm_up else steps):
+            t0 = time.perf_counter()
+            actions = rng.integers(0, config.n_actions, size=(n_worlds, config.n_agents))
+            t1 = time.perf_counter()
+            result = step_module.step(config, state, actions, rng)
+            observe(config, state)
+            t2 = time.perf_counter()
+            if result.done.any():
+                reset_worlds(config, state, result.done, rng)
+            t3 = time.perf_counter()
+            parts["actions"] += t1 - t0
+            parts["step + observe"] += t2 - t1
+            parts["resets"] += t3 - t2
+        wall = time.perf_counter() - begin
+    kernels = sum(spent.values())
+    serial = 1 - kernels / wall
+    print(f"run {run}: {steps * n_worlds * config.n_agents / wall:,.0f} agent-steps/s; kernels {kernels / wall:.1%}, "
+          f"Python around them {(parts['step + observe'] - kernels) / wall:.1%}, resets {parts['resets'] / wall:.1%},"
+          f" actions {parts['actions'] / wall:.1%}; outside the kernels {serial:.1%}: two threads at most "
+          f"{1 / (serial + (1 - serial) / 2):.2f}x")  # fmt: skip
