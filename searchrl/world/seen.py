@@ -51,15 +51,15 @@ def _remember_sightings(w, support, seen, known, view, phi, forget, first, stop,
     """`remember_sightings` on up to `threads` threads."""
     n_chunks = chunk_count(stop - first, stop - first, threads)
     if n_chunks == 1:  # in this thread (one world after a reset, say): no parallel region to start
-        remember_span(w, support, seen, known, view, phi, forget, first, stop)
+        _remember_span(w, support, seen, known, view, phi, forget, first, stop)
         return
     for chunk in prange(n_chunks):
         start, end = chunk_span(chunk, n_chunks, first, stop)
-        remember_span(w, support, seen, known, view, phi, forget, start, end)
+        _remember_span(w, support, seen, known, view, phi, forget, start, end)
 
 
 @njit(cache=CACHE)
-def remember_span(w, support, seen, known, view, phi, forget, first, stop):
+def _remember_span(w, support, seen, known, view, phi, forget, first, stop):
     """`remember_sightings` for worlds first..stop-1, in this thread; no view taken in the loops (kernels.py)."""
     pos, occupant, t, h = w.pos, w.occupant, w.t, w.halo
     dr, dc, g = support.dr, support.dc, support.g

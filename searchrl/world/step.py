@@ -12,7 +12,7 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT
 from searchrl.world.kernels import CACHE
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
-from searchrl.world.seen import remember_span
+from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
 from searchrl.world.swept import sweep
@@ -56,7 +56,8 @@ def step(
     """Advance every world one step in place. actions: (K, N) ints in [0, config.n_actions); `rng` draws the
     contested-cell tie-breaks (K, N) and the detection uniforms (K, targets), world k's from its own stream when
     given WorldStreams. All of SPEC.md's phases, the rewards and the episode's tallies included, run in one
-    compiled call whose worlds are shared among numba's threads: the Python side only checks and draws."""
+    compiled call whose worlds are shared among numba's threads: the Python side checks and draws (and brings the
+    freshness maps up to date, where the world keeps them)."""
     actions = check_actions(config, state, actions)
     k, n = actions.shape
     threads = world_threads()
@@ -75,9 +76,10 @@ def step(
     )
     out = (result.collided, result.targets_found, result.info_collected, np.empty((k, n), np.bool_),
            result.comm_pairs, result.comm_gain, result.reward, result.terminated, result.truncated)  # fmt: skip
-    radii = np.array([config.explicit_area // 2, config.comm_range // 2, config.fov // 2], np.int64)
+    radii = np.array([config.explicit_area // 2, config.comm_range // 2], np.int64)
     step_worlds(state.arrays(), actions, priority, detect, MOVES, SUPPORT, config.sensing_rate(state.size), radii,
                 config.communication, _reward_terms(config), config.max_steps, scratch, out, threads)  # fmt: skip
+    update_freshness(config, state, 0, k)  # observation only: when each agent last saw a cell, what it saw sensed
     return result
 
 
@@ -94,7 +96,7 @@ def step_worlds(w, actions, priority, detect, moves, support, c_coef, radii, mer
     """SPEC.md's step (move, detect, sense and sweep, refresh, communicate, reward, time) for every world of w, the
     worlds shared among numba's threads (searchrl/world/parallel.py). actions (K,N) int64, priority (K,N) and
     detect (K,T) float64 the step's draws, moves (A,2) int64, support a `Footprint`, c_coef (K,) float64 λk, radii
-    (3,) int64 those of Φ, of communication and of the view, merge whether beliefs merge, reward_terms
+    (2,) int64 those of Φ and of communication, merge whether beliefs merge, reward_terms
     (`_reward_terms`), max_steps the episode's length, scratch a `Scratch`; out = (collided (K,N) bool, found_by
     (K,N) int64, collected (K,N) float64, stale (K,N) bool, comm_pairs (K,) int64, comm_gain (K,N) float64, reward
     (K,N) float32, terminated (K,) bool, truncated (K,) bool) is written; `threads` (`parallel.world_threads()`)
@@ -120,7 +122,7 @@ def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merg
                out, slot, first, stop):  # fmt: skip
     """`step_worlds` for worlds first..stop-1, with scratch slot `slot` and work space of its own."""
     collided, found_by, collected, stale, comm_pairs, comm_gain = out[:6]
-    phi, comm_radius, view = radii[0], radii[1], radii[2]
+    phi, comm_radius = radii[0], radii[1]
     n_agents, n_support = actions.shape[1], support.dr.shape[0]
     target, candidate = np.empty((n_agents, 2), np.int64), np.empty(n_agents, np.bool_)
     cover_agent, cover_g = np.empty(n_support, np.int64), np.empty(n_support, np.float64)
@@ -136,8 +138,6 @@ def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merg
     kernels.refresh_beliefs(w, first, stop, phi)
     kernels.communicate(w, first, stop, comm_radius, merge, nbrs, n_nbrs, region, offset, comm_pairs, comm_gain)
     _account(w, first, stop, reward_terms, max_steps, out, np.empty(n_agents, np.float64))
-    # observation only: when each agent last saw a cell, and what the neighbours it saw sensed (seen.py)
-    remember_span(w, support, w.belief_seen, w.belief_time, view, phi, True, first, stop)
 
 
 @njit(cache=CACHE)
