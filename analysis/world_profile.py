@@ -12,7 +12,7 @@
 # (`step_worlds`, `observe_into`), the Python around them, the resets and the action draws, as shares of the wall
 # time over 2,000 steps, three runs. Only the kernels share their worlds among threads; the rest runs in the calling
 # thread, so its share s bounds two threads at 1 / (s + (1 − s) / 2) (Amdahl's law). The figures of
-# docs/performance.md came from this script at 3ef57a5 and at 857ac36, one sitting.
+# docs/performance.md came from this script at 3ef57a5 (two sittings) and at c04606f.
 #
 #     python analysis/world_profile.py
 
