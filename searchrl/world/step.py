@@ -137,33 +137,38 @@ def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merg
     sweep(w, first, stop, support, stale)
     kernels.refresh_beliefs(w, first, stop, phi)
     kernels.communicate(w, first, stop, comm_radius, merge, nbrs, n_nbrs, region, offset, comm_pairs, comm_gain)
-    _account(w, first, stop, reward_terms, max_steps, out, np.empty(n_agents, np.float64))
+    _account(w, first, stop, reward_terms, max_steps, out, np.empty(n_agents), np.empty(n_agents))
 
 
 @njit(cache=CACHE)
-def _account(w, first, stop, reward_terms, max_steps, out, reward64):
+def _account(w, first, stop, reward_terms, max_steps, out, reward64, info64):
     """Phases 6 and 7 of SPEC.md for worlds first..stop-1: each agent's reward into out's reward (float32), the
-    clock and the episode's end into out's terminated and truncated, and the episode's tallies. reward64 (N,)
-    float64 is work space. The terms are added in SPEC.md's order and the team's sums are numpy's (`numpy_sum`),
-    so the figures are those of the same sums in numpy, bit for bit."""
+    clock and the episode's end into out's terminated and truncated, and the episode's tallies. reward64 and info64
+    (N,) float64 are work space. The terms are added in SPEC.md's order and the team's sums are numpy's
+    (`numpy_sum`), so the figures are those of the same sums in numpy, bit for bit."""
     collided, found_by, collected, stale, comm_pairs, comm_gain, reward, terminated, truncated = out
     step_reward, collision_reward, target_reward, info_weight, comm_weight = reward_terms
+    t, n_found, n_targets = w.t, w.n_found, w.n_targets  # fields read once (kernels.py: no view in the loops)
+    ep_return, ep_info, ep_comm_pairs, ep_collisions, ep_stale = (w.ep_return, w.ep_info, w.ep_comm_pairs,
+                                                                  w.ep_collisions, w.ep_stale)  # fmt: skip
+    n_agents = reward64.shape[0]
     for k in range(first, stop):
         n_collided = n_stale = 0
-        for i in range(reward64.shape[0]):
+        for i in range(n_agents):
             reward64[i] = (step_reward + collision_reward * collided[k, i] + target_reward * found_by[k, i]
                            + info_weight * collected[k, i] + comm_weight * comm_gain[k, i])  # fmt: skip
             reward[k, i] = np.float32(reward64[i])
+            info64[i] = collected[k, i]
             n_collided += collided[k, i]
             n_stale += stale[k, i]
-        w.t[k] += 1
-        terminated[k] = w.n_found[k] == w.n_targets[k]
-        truncated[k] = w.t[k] >= max_steps and not terminated[k]
-        w.ep_return[k] += numpy_sum(reward64, 0, reward64.shape[0])
-        w.ep_info[k] += numpy_sum(collected[k], 0, collected.shape[1])
-        w.ep_comm_pairs[k] += comm_pairs[k]
-        w.ep_collisions[k] += n_collided
-        w.ep_stale[k] += n_stale
+        t[k] += 1
+        terminated[k] = n_found[k] == n_targets[k]
+        truncated[k] = t[k] >= max_steps and not terminated[k]
+        ep_return[k] += numpy_sum(reward64, 0, n_agents)
+        ep_info[k] += numpy_sum(info64, 0, n_agents)
+        ep_comm_pairs[k] += comm_pairs[k]
+        ep_collisions[k] += n_collided
+        ep_stale[k] += n_stale
 
 
 @njit(cache=CACHE)
