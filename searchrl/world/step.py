@@ -164,26 +164,27 @@ def _account(w, first, stop, reward_terms, max_steps, out, reward64, info64):
         t[k] += 1
         terminated[k] = n_found[k] == n_targets[k]
         truncated[k] = t[k] >= max_steps and not terminated[k]
-        ep_return[k] += numpy_sum(reward64, 0, n_agents)
-        ep_info[k] += numpy_sum(info64, 0, n_agents)
+        ep_return[k] += numpy_sum(reward64)
+        ep_info[k] += numpy_sum(info64)
         ep_comm_pairs[k] += comm_pairs[k]
         ep_collisions[k] += n_collided
         ep_stale[k] += n_stale
 
 
 @njit(cache=CACHE)
-def numpy_sum(values, first, count):
-    """values[first:first + count].sum() as numpy adds a contiguous float64 row, so a tally made here equals
+def numpy_sum(values):
+    """values.sum() as numpy adds a contiguous float64 row (N,), so a tally made here equals
     numpy's bit for bit (tests/test_engine.py checks every length up to 1,100): numpy sums a row of up to 128 in
     eight partial sums (`_block_sum`) and a longer one as the sum of its halves, the first a multiple of 8 long.
     Those halves are walked with a stack, not by recursion: numba cannot load a cached recursive function
     (numba issue #6061: a segfault)."""
+    count = values.shape[0]
     if count <= 128:
-        return _block_sum(values, first, count)
+        return _block_sum(values, 0, count)
     starts, counts = np.empty(64, np.int64), np.empty(64, np.int64)  # a frame per half being summed
     stage, left = np.zeros(64, np.int64), np.empty(64, np.float64)  # 0: to do, 1: first half, 2: second half
     top, total = 0, 0.0
-    starts[0], counts[0] = first, count
+    starts[0], counts[0] = 0, count
     while top >= 0:
         n = counts[top]
         half = n // 2 - (n // 2) % 8
