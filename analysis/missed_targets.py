@@ -90,7 +90,7 @@ rows = []
 for key in CELLS:
     tally = {"missed": np.zeros(4, np.int64), "all": np.zeros(4, np.int64)}
 
-    def count(state, first, tally=tally):
+    def count(state, first, playing, tally=tally):
         tally["missed"] += edge_bins(state, first, state.target_valid & ~state.target_found)
         tally["all"] += edge_bins(state, first, state.target_valid)
 

@@ -68,6 +68,37 @@ def test_finished_worlds_reset_alone_with_final_observation_and_metrics():
         np.testing.assert_array_equal(tr.vector, vector)
 
 
+@pytest.mark.parametrize("scenario", [{}, {"obstacles": {"kind": "iid", "density": 0.2}}])
+def test_a_world_that_starts_another_episode_plays_it_as_a_fresh_world_would(scenario):
+    """`start_episodes` in worlds that have stepped gives them the episode `from_maps` starts from the same map seed
+    and stream: the same state and observation, then the same steps; the world left alone is untouched."""
+    from searchrl.world.scenario import Scenario
+    from searchrl.world.streams import WorldStreams
+
+    config, scenario = WorldConfig(world_size=(12, 20), n_targets=(4, 8), n_agents=6), Scenario.from_dict(scenario)
+    fresh = SearchWorld.from_maps(config, [11, 12, 13], WorldStreams([(1, 0), (2, 0), (3, 0)]), scenario)
+    used = SearchWorld.from_maps(config, [5, 6, 13], WorldStreams([(7, 0), (8, 0), (9, 0)]), scenario)
+    rng = np.random.default_rng(0)
+    for _ in range(7):
+        used.step(rng.integers(0, config.n_actions, size=(3, config.n_agents)))
+    left = copy.deepcopy(used.state)
+    used.start_episodes([2, 0], [13, 11], [(3, 0), (1, 0)])  # map 13 was drawn before: written again, not redrawn
+    for _ in range(40):
+        actions = rng.integers(0, config.n_actions, size=(3, config.n_agents))
+        for k in (0, 2):
+            np.testing.assert_array_equal(used.observation[0][k], fresh.observation[0][k])
+            np.testing.assert_array_equal(used.observation[1][k], fresh.observation[1][k])
+            for name, value in vars(used.state).items():
+                if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == 3:
+                    np.testing.assert_array_equal(value[k], getattr(fresh.state, name)[k], err_msg=name)
+        if left is not None:
+            for name, value in vars(left).items():
+                if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == 3:
+                    np.testing.assert_array_equal(getattr(used.state, name)[1], value[1], err_msg=name)
+            left = None
+        used.step(actions), fresh.step(actions)
+
+
 def test_metrics_accumulate_team_totals():
     config = WorldConfig(world_size=(8, 12), n_targets=(1, 3), n_agents=4, max_steps=9)
     world = SearchWorld(config, n_worlds=3, seed=1)
@@ -187,10 +218,33 @@ def test_bench_train_takes_a_machine_and_refuses_a_missing_device_in_one_line(ca
     assert err[-1].startswith("python -m searchrl.bench: error: device=") and "not allowed" in err[-1]
 
 
+def test_bench_eval_counts_the_worlds_steps_against_the_episodes(capsys):
+    """`bench eval` on named cells: the episodes' steps are the cells' Σ L, and the worlds stepped more (a world
+    whose episode ended steps with the batch until the last one ends)."""
+    from searchrl.bench.evaluate import GRID
+    from searchrl.controllers.factory import heuristic_factory
+    from searchrl.evaluate.runner import run_cell
+
+    assert bench_main(["eval", "--controller", "random", "--maps", "2", "--repeats", "3", "--cells", "n20_N2,n20_N32",
+                       "--json"]) == 0  # fmt: skip
+    (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    factory = heuristic_factory("random")
+    lengths = sum(int(run_cell(factory, WorldConfig(), GRID[i], i, 2, 3, 7_000_000, needs_observation=False).L.sum())
+                  for i in (1, 5))  # fmt: skip
+    assert row["case"] == "random_n20_N2+n20_N32_2maps_3repeats" and row["episode_steps"] == lengths
+    assert lengths < row["world_steps"] and row["busy_share"] == round(lengths / row["world_steps"], 4)
+
+
 def test_bench_rejects_bad_arguments(capsys):
     with pytest.raises(SystemExit):
         bench_main(["world", "--seconds", "0"])
     assert "--seconds=0.0 is not allowed" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        bench_main(["eval", "--cells", "n20_N2,n21_N1"])
+    assert "--cells=n20_N2,n21_N1 is not allowed: a comma-separated list of n20_N1, n20_N2," in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        bench_main(["eval", "--repeats", "0"])
+    assert "--repeats=0 is not allowed: 1 <= repeats <= 100" in capsys.readouterr().err
 
 
 def test_belief_age_dims_what_an_agent_saw_long_ago_and_only_that():

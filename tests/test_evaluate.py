@@ -172,6 +172,9 @@ def test_batches_threads_and_shards_change_no_episode(tmp_path, controller):
         split = _evaluate(tmp_path / "split", controller, "batch_mb=0.01", "threads=2", f"shard={shard}",
                           "num_shards=3", *cells)  # fmt: skip
     pd.testing.assert_frame_equal(_episodes(whole), _episodes(split))
+    # 1-3 worlds a batch: each starts the cell's next episode while the others still play theirs
+    few = _evaluate(tmp_path / "few", controller, "batch_mb=0.1", *cells)
+    pd.testing.assert_frame_equal(_episodes(whole), _episodes(few))
     # The repeats of a map are distinct episodes (their own streams), not one episode written twice
     first, second = (whole[whole.repeat == r].reset_index(drop=True) for r in (0, 1))
     assert (first[["L", "R"]].to_numpy() != second[["L", "R"]].to_numpy()).any()
@@ -250,8 +253,10 @@ def test_a_record_made_before_an_option_existed_resumes_at_its_default(tmp_path,
     assert len(_evaluate(tmp_path, "controller=greedy", "shard=1", "num_shards=2")) == 18
 
 
-def test_run_cell_shows_each_episode_end_once():
-    """`on_done` sees every world's final state exactly once, with the found targets the episode's row reports."""
+@pytest.mark.parametrize("budget_mb", [1024.0, 0.05])
+def test_run_cell_shows_each_episode_end_once(budget_mb):
+    """`on_done` sees every episode's final state exactly once, with the found targets the episode's row reports,
+    whether each world plays one episode or one after another."""
     from searchrl.controllers.greedy import FootprintGreedy
     from searchrl.evaluate.runner import run_cell
     from searchrl.world.config import WorldConfig
@@ -259,13 +264,13 @@ def test_run_cell_shows_each_episode_end_once():
     cell = table2_cells([20], [4], [8], [2])[1]  # n = 20, N = 2
     seen, found = [], {}
 
-    def on_done(state, first):
-        seen.extend(np.flatnonzero(first).tolist())
+    def on_done(state, first, playing):
+        seen.extend(playing[first].tolist())
         for w in np.flatnonzero(first):
-            found[int(w)] = state.n_found[w] / state.n_targets[w]
+            found[int(playing[w])] = state.n_found[w] / state.n_targets[w]
 
     frame = run_cell(lambda c, s: FootprintGreedy(c, seed=s), WorldConfig(), cell, 1, maps=3, repeats=2, seed=5,
-                     needs_observation=False, on_done=on_done)  # fmt: skip
+                     budget_mb=budget_mb, needs_observation=False, on_done=on_done)  # fmt: skip
     assert sorted(seen) == list(range(6))
     assert np.allclose([found[w] for w in range(6)], frame.found_fraction)
 

@@ -28,7 +28,8 @@ def main(argv: list[str] | None = None) -> int:
     elif args.suite == "eval":
         from searchrl.bench import evaluate
 
-        rows = evaluate.run(args.controller or "surfing", args.maps, args.checkpoint, args.threads, device, log=log)
+        rows = evaluate.run(args.controller or "surfing", args.maps, args.checkpoint, args.threads, device, log=log,
+                            repeats=args.repeats, cells=args.cells)  # fmt: skip
     elif args.suite == "policy":
         from searchrl.bench import policy
 

@@ -1,6 +1,8 @@
-"""Evaluation throughput: a heuristic, or a policy checkpoint, on every Table 2 cell with a few maps; agent-steps/s
-and the projected time of the full grid (3000 maps × 5 repeats). Smaller batches than the full run's make the
-projection pessimistic."""
+"""Evaluation throughput: a heuristic, or a policy checkpoint, on the Table 2 cells (all, or those named) with a few
+maps; agent-steps/s, the projected time of the full grid (3000 maps × 5 repeats), and the work the worlds did:
+`world_steps` (each step of the batch counts its K worlds) against `episode_steps` (the steps of the episodes
+played, Σ L), whose ratio `busy_share` is the share of the worlds' steps that belonged to an episode. Fewer episodes
+a cell than the full run's make the projection pessimistic: the cell's batch holds fewer worlds."""
 
 from __future__ import annotations
 
@@ -9,19 +11,22 @@ from typing import TextIO
 
 from searchrl.controllers.factory import heuristic_factory, policy_factory
 from searchrl.evaluate.grid import table2_cells
-from searchrl.evaluate.runner import run_cell
+from searchrl.evaluate.runner import cell_config, run_cell, worlds_per_batch
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
 from searchrl.threads import use_threads
 from searchrl.world.config import WorldConfig
 
 FULL_EPISODES_PER_CELL = 100 * 5
+GRID = table2_cells([20, 40, 80, 160], [4, 8, 16, 32], [8, 16, 32, 64], [32, 64, 128, 256])
 
 
 def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = None, threads: int = 2,
-        device: str = "cpu", log: TextIO | None = None) -> list[dict]:  # fmt: skip
+        device: str = "cpu", log: TextIO | None = None, repeats: int = 1, cells: str | None = None,
+        ) -> list[dict]:  # fmt: skip
     """One row: agent-steps/s of `controller`, or of `checkpoint`'s policy with its network on `device` (a checked
-    one, searchrl/policies/device.py), over every Table 2 cell with `maps` maps of one repeat."""
-    cells = table2_cells([20, 40, 80, 160], [4, 8, 16, 32], [8, 16, 32, 64], [32, 64, 128, 256])
+    one, searchrl/policies/device.py), over the Table 2 cells (`cells`, comma-separated keys: all by default) with
+    `maps` maps of `repeats` repeats, as the evaluation runs them (its memory budget per batch)."""
+    keys = None if cells is None else set(cells.split(","))
     if checkpoint:
         use_threads(threads, network_on_cpu=str(device) == "cpu")
         world = WorldConfig.from_dict(checkpoint_config(checkpoint)[0])
@@ -32,18 +37,32 @@ def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = No
         name, world = controller, WorldConfig()
         factory = heuristic_factory(name, check=world)
     observed = checkpoint is not None
-    run_cell(factory, world, cells[0], 0, 1, 1, 0, needs_observation=observed)  # warm-up: numba cache
-    steps = [0]
+    run_cell(factory, world, GRID[0], 0, 1, 1, 0, needs_observation=observed)  # warm-up: numba cache
+    steps, world_steps, episode_steps = [0], [0], 0
     start = time.perf_counter()
-    for index, cell in enumerate(cells):
-        run_cell(factory, world, cell, index, maps, 1, 7_000_000, needs_observation=observed,
-                 on_steps=lambda s: steps.__setitem__(0, steps[0] + s))  # fmt: skip
+    for index, cell in enumerate(GRID):
+        if keys is not None and cell.key not in keys:
+            continue
+        slots = min(worlds_per_batch(cell_config(world, cell), 1024.0), maps * repeats)  # run_cell's batch
+
+        def tally(agent_steps: int, slots: int = slots) -> None:  # called once a step
+            steps[0] += agent_steps
+            world_steps[0] += slots
+
+        frame = run_cell(factory, world, cell, index, maps, repeats, 7_000_000, needs_observation=observed,
+                         on_steps=tally)  # fmt: skip
+        episode_steps += int(frame["L"].sum())
     elapsed = time.perf_counter() - start
     rate = steps[0] / elapsed
-    projected = elapsed * FULL_EPISODES_PER_CELL / maps
-    row = {"case": f"{controller}_table2_{maps}maps", "engine": "evaluate", "device": str(device),
-           "agent_steps_per_s": round(rate, 1), "projected_full_grid_s": round(projected, 1)}  # fmt: skip
+    projected = elapsed * FULL_EPISODES_PER_CELL / (maps * repeats)
+    what = "table2" if keys is None else "+".join(sorted(keys))
+    row = {"case": f"{controller}_{what}_{maps}maps_{repeats}repeats", "engine": "evaluate", "device": str(device),
+           "agent_steps_per_s": round(rate, 1), "seconds": round(elapsed, 1),
+           "projected_full_grid_s": round(projected, 1) if keys is None else None, "world_steps": world_steps[0],
+           "episode_steps": episode_steps, "busy_share": round(episode_steps / max(1, world_steps[0]), 4)}  # fmt: skip
     if log:
-        print(f"{row['case']}: {rate:,.0f} agent-steps/s over {len(cells)} cells ({elapsed:.1f} s); full grid "
-              f"(3000 maps x 5 repeats) projected {projected / 60:.1f} min, limit 20 min", file=log)  # fmt: skip
+        print(f"{row['case']}: {rate:,.0f} agent-steps/s over {len(GRID) if keys is None else len(keys)} cells "
+              f"({elapsed:.1f} s); {row['busy_share']:.0%} of the worlds' steps in an episode", file=log)  # fmt: skip
+        if keys is None:
+            print(f"full grid (3000 maps x 5 repeats) projected {projected / 60:.1f} min, limit 20 min", file=log)
     return [row]

@@ -13,7 +13,8 @@ SUITES = {
     "world": "engine throughput, batched against the oracle, at numba thread counts (--threads 1,2, --seconds)",
     "memory": "bytes of world state per configuration",
     "train": "agent-steps/s of RL and the shares of its wall time (--updates, --experiment, --machine, --device)",
-    "eval": "evaluation throughput on the grid (--controller or --checkpoint, --maps, --threads, --device)",
+    "eval": "evaluation throughput on the grid (--controller or --checkpoint, --maps, --repeats, --cells, --threads, "
+    "--device)",
     "policy": "inference of a checkpoint: SB3 predict against the traced actor (--checkpoint, --threads, --seconds, "
     "--device)",
 }
@@ -50,6 +51,9 @@ def parser() -> argparse.ArgumentParser:
     sub["eval"].add_argument("--controller", choices=list(HEURISTICS),
                              help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
     sub["eval"].add_argument("--maps", type=int, default=10, help="maps per cell (1 to 1000)")
+    sub["eval"].add_argument("--repeats", type=int, default=1, help="episodes per map (1 to 100; the grid's 5)")
+    sub["eval"].add_argument("--cells", metavar="KEY[,KEY...]",
+                             help="only these Table 2 cells, e.g. n160_N256,n80_N128 (default: all 30)")  # fmt: skip
     sub["eval"].add_argument("--checkpoint", help="a policy model.zip instead of --controller")
     sub["policy"].add_argument("--checkpoint", required=True, help="a model.zip, e.g. runs/reference/b/model.zip")
     for name in ("eval", "policy"):  # of a checkpoint's network: a heuristic runs on the CPU
@@ -79,11 +83,20 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
         ("--threads", "threads", lambda v: 1 <= v <= 256, "1 <= threads <= 256"),
         ("--updates", "updates", lambda v: 1 <= v <= 1000, "1 <= updates <= 1000"),
         ("--maps", "maps", lambda v: 1 <= v <= 1000, "1 <= maps <= 1000"),
+        ("--repeats", "repeats", lambda v: 1 <= v <= 100, "1 <= repeats <= 100"),
     ]
     for flag, attr, ok, allowed in checks:
         value = getattr(args, attr, None)
         if value is not None and not (ok(value) and math.isfinite(value)):
             parser.error(f"{flag}={value} is not allowed: {allowed}")
+    cells = getattr(args, "cells", None)
+    if cells is not None:
+        from searchrl.bench.evaluate import GRID
+
+        known = [cell.key for cell in GRID]
+        unknown = [key for key in cells.split(",") if key not in known]
+        if unknown or not cells:
+            parser.error(f"--cells={cells} is not allowed: a comma-separated list of {', '.join(known)}")
     experiment = getattr(args, "experiment", None)
     if experiment is not None and experiment not in recipes():
         known = ", ".join(recipes())

@@ -1,4 +1,4 @@
-"""Run a controller on one grid cell: `maps` maps × `repeats` repeats as batched worlds, one episode each."""
+"""Run a controller on one grid cell: `maps` maps × `repeats` repeats, one episode each, in batched worlds."""
 
 from __future__ import annotations
 
@@ -65,16 +65,18 @@ def run_cell(
     budget_mb: float = 1024.0,
     needs_observation: bool = True,
     on_steps: Callable[[int], None] | None = None,
-    on_done: Callable[[WorldState, np.ndarray], None] | None = None,
+    on_done: Callable[[WorldState, np.ndarray, np.ndarray], None] | None = None,
     scenario: Scenario = PAPER,
 ) -> pd.DataFrame:
     """One row per episode (COLUMNS from n on). Every repeat of a map starts from
     the same world (map, targets and start cells come from the map seed); repeats differ in the step draws and the
     controller's own randomness, each episode's from its own streams (`episode_keys`; `controller_factory(config,
-    streams)` builds a controller drawing from them), so `budget_mb` changes how many worlds step together and
-    nothing else. `on_steps(agent_steps)` counts the agent-steps of running episodes after each step;
-    `on_done(state, first)` sees the batch's state when the worlds in `first` (K,) bool end their episode
-    (analysis/missed_targets.py reads it). `scenario` draws each map's obstacles and targets (the paper's by
+    streams)` builds a controller drawing from them). As many worlds as fit `budget_mb` step together, each
+    starting the cell's next episode when its own ends (`play_episodes`), so `budget_mb` changes how many step
+    together and nothing else. `on_steps(agent_steps)` counts the agent-steps of running episodes after each step;
+    `on_done(state, first, playing)` sees the batch's state when the worlds in `first` (K,) bool end their
+    episodes, `playing` (K,) the index of each world's episode in the cell (its row: analysis/missed_targets.py
+    reads it). `scenario` draws each map's obstacles and targets (the paper's by
     default): a map seed gives the same prior under every scenario."""
     config = cell_config(world, cell)
     episodes = [(m, r) for m in range(maps) for r in range(repeats)]
@@ -83,17 +85,15 @@ def run_cell(
     def count(_: SearchWorld, counted: np.ndarray) -> None:
         on_steps(int(counted.sum()) * config.n_agents)
 
+    seeds = [map_seed(seed, cell_index, m) for m, _ in episodes]
+    final = play_episodes(controller_factory, config, seeds, episode_keys(seed, cell_index, episodes), scenario,
+                          needs_observation, count if on_steps else None, on_done, slots=batch)  # fmt: skip
     rows = []
-    for start in range(0, len(episodes), batch):
-        chunk = episodes[start : start + batch]
-        seeds = [map_seed(seed, cell_index, m) for m, _ in chunk]
-        final = play_episodes(controller_factory, config, seeds, episode_keys(seed, cell_index, chunk), scenario,
-                              needs_observation, count if on_steps else None, on_done)  # fmt: skip
-        for w, (_, r) in enumerate(chunk):
-            rows.append(
-                {"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "map_seed": seeds[w], "repeat": r,
-                 **{name: final[name][w] for name in ("found_fraction", "L", "R", "F", "M_bar", "prior_quality")},
-                 "blocked": final["collisions"][w] / max(1, final["L"][w] * cell.n_agents),
-                 "stale": final["stale"][w] / max(1, final["L"][w] * cell.n_agents)}
-            )  # fmt: skip
+    for e, (_, r) in enumerate(episodes):
+        rows.append(
+            {"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "map_seed": seeds[e], "repeat": r,
+             **{name: final[name][e] for name in ("found_fraction", "L", "R", "F", "M_bar", "prior_quality")},
+             "blocked": final["collisions"][e] / max(1, final["L"][e] * cell.n_agents),
+             "stale": final["stale"][e] / max(1, final["L"][e] * cell.n_agents)}
+        )  # fmt: skip
     return pd.DataFrame(rows)

@@ -11,9 +11,9 @@ import numpy as np
 from searchrl.world.config import WorldConfig, check_seed, is_int, need
 from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe, observe_worlds
-from searchrl.world.reset import reset_world, reset_worlds
+from searchrl.world.reset import DrawnWorld, draw_world, reset_worlds, write_world
 from searchrl.world.scenario import PAPER, Scenario
-from searchrl.world.state import WorldState, allocate, copy_world
+from searchrl.world.state import WorldState, allocate
 from searchrl.world.step import StepResult, step
 from searchrl.world.streams import WorldStreams
 
@@ -54,24 +54,42 @@ class SearchWorld:
         self._obs = observation_buffers(config, n_worlds) if observe else None
         self._final = tuple(np.zeros_like(a) for a in self._obs) if observe else (None, None)
         self.observation: tuple[np.ndarray, np.ndarray] | tuple[None, None] = (None, None)  # of the last reset/step
+        self._last_map: tuple[int, DrawnWorld] | None = None  # the map seed `_draw_maps` wrote last, and its draw
 
     @classmethod
     def from_maps(cls, config: WorldConfig, map_seeds: Sequence[int], streams: WorldStreams,
                   scenario: Scenario = PAPER, observe: bool = True) -> SearchWorld:  # fmt: skip
         """Worlds for one episode each: world k reset from `np.random.default_rng(map_seeds[k])` (its map, targets
-        and start cells), stepped with draws from its own stream (`streams`, one per world), never reset again."""
+        and start cells), stepped with draws from its own stream (`streams`, one per world), never reset on its own
+        (`start_episodes` starts another episode in a world)."""
         need(len(streams) == len(map_seeds), "streams", len(streams), f"one per map seed ({len(map_seeds)})")
         world = cls(config, len(map_seeds), scenario=scenario, auto_reset=False, observe=observe)
-        drawn: dict[int, int] = {}  # map seed -> the world drawn from it
-        for k, seed in enumerate(map_seeds):
-            if seed in drawn:  # a repeat of a map: its seed draws the same world again, copied instead (a large
-                copy_world(world.state, drawn[seed], k)  # map's Gaussians cost more than its episode's steps)
-            else:
-                reset_world(config, world.state, k, np.random.default_rng(seed), scenario)
-                drawn[seed] = k
         world.rng = streams
+        world._draw_maps(range(len(map_seeds)), map_seeds)
         world.observation = world._observe()
         return world
+
+    def start_episodes(self, worlds: Sequence[int], map_seeds: Sequence[int], keys: Sequence[Sequence[int]]) -> None:
+        """In a world made by `from_maps`, world worlds[i] starts a new episode: reset from
+        `np.random.default_rng(map_seeds[i])`, then stepped with draws from a new stream, `default_rng(keys[i])`;
+        the observation of those worlds is made again, the other worlds are untouched. The episode is the one
+        `from_maps` would start from that map seed and stream."""
+        if not isinstance(self.rng, WorldStreams):
+            raise TypeError("start_episodes needs a world made by from_maps (one stream per world), not one generator")
+        self.rng.restart(worlds, keys)
+        self._draw_maps(worlds, map_seeds)
+        if self.observes:
+            self.observation = observe_worlds(self.config, self.state, self._obs, np.asarray(worlds, np.int64))
+
+    def _draw_maps(self, worlds: Sequence[int], map_seeds: Sequence[int]) -> None:
+        """Reset world worlds[i] from `default_rng(map_seeds[i])`. The map seed written last is written again, not
+        drawn again: the repeats of a map come one after another, and a large map's Gaussians cost more than its
+        episode's steps. Only that one draw is kept (a map of n = 160 holds 0.4 MB)."""
+        for k, seed in zip(worlds, map_seeds, strict=True):
+            if self._last_map is None or self._last_map[0] != seed:
+                drawn = draw_world(self.config, self.state.n_agents, np.random.default_rng(seed), self.scenario)
+                self._last_map = (seed, drawn)
+            write_world(self.config, self.state, int(k), self._last_map[1])
 
     @property
     def n_worlds(self) -> int:

@@ -3,6 +3,8 @@ the batched state, other worlds untouched. The order of the draws is searchrl/wo
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numba import njit
 
@@ -30,18 +32,25 @@ def draw_scenario_sizes(config: WorldConfig, rng: np.random.Generator) -> tuple[
     return n, m, j
 
 
-def reset_world(
-    config: WorldConfig, state: WorldState, k: int, rng: np.random.Generator, scenario: Scenario = PAPER
-) -> None:
-    """Draw a fresh world k in place: sizes, prior maps, the scenario's obstacles and targets, agents, beliefs,
-    counters."""
+@dataclass(frozen=True)
+class DrawnWorld:
+    """What a reset draws for one world of side n: the prior p and u (n, n) float64 the agents start from (summing
+    to 1 over the free cells), free (n, n) bool (not an obstacle), the agents' start cells pos (N, 2) int64 and the
+    targets (j, 2) int64. Writing it into a batch (`write_world`) draws nothing, so a map drawn once can start
+    several episodes."""
+
+    p: np.ndarray
+    u: np.ndarray
+    free: np.ndarray
+    pos: np.ndarray
+    targets: np.ndarray
+
+
+def draw_world(config: WorldConfig, n_agents: int, rng: np.random.Generator, scenario: Scenario = PAPER) -> DrawnWorld:
+    """Draw a world for `n_agents` agents: sizes, prior maps, the scenario's obstacles and targets, start cells."""
     scenario = scenario.pick(rng)  # a mix draws which scenario (searchrl/world/scenario.py), a scenario nothing
     n, m, j = draw_scenario_sizes(config, rng)
-    h = state.halo
-    inner = (k, slice(h, h + n), slice(h, h + n))
-
     prior = scenario.prior(config, n, m, rng)
-    n_agents = state.n_agents
     obstacles = scenario.obstacles(n, n_agents + j, rng)
     free = np.ones((n, n), bool) if obstacles is None else ~obstacles
     maps = (prior.p, prior.u, prior.truth_p, prior.truth_u)
@@ -53,14 +62,28 @@ def reset_world(
     free_for_agents[targets[:, 0], targets[:, 1]] = False
     start = rng.choice(np.flatnonzero(free_for_agents.ravel()), size=n_agents, replace=False)
     pos = np.stack(np.divmod(start.astype(np.int64), n), axis=1)  # (N, 2)
+    return DrawnWorld(p, u, free, pos, targets)
 
-    _write_world(state.arrays(), k, p, u, free, pos, targets)
+
+def write_world(config: WorldConfig, state: WorldState, k: int, world: DrawnWorld) -> None:
+    """World k of `state` starts an episode in the drawn `world`: maps, obstacles, agents, targets, every belief
+    the prior, counters at 0."""
+    _write_world(state.arrays(), k, world.p, world.u, world.free, world.pos, world.targets)
     if config.belief_age > 0:  # else 0: the rate (a count of free cells) is not needed
-        state.age_rate[k] = config.belief_age * team_sensing_rate(state.blocked[k : k + 1], n_agents)[0]
+        state.age_rate[k] = config.belief_age * team_sensing_rate(state.blocked[k : k + 1], state.n_agents)[0]
     state.belief_time[k] = 0  # both are (K, N, 0, 0), and this a no-op, in a world that keeps neither
     state.belief_seen[k] = 1.0
     update_freshness(config, state, k, k + 1)  # the first observation already counts the neighbours in view
+    h, n = state.halo, world.p.shape[0]
+    inner = (k, slice(h, h + n), slice(h, h + n))
     state.obs_scale[k] = (_unit_scale(state.p[inner].max()), _unit_scale(state.u[inner].max()))
+
+
+def reset_world(
+    config: WorldConfig, state: WorldState, k: int, rng: np.random.Generator, scenario: Scenario = PAPER
+) -> None:
+    """Draw a fresh world k in place (`draw_world`, then `write_world`)."""
+    write_world(config, state, k, draw_world(config, state.n_agents, rng, scenario))
 
 
 @njit(cache=CACHE)

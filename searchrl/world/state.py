@@ -120,14 +120,6 @@ def _world_arrays(values):
     return WorldArrays(*values)
 
 
-def copy_world(state: WorldState, source: int, target: int) -> None:
-    """World `target` of `state` becomes a copy of world `source`: every (K, ...) field's row."""
-    for f in fields(state):
-        value = getattr(state, f.name)
-        if isinstance(value, np.ndarray):
-            value[target] = value[source]
-
-
 def physical_memory() -> int:
     """Bytes of RAM on this machine (0 where the platform does not say)."""
     try:

@@ -21,6 +21,11 @@ class WorldStreams:
     def __init__(self, keys: Sequence[Sequence[int]]) -> None:
         self.generators = [np.random.default_rng([int(part) for part in key]) for key in keys]
 
+    def restart(self, worlds: Sequence[int], keys: Sequence[Sequence[int]]) -> None:
+        """World worlds[i]'s generator becomes `np.random.default_rng(keys[i])`: a new episode's stream."""
+        for k, key in zip(worlds, keys, strict=True):
+            self.generators[int(k)] = np.random.default_rng([int(part) for part in key])
+
     def __len__(self) -> int:
         return len(self.generators)
 

@@ -18,6 +18,7 @@ same cells and nothing more drawn from `rng`), and s grows with how wrong the pr
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -251,13 +252,14 @@ def prior_quality(p: np.ndarray, free: np.ndarray, targets: np.ndarray) -> float
     return float(np.mean((lower - higher) / len(values)))
 
 
-def prior_qualities(state: WorldState) -> np.ndarray:
-    """(K,) float64: `prior_quality` of each world of `state` as it stands (the prior p the agents started from, its
-    free cells and its targets), read at an episode's start."""
+def prior_qualities(state: WorldState, worlds: Sequence[int] | None = None) -> np.ndarray:
+    """(len(worlds),) float64, every world's (K,) by default: `prior_quality` of each listed world of `state` as it
+    stands (the prior p the agents started from, its free cells and its targets), read at an episode's start."""
     h = state.halo
-    out = np.full(state.n_worlds, np.nan)
-    for k in range(state.n_worlds):
+    worlds = range(state.n_worlds) if worlds is None else worlds
+    out = np.full(len(worlds), np.nan)
+    for i, k in enumerate(worlds):
         inner = (k, slice(h, h + int(state.size[k])), slice(h, h + int(state.size[k])))
         targets = state.target_pos[k, : int(state.n_targets[k])]
-        out[k] = prior_quality(state.p[inner], ~state.blocked[inner], targets)
+        out[i] = prior_quality(state.p[inner], ~state.blocked[inner], targets)
     return out
