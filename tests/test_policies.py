@@ -62,7 +62,7 @@ def test_actor_gives_the_policys_own_distribution(algo):
     for _ in range(12):
         expected, theirs = _sb3_probs(policy, obs, theirs, starts)
         if ours is not None:
-            ours = ours * ~starts[None, None, :, None]
+            ours = ours * torch.from_numpy(~starts)[None, None, :, None]
         logits, ours = actor.logits(obs["map"], obs["vector"], ours)
         probs = torch.softmax(torch.from_numpy(logits), 1).numpy()
         assert probs.max() > 0.5  # a peaked distribution, so a wrong input or state shows
@@ -104,7 +104,7 @@ def test_controller_skips_inactive_worlds_and_keeps_their_memory():
     rng = np.random.default_rng(0)
     for t in range(5):
         maps, vector = observe(config, state)
-        kept = part._state[:, :, 4:8].copy()
+        kept = part._state[:, :, 4:8].clone()
         a_full = full.act(state, maps, vector)
         a_part = part.act(state, maps, vector, active=active if t else None)
         if t:
@@ -121,7 +121,7 @@ def test_controller_resets_only_the_marked_worlds_and_samples_by_seed():
     rng = np.random.default_rng(0)
     for _ in range(4):  # build up LSTM state
         step(config, state, controller.act(state, *observe(config, state)), rng)
-    before = controller._state.copy()
+    before = controller._state.clone()
     controller.reset(state, np.array([False, True, False]))
     fresh = PolicyController(actor, config, deterministic=True)
     fresh.reset(state, np.ones(k, bool))

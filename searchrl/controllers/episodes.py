@@ -52,7 +52,10 @@ class EpisodeQueue:
     def start(self, world: SearchWorld, ended: np.ndarray) -> np.ndarray:
         """Start the next waiting episodes in worlds of `ended` (K,) bool, in index order, while any wait; returns
         (K,) bool, the worlds that started one."""
+        started = np.zeros(len(ended), bool)
         worlds = np.flatnonzero(ended)[: len(self) - self.waiting]
+        if not len(worlds):
+            return started
         episodes = np.arange(self.waiting, self.waiting + len(worlds))
         self.waiting += len(worlds)
         keys = [self.keys[e] for e in episodes]
@@ -60,7 +63,6 @@ class EpisodeQueue:
         self.controller_streams.restart(worlds, [(*key, 1) for key in keys])
         self.playing[worlds] = episodes
         self.quality[episodes] = prior_qualities(world.state, worlds)
-        started = np.zeros(len(ended), bool)
         started[worlds] = True
         return started
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import torch
 
 from searchrl.policies.actor import Actor, sample_actions
 from searchrl.policies.checkpoint import load_actor
@@ -26,7 +27,7 @@ class PolicyController:
         self.actor = actor
         self.config = config
         self.rng = None if deterministic else random_source(seed)
-        self._state: np.ndarray | None = None  # (2, layers, K·N, hidden)
+        self._state: torch.Tensor | None = None  # (2, layers, K·N, hidden) on the actor's device
         self._start = np.zeros(0, bool)  # (K·N,) slots whose next step begins an episode
 
     @classmethod
@@ -55,11 +56,14 @@ class PolicyController:
             rows = np.flatnonzero(np.repeat(active, n))
             maps, vector = maps[rows], vector[rows]
         lstm = None
-        if self._state is not None:
-            lstm = self._state[:, :, rows] * ~self._start[rows][None, None, :, None]
+        if self._state is not None:  # indexed on the device: the state never travels
+            device = self._state.device
+            slots = rows if isinstance(rows, slice) else torch.from_numpy(rows).to(device)
+            keep = torch.from_numpy(~self._start[rows]).to(device)  # zero where an episode starts
+            lstm = self._state[:, :, slots] * keep[None, None, :, None]
         logits, lstm = self.actor.logits(maps, vector, lstm)
         if lstm is not None:
-            self._state[:, :, rows] = lstm
+            self._state[:, :, slots] = lstm
         uniforms = None if self.rng is None else self.rng.random((k, n)).reshape(-1)[rows]
         actions[rows] = sample_actions(logits, uniforms)
         self._start[rows] = False

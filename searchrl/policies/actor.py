@@ -90,18 +90,20 @@ class Actor:
         extractor = policy.pi_features_extractor
         self._extract = _optimized(extractor, example) if optimize else extractor
 
-    def initial_state(self, batch: int) -> np.ndarray | None:
-        """Zero LSTM state (2, layers, batch, hidden) float32 — hidden and cell — or None without an LSTM."""
+    def initial_state(self, batch: int) -> torch.Tensor | None:
+        """Zero LSTM state (2, layers, batch, hidden) float32 — hidden and cell — on the actor's device (it stays
+        there between steps: only observations go to the device and logits come back), or None without an LSTM."""
         if self._lstm is None:
             return None
-        return np.zeros((2, self._lstm.num_layers, batch, self._lstm.hidden_size), np.float32)
+        return torch.zeros((2, self._lstm.num_layers, batch, self._lstm.hidden_size), device=self.device)
 
     @torch.inference_mode()
     def logits(
-        self, maps: np.ndarray, vector: np.ndarray, state: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray | None]:
-        """maps (B, C, F, F), vector (B, V), state (2, layers, B, hidden) or None -> (logits (B, n_actions) float32,
-        next state). A slot whose episode starts now gets a zero state (`initial_state`)."""
+        self, maps: np.ndarray, vector: np.ndarray, state: torch.Tensor | None = None
+    ) -> tuple[np.ndarray, torch.Tensor | None]:
+        """maps (B, C, F, F), vector (B, V), state (2, layers, B, hidden) on the actor's device or None ->
+        (logits (B, n_actions) float32, next state on the device). A slot whose episode starts now gets a zero
+        state (`initial_state`)."""
         parts = {"map": maps, "vector": vector}
         # `.to` and `.cpu` return the very tensor on the CPU: no copy, the same arithmetic as before devices
         obs = {k: torch.from_numpy(np.ascontiguousarray(parts[k], np.float32)).to(self.device) for k in self.keys}
@@ -109,9 +111,9 @@ class Actor:
         if self._lstm is not None:
             if state is None:
                 raise ValueError("a recurrent policy needs its LSTM state: start from initial_state(batch)")
-            h, c = torch.from_numpy(np.ascontiguousarray(state, np.float32)).to(self.device)
+            h, c = state
             out, (h, c) = self._lstm(features.unsqueeze(0), (h.contiguous(), c.contiguous()))
-            features, state = out.squeeze(0), torch.stack([h, c]).cpu().numpy()
+            features, state = out.squeeze(0), torch.stack([h, c])
         return self._head(self._mlp.forward_actor(features)).cpu().numpy(), state
 
 
