@@ -11,7 +11,7 @@ from typing import TextIO
 
 from searchrl.controllers.factory import heuristic_factory, policy_factory
 from searchrl.evaluate.grid import table2_cells
-from searchrl.evaluate.runner import cell_config, run_cell, worlds_per_batch
+from searchrl.evaluate.runner import BATCH_MB, cell_config, cell_slots, run_cell
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
 from searchrl.threads import use_threads
 from searchrl.world.config import WorldConfig
@@ -43,7 +43,7 @@ def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = No
     for index, cell in enumerate(GRID):
         if keys is not None and cell.key not in keys:
             continue
-        slots = min(worlds_per_batch(cell_config(world, cell), 1024.0), maps * repeats)  # run_cell's batch
+        slots = cell_slots(cell_config(world, cell), BATCH_MB, maps * repeats)  # the worlds run_cell steps
 
         def tally(agent_steps: int, slots: int = slots) -> None:  # called once a step
             steps[0] += agent_steps

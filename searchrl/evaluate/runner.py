@@ -29,6 +29,9 @@ COLUMNS = ["controller", "model", "world", "scenario", "family", "severity", "va
            "stale"]  # fmt: skip
 
 
+BATCH_MB = 1024.0  # run_cell's memory budget of one batch of worlds, the evaluation's default (`batch_mb`)
+
+
 def cell_config(world: WorldConfig, cell: Cell) -> WorldConfig:
     """The model's world settings on one Table 2 cell (n, targets, m fixed; N from the cell)."""
     return replace(
@@ -47,6 +50,11 @@ def worlds_per_batch(config: WorldConfig, budget_mb: float) -> int:
     return max(1, int(budget_mb * 2**20 // per_world))
 
 
+def cell_slots(config: WorldConfig, budget_mb: float, episodes: int) -> int:
+    """How many worlds a cell's `episodes` are played on: as many as fit `budget_mb`, at most one per episode."""
+    return min(worlds_per_batch(config, budget_mb), episodes)
+
+
 def episode_keys(seed: int, cell_index: int, episodes: list[tuple[int, int]]) -> list[tuple[int, int, int, int]]:
     """The keys of the episodes (map, repeat) of a cell: (seed, cell, map, repeat), from which each episode's own
     streams are seeded (searchrl/controllers/episodes.py), so how a cell is split into batches, threads or shards
@@ -62,7 +70,7 @@ def run_cell(
     maps: int,
     repeats: int,
     seed: int,
-    budget_mb: float = 1024.0,
+    budget_mb: float = BATCH_MB,
     needs_observation: bool = True,
     on_steps: Callable[[int], None] | None = None,
     on_done: Callable[[WorldState, np.ndarray, np.ndarray], None] | None = None,
@@ -80,14 +88,14 @@ def run_cell(
     default): a map seed gives the same prior under every scenario."""
     config = cell_config(world, cell)
     episodes = [(m, r) for m in range(maps) for r in range(repeats)]
-    batch = worlds_per_batch(config, budget_mb)
 
     def count(_: SearchWorld, counted: np.ndarray) -> None:
         on_steps(int(counted.sum()) * config.n_agents)
 
     seeds = [map_seed(seed, cell_index, m) for m, _ in episodes]
     final = play_episodes(controller_factory, config, seeds, episode_keys(seed, cell_index, episodes), scenario,
-                          needs_observation, count if on_steps else None, on_done, slots=batch)  # fmt: skip
+                          needs_observation, count if on_steps else None, on_done,
+                          slots=cell_slots(config, budget_mb, len(episodes)))  # fmt: skip
     rows = []
     for e, (_, r) in enumerate(episodes):
         rows.append(

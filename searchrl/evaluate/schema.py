@@ -10,6 +10,7 @@ from typing import Any
 from omegaconf import MISSING
 
 from searchrl.controllers.registry import HEURISTICS
+from searchrl.evaluate.runner import BATCH_MB
 from searchrl.paths import CONF_DIR
 from searchrl.schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
 
@@ -40,7 +41,7 @@ class EvaluateConfig:
     shard: int = 0  # this job evaluates cells shard, shard + num_shards, …
     num_shards: int = 1
     out_dir: str | None = None  # default runs/eval/<controller> or runs/eval/policy/<run path under runs/>
-    batch_mb: float = 1024.0  # memory budget of one batch of worlds
+    batch_mb: float = BATCH_MB  # memory budget of one batch of worlds
     bound_draws: int = 1000  # placements per map for the search bound columns (searchrl/evaluate/bound.py)
     bound_cache: str | None = "runs/bounds"  # bounds computed once per map, shared by evaluations; null: no cache
     threads: int = 2
