@@ -8,11 +8,12 @@
 # # Where one thread's world time goes (a benchmark)
 #
 # The loop of `python -m searchrl.bench world` (random actions, step, observation, resets of finished worlds; model
-# B's settings) at (n, N, K) = (40, 8, 64) on one numba thread, each call timed: the two parallel kernels
-# (`step_worlds`, `observe_into`), the Python around them, the resets and the action draws, as shares of the wall
-# time over 2,000 steps, three runs. Only the kernels share their worlds among threads; the rest runs in the calling
-# thread, so its share s bounds two threads at 1 / (s + (1 − s) / 2) (Amdahl's law). The figures of
-# docs/performance.md came from this script at 3ef57a5 (two sittings) and at c04606f.
+# B's settings) at (n, N, K) = (40, 8, 64) on one numba thread, each call timed: the parallel kernels (`step_worlds`,
+# `observe_into`, and a reset's maps, `_densities`), the Python around the step's two, the resets and the action
+# draws, as shares of the wall time over 2,000 steps, three runs. Only the kernels share their work among threads;
+# the rest runs in the calling thread, so its share s bounds two threads at 1 / (s + (1 − s) / 2) (Amdahl's law).
+# The figures of docs/performance.md came from this script at 3ef57a5 (two sittings), at c04606f and at the commit
+# whose maps became a parallel kernel.
 #
 #     python analysis/world_profile.py
 
@@ -23,14 +24,15 @@ import numba
 import numpy as np
 
 from searchrl.bench.world import case_config
+from searchrl.world import maps as maps_module
 from searchrl.world import observe as observe_module
 from searchrl.world import step as step_module
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_worlds
 from searchrl.world.state import allocate
 
-KERNELS = {"step_worlds": step_module, "observe_into": observe_module}
-spent: dict[str, float] = {}
+KERNELS = {"step_worlds": step_module, "observe_into": observe_module, "_densities": maps_module}
+spent: dict[str, float] = dict.fromkeys(KERNELS, 0.0)
 
 
 def timed(name, kernel):
@@ -76,9 +78,10 @@ for run in range(3):
             parts["step + observe"] += t2 - t1
             parts["resets"] += t3 - t2
         wall = time.perf_counter() - begin
-    kernels = sum(spent.values())
+    kernels, maps = sum(spent.values()), spent["_densities"]
     serial = 1 - kernels / wall
     print(f"run {run}: {steps * n_worlds * config.n_agents / wall:,.0f} agent-steps/s; kernels {kernels / wall:.1%}, "
-          f"Python around them {(parts['step + observe'] - kernels) / wall:.1%}, resets {parts['resets'] / wall:.1%},"
-          f" actions {parts['actions'] / wall:.1%}; outside the kernels {serial:.1%}: two threads at most "
-          f"{1 / (serial + (1 - serial) / 2):.2f}x")  # fmt: skip
+          f"Python around the step's {(parts['step + observe'] - kernels + maps) / wall:.1%}, resets "
+          f"{parts['resets'] / wall:.1%} (their maps' kernel {maps / wall:.1%}), "
+          f"actions {parts['actions'] / wall:.1%}; "
+          f"outside the kernels {serial:.1%}: two threads at most {1 / (serial + (1 - serial) / 2):.2f}x")  # fmt: skip

@@ -51,6 +51,18 @@ def test_gaussian_components_are_the_formula_in_numpy_bit_for_bit(n, m):
         np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
 
 
+def test_gaussian_densities_are_the_same_bits_in_any_number_of_chunks():
+    """The maps' kernel cuts its rows among threads; no cut changes a bit (one chunk runs without a region)."""
+    from searchrl.world.maps import Gaussians, _densities
+
+    gaussians = Gaussians.draw(37, 5, 370.0, 1.0, 0.8, np.random.default_rng(3))
+    want = _numpy_components(37, 5, 370.0, 1.0, 0.8, np.random.default_rng(3))
+    for threads in (1, 2, 3, 7):
+        got = np.empty((5, 37, 37))
+        _densities(gaussians.mu, gaussians.var, gaussians.rho, got, threads)
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+
+
 def test_reset_writes_a_consistent_world():
     config = WorldConfig(world_size=(20, 40), n_targets=(8, 16), n_agents=8)
     state = allocate(config, 6)

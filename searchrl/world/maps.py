@@ -2,48 +2,96 @@
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from searchrl.world.kernels import CACHE
+from searchrl.world.parallel import chunk_count, chunk_span, world_threads
+
+
+@dataclass(frozen=True)
+class Gaussians:
+    """The m bivariate Gaussians of eq. 6: means mu (m, 2) as (x, y), variances var (m, 2) as (σ_x², σ_y²) and
+    correlations rho (m,), float64."""
+
+    mu: np.ndarray
+    var: np.ndarray
+    rho: np.ndarray
+
+    @staticmethod
+    def draw(n: int, m: int, variance_high: float, variance_low: float, rho_max: float,
+             rng: np.random.Generator) -> Gaussians:  # fmt: skip
+        """Means uniform over [0, n - 1]², each σ² uniform in [variance_low, variance_high), ρ uniform in
+        (-rho_max, rho_max), drawn in that order."""
+        mu = rng.uniform(0.0, n - 1.0, size=(m, 2))
+        var = rng.uniform(variance_low, variance_high, size=(m, 2))
+        rho = rng.uniform(-rho_max, rho_max, size=m)
+        return Gaussians(mu, var, rho)
+
+    def __add__(self, other: Gaussians) -> Gaussians:
+        """Both sets, self's first: their densities come from one `densities` call."""
+        return Gaussians(np.concatenate((self.mu, other.mu)), np.concatenate((self.var, other.var)),
+                         np.concatenate((self.rho, other.rho)))  # fmt: skip
+
+    def densities(self, n: int) -> np.ndarray:
+        """Each Gaussian's density at the cell centres of an n×n grid: (m, n, n) float64 [component, row = y,
+        col = x], exp(-quad / (2(1 - ρ²))) / (2π σx σy √(1 - ρ²)).
+
+        One compiled pass, its m·n rows shared among the world's numba threads (searchrl/world/parallel.py). It
+        works the same operations in the same order as numpy's broadcasts of the formula, and its exp is the C
+        library's, the one numpy's float64 exp calls on CPUs without AVX-512: the same bits at any thread count
+        (tests/test_generation.py holds them)."""
+        out = np.empty((self.rho.shape[0], n, n), np.float64)
+        _densities(self.mu, self.var, self.rho, out, world_threads())
+        return out
 
 
 def gaussian_components(
     n: int, m: int, variance_high: float, variance_low: float, rho_max: float, rng: np.random.Generator
 ) -> np.ndarray:
-    """The m bivariate Gaussian densities of eq. 6, each evaluated at the cell centres of an n×n grid.
+    """The m densities of eq. 6 drawn as `Gaussians.draw` says, at the cells of an n×n grid: (m, n, n) float64."""
+    return Gaussians.draw(n, m, variance_high, variance_low, rho_max, rng).densities(n)
 
-    Means are uniform over [0, n - 1]², each σ² uniform in [variance_low, variance_high), ρ uniform in
-    (-rho_max, rho_max). Returns (m, n, n) float64 indexed [component, row = y, col = x].
-    """
-    mu = rng.uniform(0.0, n - 1.0, size=(m, 2))  # (m, 2) as (x, y)
-    var = rng.uniform(variance_low, variance_high, size=(m, 2))  # (m, 2) σ_x², σ_y²
-    rho = rng.uniform(-rho_max, rho_max, size=m)  # (m,)
-    sx, sy = np.sqrt(var[:, 0]), np.sqrt(var[:, 1])
-    coords = np.arange(n, dtype=np.float64)
-    dx = (coords[None, :] - mu[:, 0:1]) / sx[:, None]  # (m, n) over x
-    dy = (coords[None, :] - mu[:, 1:2]) / sy[:, None]  # (m, n) over y
-    one_minus = 1.0 - rho**2
-    # exp(-quad / (2(1 - ρ²))) / (2π σx σy √(1 - ρ²)) in one (m, n_y, n_x) array: the exponent in one compiled
-    # pass, then numpy's exp and the normalisation in place. The same operations in the same order as numpy's
-    # broadcasts, so the same bits (a negated divisor is exact; tests/test_generation.py holds them).
-    density = np.empty((m, n, n), np.float64)
-    _exponents(dx, dy, 2.0 * rho, -(2.0 * one_minus), density)
-    np.exp(density, out=density)
-    density /= (2.0 * np.pi * sx * sy * np.sqrt(one_minus))[:, None, None]
-    return density
+
+@njit(cache=CACHE, parallel=True)
+def _densities(mu, var, rho, out, threads):
+    """out (m, n, n) float64 = eq. 6 for the Gaussians mu, var (m, 2) and rho (m,): the standardised distances
+    (m, n) in this thread, then the rows (i, y) cut into up to `threads` chunks; one chunk runs in the calling
+    thread (no parallel region)."""
+    m, n = out.shape[0], out.shape[1]
+    dx, dy = np.empty((m, n)), np.empty((m, n))
+    two_rho, divisor, norm = np.empty(m), np.empty(m), np.empty(m)
+    for i in range(m):
+        sx, sy, one_minus = math.sqrt(var[i, 0]), math.sqrt(var[i, 1]), 1.0 - rho[i] * rho[i]
+        for c in range(n):
+            dx[i, c] = (c - mu[i, 0]) / sx
+            dy[i, c] = (c - mu[i, 1]) / sy
+        two_rho[i], divisor[i] = 2.0 * rho[i], -(2.0 * one_minus)  # a negated divisor is exact
+        norm[i] = 2.0 * np.pi * sx * sy * math.sqrt(one_minus)
+    rows = m * n
+    n_chunks = chunk_count(rows, rows, threads)
+    if n_chunks == 1:
+        _density_rows(dx, dy, two_rho, divisor, norm, out, 0, rows)
+        return
+    for chunk in prange(n_chunks):
+        first, stop = chunk_span(chunk, n_chunks, 0, rows)
+        _density_rows(dx, dy, two_rho, divisor, norm, out, first, stop)
 
 
 @njit(cache=CACHE)
-def _exponents(dx, dy, two_rho, divisor, out):
-    """out[i, y, x] = (dx[i, x]² + dy[i, y]² − (2ρ_i · dx[i, x]) · dy[i, y]) / divisor[i], eq. 6's exponent for
-    dx, dy (m, n) the standardised distances, two_rho and divisor (m,) and out (m, n, n) float64."""
-    for i in range(out.shape[0]):
-        for y in range(out.shape[1]):
-            dy2 = dy[i, y] * dy[i, y]
-            for x in range(out.shape[2]):
-                quad = dx[i, x] * dx[i, x] + dy2
-                out[i, y, x] = (quad - two_rho[i] * dx[i, x] * dy[i, y]) / divisor[i]
+def _density_rows(dx, dy, two_rho, divisor, norm, out, first, stop):
+    """Rows first..stop-1 of out (row = i · n + y): exp((dx² + dy² − (2ρ · dx) · dy) / divisor) / norm."""
+    n = out.shape[1]
+    for row in range(first, stop):
+        i, y = row // n, row % n
+        dyi, two_rho_i, divisor_i, norm_i = dy[i, y], two_rho[i], divisor[i], norm[i]
+        dy2 = dyi * dyi
+        for x in range(out.shape[2]):
+            quad = dx[i, x] * dx[i, x] + dy2
+            out[i, y, x] = math.exp((quad - two_rho_i * dx[i, x] * dyi) / divisor_i) / norm_i
 
 
 def gaussian_mixture(

@@ -24,7 +24,7 @@ from typing import ClassVar
 import numpy as np
 
 from searchrl.world.config import WorldConfig, need
-from searchrl.world.maps import gaussian_components, gaussian_mixture, probability_map, uncertainty_map
+from searchrl.world.maps import Gaussians, probability_map, uncertainty_map
 from searchrl.world.truth import finite
 
 
@@ -51,11 +51,10 @@ class MixturePrior:
                    ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """(p's m densities (m, n, n), u (n, n)), drawn in the paper's order: p's Gaussians, then u's."""
         scale = config.prob_variance_scale if self.variance_scale is None else self.variance_scale
-        densities = gaussian_components(n, m, scale * n, config.variance_floor, config.rho_max, rng)
-        u = uncertainty_map(
-            gaussian_mixture(n, m, config.unc_variance_scale * n, config.variance_floor, config.rho_max, rng)
-        )
-        return densities, u
+        p_gaussians = Gaussians.draw(n, m, scale * n, config.variance_floor, config.rho_max, rng)
+        u_gaussians = Gaussians.draw(n, m, config.unc_variance_scale * n, config.variance_floor, config.rho_max, rng)
+        both = (p_gaussians + u_gaussians).densities(n)  # nothing more is drawn: both maps in one compiled call
+        return both[:m], uncertainty_map(both[m:].sum(axis=0))
 
     def __call__(self, config: WorldConfig, n: int, m: int, rng: np.random.Generator) -> PriorDraw:
         densities, u = self.components(config, n, m, rng)
