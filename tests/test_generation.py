@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from searchrl.world.config import WorldConfig
-from searchrl.world.maps import gaussian_components, gaussian_mixture, probability_map, uncertainty_map
+from searchrl.world.maps import gaussian_components, probability_map, uncertainty_map
 from searchrl.world.reset import reset_worlds
 from searchrl.world.scenario import IidObstacles, Scenario
 from searchrl.world.state import allocate
@@ -20,7 +20,7 @@ def _inner(state, k):
 
 def test_maps_follow_eq_7_and_8():
     rng = np.random.default_rng(0)
-    mix = gaussian_mixture(30, 20, 300.0, 1.0, 0.8, rng)
+    mix = gaussian_components(30, 20, 300.0, 1.0, 0.8, rng).sum(axis=0)
     p, u = probability_map(mix, eta=0.1), uncertainty_map(mix)
     assert p.shape == (30, 30)
     assert p.sum() == pytest.approx(1.0) and u.sum() == pytest.approx(1.0)

@@ -94,13 +94,6 @@ def _density_rows(dx, dy, two_rho, divisor, norm, out, first, stop):
             out[i, y, x] = math.exp((quad - two_rho_i * dx[i, x] * dyi) / divisor_i) / norm_i
 
 
-def gaussian_mixture(
-    n: int, m: int, variance_high: float, variance_low: float, rho_max: float, rng: np.random.Generator
-) -> np.ndarray:
-    """Sum of the m densities of `gaussian_components` (eq. 6): (n, n) float64 indexed [row = y, col = x]."""
-    return gaussian_components(n, m, variance_high, variance_low, rho_max, rng).sum(axis=0)
-
-
 def probability_map(mixture: np.ndarray, eta: float) -> np.ndarray:
     """Eq. 7: (1 - η)·F/ΣF plus η spread evenly, so p sums to 1 and no cell is below η / n²."""
     total = mixture.sum()
