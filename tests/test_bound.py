@@ -367,6 +367,30 @@ def test_map_prior_is_the_worlds_n_by_n_maps_without_the_halo(tmp_path):
     assert (nested / "n20_N2_draws100.parquet").exists()
 
 
+@pytest.mark.parametrize("obstacles", [None, "rooms", "primal"])
+def test_map_prior_is_what_a_world_reset_from_the_seed_holds(obstacles):
+    """Drawn alone, the map is the one a world's reset writes: p and u as its float32 arrays, free its free cells."""
+    from searchrl.evaluate.bound import map_prior
+    from searchrl.evaluate.grid import Cell
+    from searchrl.evaluate.runner import cell_config
+    from searchrl.world.config import WorldConfig
+    from searchrl.world.reset import reset_world
+    from searchrl.world.scenario import PAPER, Scenario
+    from searchrl.world.state import allocate
+
+    scenario = PAPER if obstacles is None else Scenario.from_dict({"obstacles": {"kind": obstacles}})
+    config = cell_config(WorldConfig(), Cell(40, 4, 8, 16))
+    for seed in range(4):
+        state = allocate(config, 1)
+        reset_world(config, state, 0, np.random.default_rng(seed), scenario)
+        inner = (0, slice(state.halo, state.halo + 40), slice(state.halo, state.halo + 40))
+        p, u, free = map_prior(config, seed, scenario)
+        np.testing.assert_array_equal(p, state.p[inner].astype(np.float64))
+        np.testing.assert_array_equal(u, state.u[inner].astype(np.float64))
+        np.testing.assert_array_equal(free, ~state.blocked[inner])
+        assert p.dtype == np.float64 and free.dtype == bool and (scenario is PAPER) == bool(free.all())
+
+
 def test_a_reach_beyond_every_cell_bounds_all_the_targets():
     p, u, _ = _tiny_map(2)
     every = np.ones((3, 3), bool)  # no obstacle: all 9 cells hold targets with positive probability

@@ -31,9 +31,8 @@ from searchrl.evaluate.grid import Cell, map_seed
 from searchrl.evaluate.runner import cell_config
 from searchrl.world.bound import detection_budget, search_bound, team_reach
 from searchrl.world.config import WorldConfig
-from searchrl.world.reset import reset_world
+from searchrl.world.reset import draw_world
 from searchrl.world.scenario import PAPER, Scenario
-from searchrl.world.state import allocate
 
 BOUND_DRAWS = 1000  # placements per map: a standard error of about 0.075 targets of 32 at n = 160
 BOUND_COLUMNS = ["bound", "bound_stderr", "bound_fraction"]
@@ -41,12 +40,11 @@ MOVE_SETS = {"cardinal": False, "diagonal": True}  # WorldConfig.diagonal of eac
 
 
 def map_prior(config: WorldConfig, seed: int, scenario: Scenario = PAPER) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(p, u, free) (n, n) of the map an evaluation draws from `seed` for a cell's config under `scenario`."""
-    state = allocate(config, 1)
-    reset_world(config, state, 0, np.random.default_rng(seed), scenario)
-    n, h = int(state.size[0]), state.halo
-    inner = (0, slice(h, h + n), slice(h, h + n))
-    return state.p[inner].astype(np.float64), state.u[inner].astype(np.float64), ~state.blocked[inner]
+    """(p, u, free) (n, n) of the map an evaluation draws from `seed` for a cell's config under `scenario`: p and u
+    as a world holds them (float32) in float64. Drawn alone, not written into a world's arrays (a world's beliefs
+    are N · 2 · (n + 2h)² floats)."""
+    drawn = draw_world(config, config.n_agents, np.random.default_rng(seed), scenario)
+    return drawn.p.astype(np.float32).astype(np.float64), drawn.u.astype(np.float32).astype(np.float64), drawn.free
 
 
 def map_digest(p: np.ndarray, u: np.ndarray, free: np.ndarray, targets: int) -> str:
