@@ -63,6 +63,36 @@ def test_gaussian_densities_are_the_same_bits_in_any_number_of_chunks():
         np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
 
 
+def _numpy_placement(p, u, free, count, rng):
+    """§4.1.4's placement in plain numpy, the law `place_targets` works in compiled batches."""
+    n, cdf = p.shape[0], np.cumsum(np.where(free, p, 0.0).ravel())
+    keep_prob, chosen = (1.0 - u / u.max()).ravel(), []
+    while True:
+        cells = np.minimum(np.searchsorted(cdf, rng.random(4 * count) * cdf[-1], side="right"), n * n - 1)
+        for cell in cells[rng.random(4 * count) < keep_prob[cells]].tolist():
+            if cell not in chosen:
+                chosen.append(cell)
+                if len(chosen) == count:
+                    return np.stack(np.divmod(np.array(chosen, np.int64), n), axis=1)
+
+
+@pytest.mark.parametrize("obstacles", [False, True])
+def test_place_targets_is_the_law_in_numpy_draw_for_draw(obstacles):
+    """The compiled batches choose the same cells from the same uniforms and leave the generator where numpy's
+    loop leaves it."""
+    maps = np.random.default_rng(11)
+    for trial in range(40):
+        n = int(maps.integers(2, 50))
+        p, u = maps.random((n, n)) ** 3, maps.random((n, n))  # a cell is kept with probability 1 - u / max u
+        free = maps.random((n, n)) > 0.3 if obstacles else np.ones((n, n), bool)
+        free.flat[:2] = True  # room for a target
+        count = int(maps.integers(1, min(10, free.sum() // 2) + 1))
+        got_rng, want_rng = np.random.default_rng(trial), np.random.default_rng(trial)
+        got = place_targets(p / p.sum(), u / u.sum(), free, count, got_rng)
+        np.testing.assert_array_equal(got, _numpy_placement(p / p.sum(), u / u.sum(), free, count, want_rng))
+        assert got.dtype == np.int64 and got_rng.random() == want_rng.random()
+
+
 def test_reset_writes_a_consistent_world():
     config = WorldConfig(world_size=(20, 40), n_targets=(8, 16), n_agents=8)
     state = allocate(config, 6)

@@ -58,11 +58,9 @@ def draw_world(config: WorldConfig, n_agents: int, rng: np.random.Generator, sce
         maps = tuple(np.where(free, x, 0.0) / np.where(free, x, 0.0).sum() for x in maps)
     p, u, truth_p, truth_u = maps
     targets = scenario.targets(truth_p, truth_u, free, j, rng)
-    free_for_agents = free.copy()
-    free_for_agents[targets[:, 0], targets[:, 1]] = False
-    start = rng.choice(np.flatnonzero(free_for_agents.ravel()), size=n_agents, replace=False)
-    pos = np.stack(np.divmod(start.astype(np.int64), n), axis=1)  # (N, 2)
-    return DrawnWorld(p, u, free, pos, targets)
+    # numpy draws a choice from the free cells left as the same choice of their indices (its `take` of them)
+    index = rng.choice(int(free.sum()) - len(targets), size=n_agents, replace=False)
+    return DrawnWorld(p, u, free, _start_cells(free, targets, index), targets)
 
 
 def write_world(config: WorldConfig, state: WorldState, k: int, world: DrawnWorld) -> None:
@@ -84,6 +82,21 @@ def reset_world(
 ) -> None:
     """Draw a fresh world k in place (`draw_world`, then `write_world`)."""
     write_world(config, state, k, draw_world(config, state.n_agents, rng, scenario))
+
+
+@njit(cache=CACHE)
+def _start_cells(free, targets, index):
+    """(N, 2) int64: the index[i]-th (N,) int64 of the free cells (n, n) bool without a target (targets (j, 2)
+    int64), counted row by row, as (row, col)."""
+    n = free.shape[0]
+    left = free.copy()
+    for t in range(targets.shape[0]):
+        left[targets[t, 0], targets[t, 1]] = False
+    cells = np.flatnonzero(left)
+    pos = np.empty((index.shape[0], 2), np.int64)
+    for i in range(index.shape[0]):
+        pos[i, 0], pos[i, 1] = cells[index[i]] // n, cells[index[i]] % n
+    return pos
 
 
 @njit(cache=CACHE)

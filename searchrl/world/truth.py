@@ -23,8 +23,10 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
+from numba import njit
 
 from searchrl.world.config import WorldConfig, is_int, need
+from searchrl.world.kernels import CACHE
 from searchrl.world.state import WorldState
 
 _MAX_TARGET_ROUNDS = 1_000
@@ -41,27 +43,53 @@ def place_targets(p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rn
 
     A tentative cell is drawn from p over the free cells, then kept when a uniform draw is below
     `keep_probability(u)`. A tentative cell that already holds a target is redrawn (rejection from p restricted
-    to empty cells). Candidates are drawn in batches of `4 · count` from one CDF. p, u, free: (n, n).
+    to empty cells). Candidates are drawn in batches of `4 · count` from one CDF: a batch's two sets of uniforms
+    are drawn here, its cells chosen in one compiled call (`_place_batch`). p, u, free: (n, n).
     Returns (count, 2) int64 (row, col).
     """
     if count == 0:
         return np.zeros((0, 2), np.int64)
     n = p.shape[0]
-    cdf = np.cumsum(np.where(free, p, 0.0).ravel())
-    keep_prob = keep_probability(u).ravel()
-    chosen: list[int] = []
-    taken: set[int] = set()
+    cdf, keep_prob = _placement_tables(np.asarray(p, np.float64), np.asarray(u, np.float64), np.asarray(free, bool))
+    chosen, taken, placed = np.empty(count, np.int64), np.zeros(n * n, np.bool_), 0
     for _ in range(_MAX_TARGET_ROUNDS):
         batch = 4 * count
-        cells = np.minimum(np.searchsorted(cdf, rng.random(batch) * cdf[-1], side="right"), n * n - 1)
-        keep = rng.random(batch) < keep_prob[cells]
-        for cell in cells[keep].tolist():
-            if cell not in taken:
-                taken.add(cell)
-                chosen.append(cell)
-                if len(chosen) == count:
-                    return np.stack(np.divmod(np.array(chosen, np.int64), n), axis=1)
+        placed = _place_batch(cdf, keep_prob, rng.random(batch), rng.random(batch), taken, chosen, placed)
+        if placed == count:
+            return np.stack(np.divmod(chosen, n), axis=1)
     raise RuntimeError(f"could not place {count} targets in {_MAX_TARGET_ROUNDS} batches (maps too peaked?)")
+
+
+@njit(cache=CACHE)
+def _placement_tables(p, u, free):
+    """(cdf, keep) (n²,) float64 of p, u and free (n, n): the running sum of p over the free cells, row by row
+    (numpy's cumsum of where(free, p, 0), the same bits), and `keep_probability(u)` flattened."""
+    n = p.shape[0]
+    cdf, keep = np.empty(n * n), np.empty(n * n)
+    total, peak = 0.0, u.max()
+    for r in range(n):
+        for c in range(n):
+            total += p[r, c] if free[r, c] else 0.0
+            cdf[r * n + c] = total
+            keep[r * n + c] = 1.0 - u[r, c] / peak
+    return cdf, keep
+
+
+@njit(cache=CACHE)
+def _place_batch(cdf, keep, at, keep_draw, taken, chosen, placed):
+    """One batch of `place_targets`: candidate b is the cell where `at[b]` · total falls in cdf (numpy's
+    searchsorted, side right, capped at the last cell), kept when keep_draw[b] < keep[cell] and not `taken`;
+    kept cells go to chosen (count,) int64 after the `placed` already there, until it is full. Returns the count
+    placed."""
+    last, total = cdf.shape[0] - 1, cdf[-1]
+    for b in range(at.shape[0]):
+        cell = min(np.searchsorted(cdf, at[b] * total, side="right"), last)
+        if keep_draw[b] < keep[cell] and not taken[cell]:
+            taken[cell], chosen[placed] = True, cell
+            placed += 1
+            if placed == chosen.shape[0]:
+                break
+    return placed
 
 
 def finite(value: object) -> bool:
