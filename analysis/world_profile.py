@@ -12,8 +12,8 @@
 # `observe_into`, and a reset's maps, `_densities`), the Python around the step's two, the resets and the action
 # draws, as shares of the wall time over 2,000 steps, three runs. Only the kernels share their work among threads;
 # the rest runs in the calling thread, so its share s bounds two threads at 1 / (s + (1 − s) / 2) (Amdahl's law).
-# The figures of docs/performance.md came from this script at 3ef57a5 (two sittings), at c04606f and at the commit
-# whose maps became a parallel kernel.
+# The figures of docs/performance.md came from this script at 3ef57a5 (two sittings), c04606f, 0854221 (two
+# sittings), 7b5cc23 and ba06ae3.
 #
 #     python analysis/world_profile.py
 
