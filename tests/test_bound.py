@@ -353,6 +353,26 @@ def test_rows_cached_without_the_detection_bound_are_computed_again_when_it_is_a
     assert sorted(cached.map_seed) == seeds and cached.detection_bound_cardinal.notna().all()  # one row per map
 
 
+def test_a_cache_without_a_cells_file_starts_from_the_shipped_rows(tmp_path, monkeypatch):
+    """A first evaluation reads the shipped bounds of its maps and writes them, with those it computes beside them,
+    to its own cache; the shipped file is only read."""
+    from searchrl.evaluate import bound as bound_module
+    from searchrl.evaluate.grid import Cell
+    from searchrl.world.config import WorldConfig
+
+    world, cell, shipped, cache = WorldConfig(), Cell(20, 1, 4, 8), tmp_path / "shipped", tmp_path / "cache"
+    bound_module.cell_bounds(world, cell, [3, 4], draws=100, cache=shipped)
+    rows = pd.read_parquet(shipped / "n20_N1_draws100.parquet")
+    rows.loc[rows.map_seed == 3, "bound"] = 0.5  # a value no computation gives: read, not recomputed
+    rows.to_parquet(shipped / "n20_N1_draws100.parquet")
+    monkeypatch.setattr(bound_module, "REFERENCE_BOUNDS", shipped)
+    got = bound_module.cell_bounds(world, cell, [3, 4, 5], draws=100, cache=cache)
+    fresh = bound_module.cell_bounds(world, cell, [4, 5], draws=100)
+    assert got.bound.tolist()[0] == 0.5 and got.iloc[1:].reset_index(drop=True).equals(fresh)
+    assert sorted(pd.read_parquet(cache / "n20_N1_draws100.parquet").map_seed) == [3, 4, 5]
+    assert sorted(pd.read_parquet(shipped / "n20_N1_draws100.parquet").map_seed) == [3, 4]
+
+
 def test_map_prior_is_the_worlds_n_by_n_maps_without_the_halo(tmp_path):
     from searchrl.evaluate.bound import cell_bounds, map_prior
     from searchrl.evaluate.grid import Cell

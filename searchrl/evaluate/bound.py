@@ -35,6 +35,9 @@ from searchrl.world.reset import draw_world
 from searchrl.world.scenario import PAPER, Scenario
 
 BOUND_DRAWS = 1000  # placements per map: a standard error of about 0.075 targets of 32 at n = 160
+# The paper grid's bounds (seed 0, 100 maps a cell, BOUND_DRAWS), shipped: a cache without a cell's file reads that
+# cell's rows from here (`analysis/bounds.py --cache runs/reference/bounds` remakes them)
+REFERENCE_BOUNDS = Path("runs/reference/bounds")
 BOUND_COLUMNS = ["bound", "bound_stderr", "bound_fraction"]
 MOVE_SETS = {"cardinal": False, "diagonal": True}  # WorldConfig.diagonal of each move set the cache holds
 
@@ -55,6 +58,15 @@ def map_digest(p: np.ndarray, u: np.ndarray, free: np.ndarray, targets: int) -> 
     return digest.hexdigest()[:16]
 
 
+def _known_rows(path: Path | None) -> pd.DataFrame | None:
+    """The rows cached for a cell (its file in the cache), else those shipped for it (`REFERENCE_BOUNDS`: read
+    only, what is computed beside them is written to the cache with them), else None."""
+    if path is None:
+        return None
+    source = next((p for p in (path, REFERENCE_BOUNDS / path.name) if p.exists()), None)
+    return _read_cache(source) if source is not None else None
+
+
 def _read_cache(path: Path) -> pd.DataFrame | None:
     """The cached rows of a cell, or None when the file is damaged: its rows are computed again and the file
     replaced (a cache is never a reason to stop)."""
@@ -72,7 +84,8 @@ def cell_bounds(
     """One row per map seed: `bound` (expected targets at most), `bound_stderr`, `bound_fraction`, `reach`; with
     `detection` also the detection bound of the world's moves (`detection_bound`, `detection_stderr`,
     `detection_fraction`). With `cache`, rows computed before for the same map, reach and draws are read from it
-    and new ones added; the new ones are computed on `workers` threads (each map from its own seed's generator, so
+    and new ones added (a cache without the cell's file starts from the shipped rows, `REFERENCE_BOUNDS`); the new
+    ones are computed on `workers` threads (each map from its own seed's generator, so
     the count changes no value; numpy draws the Gumbel noise, most of the time, outside the GIL). The bound assumes
     §4.1.4's placement from the prior: under a scenario whose targets do not follow the prior
     (`Scenario.targets_follow_prior`) its columns are NaN, as nothing bounds them from the prior."""
@@ -87,7 +100,7 @@ def cell_bounds(
                for d in MOVE_SETS.values()] if detection else []  # fmt: skip
     own = "diagonal" if config.diagonal else "cardinal"
     path = Path(cache) / f"{cell.key}_draws{draws}.parquet" if cache is not None else None
-    known = _read_cache(path) if path is not None and path.exists() else None
+    known = _known_rows(path)
     if known is not None and not {"map_seed", "digest", "team_reach"} <= set(known.columns):
         known = None  # a cache file of another layout: computed afresh and replaced
     if known is not None:  # a detection bound without its move set (before MOVE_SETS): computed again if asked
