@@ -12,12 +12,14 @@ from typing import TextIO
 from searchrl.controllers.factory import heuristic_factory, policy_factory
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import BATCH_MB, cell_config, cell_slots, run_cell
+from searchrl.evaluate.schema import GridConfig
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor
 from searchrl.threads import use_threads
 from searchrl.world.config import WorldConfig
 
 FULL_EPISODES_PER_CELL = 100 * 5
-GRID = table2_cells([20, 40, 80, 160], [4, 8, 16, 32], [8, 16, 32, 64], [32, 64, 128, 256])
+_GRID = GridConfig()  # the evaluation's own grid: the bench's cells are its cells, in its order (their map seeds)
+GRID = table2_cells(_GRID.world_sizes, _GRID.n_targets, _GRID.n_distributions, _GRID.max_agents)
 
 
 def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = None, threads: int = 2,
