@@ -9,9 +9,10 @@
 #
 # The loop of `python -m searchrl.bench world` (random actions, step, observation, resets of finished worlds; model
 # B's settings) at (n, N, K) = (40, 8, 64) on one numba thread, each call timed: the parallel kernels (`step_worlds`,
-# `observe_into`, and a reset's maps, `_densities`), the Python around the step's two, the resets and the action
-# draws, as shares of the wall time over 2,000 steps, three runs. Only the kernels share their work among threads;
-# the rest runs in the calling thread, so its share s bounds two threads at 1 / (s + (1 − s) / 2) (Amdahl's law).
+# `observe_into`, and a reset's maps, `_densities` and `_mixture_maps`), the Python around the step's two, the
+# resets and the action draws, as shares of the wall time over 2,000 steps, three runs. Only the kernels share
+# their work among threads; the rest runs in the calling thread, so its share s bounds two threads at
+# 1 / (s + (1 − s) / 2) (Amdahl's law).
 # The figures of docs/performance.md came from this script at 3ef57a5 (two sittings), c04606f, 0854221 (two
 # sittings), 7b5cc23 and ba06ae3.
 #
@@ -31,7 +32,12 @@ from searchrl.world.observe import observe
 from searchrl.world.reset import reset_worlds
 from searchrl.world.state import allocate
 
-KERNELS = {"step_worlds": step_module, "observe_into": observe_module, "_densities": maps_module}
+KERNELS = {
+    "step_worlds": step_module,
+    "observe_into": observe_module,
+    "_densities": maps_module,
+    "_mixture_maps": maps_module,
+}
 spent: dict[str, float] = dict.fromkeys(KERNELS, 0.0)
 
 
@@ -78,10 +84,10 @@ for run in range(3):
             parts["step + observe"] += t2 - t1
             parts["resets"] += t3 - t2
         wall = time.perf_counter() - begin
-    kernels, maps = sum(spent.values()), spent["_densities"]
+    kernels, maps = sum(spent.values()), spent["_densities"] + spent["_mixture_maps"]
     serial = 1 - kernels / wall
     print(f"run {run}: {steps * n_worlds * config.n_agents / wall:,.0f} agent-steps/s; kernels {kernels / wall:.1%}, "
           f"Python around the step's {(parts['step + observe'] - kernels + maps) / wall:.1%}, resets "
-          f"{parts['resets'] / wall:.1%} (their maps' kernel {maps / wall:.1%}), "
+          f"{parts['resets'] / wall:.1%} (their maps' kernels {maps / wall:.1%}), "
           f"actions {parts['actions'] / wall:.1%}; "
           f"outside the kernels {serial:.1%}: two threads at most {1 / (serial + (1 - serial) / 2):.2f}x")  # fmt: skip

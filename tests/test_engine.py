@@ -16,7 +16,8 @@ from searchrl.world.engine import SearchWorld
 from searchrl.world.observe import observe
 from searchrl.world.reset import reset_worlds
 from searchrl.world.state import allocate
-from searchrl.world.step import check_actions, numpy_sum, step
+from searchrl.world.step import check_actions, step
+from searchrl.world.sums import numpy_sum
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
 

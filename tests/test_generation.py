@@ -63,6 +63,23 @@ def test_gaussian_densities_are_the_same_bits_in_any_number_of_chunks():
         np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
 
 
+@pytest.mark.parametrize("n, m", [(1, 1), (7, 3), (40, 16), (160, 8)])
+def test_mixture_maps_are_eq_7_and_8_in_numpy_bit_for_bit(n, m):
+    """p and u in one compiled pass (the mixtures, their pairwise totals, eq. 7 and 8) keep numpy's bits in any
+    number of chunks, so no world drawn before it changes."""
+    from searchrl.world.maps import Gaussians, _mixture_maps
+
+    rng = np.random.default_rng(n)
+    both = Gaussians.draw(n, m, 10.0 * n, 1.0, 0.8, rng) + Gaussians.draw(n, m, 2.0 * n, 1.0, 0.8, rng)
+    densities = both.densities(n)
+    want_p, want_u = probability_map(densities[:m].sum(axis=0), 0.1), uncertainty_map(densities[m:].sum(axis=0))
+    for threads in (1, 2, 3, 7):
+        p, u = np.empty((n, n)), np.empty((n, n))
+        _mixture_maps(densities, m, 0.1, p, u, threads)
+        np.testing.assert_array_equal(p.view(np.int64), want_p.view(np.int64))
+        np.testing.assert_array_equal(u.view(np.int64), want_u.view(np.int64))
+
+
 def _numpy_placement(p, u, free, count, rng):
     """§4.1.4's placement in plain numpy, the law `place_targets` works in compiled batches."""
     n, cdf = p.shape[0], np.cumsum(np.where(free, p, 0.0).ravel())

@@ -10,6 +10,7 @@ from numba import njit, prange
 
 from searchrl.world.kernels import CACHE
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
+from searchrl.world.sums import numpy_sum
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,63 @@ def _density_rows(dx, dy, two_rho, divisor, norm, out, first, stop):
         for x in range(out.shape[2]):
             quad = dx[i, x] * dx[i, x] + dy2
             out[i, y, x] = math.exp((quad - two_rho_i * dx[i, x] * dyi) / divisor_i) / norm_i
+
+
+def mixture_maps(densities: np.ndarray, m: int, eta: float) -> tuple[np.ndarray, np.ndarray]:
+    """(p, u), (n, n) float64 each: eq. 7 of the mixture of the first m of `densities` (M, n, n) float64 and eq. 8
+    of the mixture of the rest, in one compiled pass whose grid rows are shared among the world's threads. The
+    same bits as `probability_map(densities[:m].sum(axis=0), eta)` and `uncertainty_map(densities[m:].sum(axis=0))`
+    (numpy adds the components in order, cell by cell, and sums a map pairwise: `sums.numpy_sum`)."""
+    n = densities.shape[1]
+    p, u = np.empty((n, n), np.float64), np.empty((n, n), np.float64)
+    _mixture_maps(densities, m, eta, p, u, world_threads())
+    return p, u
+
+
+@njit(cache=CACHE, parallel=True)
+def _mixture_maps(densities, m, eta, p, u, threads):
+    """p and u (n, n) = `mixture_maps`: the mixtures row by row, their totals in this thread, then eq. 7 and 8 row
+    by row; the rows cut into up to `threads` chunks, one chunk run in the calling thread (no parallel region)."""
+    n = p.shape[0]
+    n_chunks = chunk_count(n, n, threads)
+    if n_chunks == 1:
+        _mixture_rows(densities, m, p, u, 0, n)
+    else:
+        for chunk in prange(n_chunks):
+            first, stop = chunk_span(chunk, n_chunks, 0, n)
+            _mixture_rows(densities, m, p, u, first, stop)
+    p_total, u_total = numpy_sum(p.ravel()), numpy_sum(u.ravel())
+    floor = eta * p_total / p.size  # eq. 7's η spread evenly, as `probability_map` computes it
+    if n_chunks == 1:
+        _normalised_rows(p, u, 1.0 - eta, floor, p_total, u_total, 0, n)
+        return
+    for chunk in prange(n_chunks):
+        first, stop = chunk_span(chunk, n_chunks, 0, n)
+        _normalised_rows(p, u, 1.0 - eta, floor, p_total, u_total, first, stop)
+
+
+@njit(cache=CACHE)
+def _mixture_rows(densities, m, p, u, first, stop):
+    """Rows first..stop-1 of p = Σ_{i<m} densities[i] and u = Σ_{i>=m} densities[i], each added in order of i."""
+    n, count = p.shape[1], densities.shape[0]
+    for y in range(first, stop):  # component by component along the row: contiguous, as numpy adds them
+        for x in range(n):
+            p[y, x], u[y, x] = densities[0, y, x], densities[m, y, x]
+        for i in range(1, count):
+            if i == m:
+                continue
+            mixture = p if i < m else u
+            for x in range(n):
+                mixture[y, x] += densities[i, y, x]
+
+
+@njit(cache=CACHE)
+def _normalised_rows(p, u, weight, floor, p_total, u_total, first, stop):
+    """Rows first..stop-1: p = (weight · p + floor) / p_total (eq. 7) and u = u / u_total (eq. 8), in place."""
+    for y in range(first, stop):
+        for x in range(p.shape[1]):
+            p[y, x] = (weight * p[y, x] + floor) / p_total
+            u[y, x] = u[y, x] / u_total
 
 
 def probability_map(mixture: np.ndarray, eta: float) -> np.ndarray:

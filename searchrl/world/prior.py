@@ -24,7 +24,7 @@ from typing import ClassVar
 import numpy as np
 
 from searchrl.world.config import WorldConfig, need
-from searchrl.world.maps import Gaussians, probability_map, uncertainty_map
+from searchrl.world.maps import Gaussians, mixture_maps, probability_map
 from searchrl.world.truth import finite
 
 
@@ -48,17 +48,16 @@ class MixturePrior:
     variance_scale: float | None = None
 
     def components(self, config: WorldConfig, n: int, m: int, rng: np.random.Generator
-                   ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """(p's m densities (m, n, n), u (n, n)), drawn in the paper's order: p's Gaussians, then u's."""
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+        """(p's m densities (m, n, n), p and u (n, n)), drawn in the paper's order: p's Gaussians, then u's."""
         scale = config.prob_variance_scale if self.variance_scale is None else self.variance_scale
         p_gaussians = Gaussians.draw(n, m, scale * n, config.variance_floor, config.rho_max, rng)
         u_gaussians = Gaussians.draw(n, m, config.unc_variance_scale * n, config.variance_floor, config.rho_max, rng)
-        both = (p_gaussians + u_gaussians).densities(n)  # nothing more is drawn: both maps in one compiled call
-        return both[:m], uncertainty_map(both[m:].sum(axis=0))
+        both = (p_gaussians + u_gaussians).densities(n)  # nothing more is drawn: both maps in compiled calls
+        return (both[:m], *mixture_maps(both, m, config.eta))
 
     def __call__(self, config: WorldConfig, n: int, m: int, rng: np.random.Generator) -> PriorDraw:
-        densities, u = self.components(config, n, m, rng)
-        p = probability_map(densities.sum(axis=0), config.eta)
+        densities, p, u = self.components(config, n, m, rng)
         return self.truth(config, p, u, densities, rng)
 
     def truth(self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray,

@@ -6,11 +6,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import team_sensing_rate
 from searchrl.world.kernels import CACHE
+from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
@@ -66,15 +67,14 @@ def draw_world(config: WorldConfig, n_agents: int, rng: np.random.Generator, sce
 def write_world(config: WorldConfig, state: WorldState, k: int, world: DrawnWorld) -> None:
     """World k of `state` starts an episode in the drawn `world`: maps, obstacles, agents, targets, every belief
     the prior, counters at 0."""
-    _write_world(state.arrays(), k, world.p, world.u, world.free, world.pos, world.targets)
+    p_peak, u_peak = _write_world(state.arrays(), k, world.p, world.u, world.free, world.pos, world.targets,
+                                  world_threads())  # fmt: skip
     if config.belief_age > 0:  # else 0: the rate (a count of free cells) is not needed
         state.age_rate[k] = config.belief_age * team_sensing_rate(state.blocked[k : k + 1], state.n_agents)[0]
     state.belief_time[k] = 0  # both are (K, N, 0, 0), and this a no-op, in a world that keeps neither
     state.belief_seen[k] = 1.0
     update_freshness(config, state, k, k + 1)  # the first observation already counts the neighbours in view
-    h, n = state.halo, world.p.shape[0]
-    inner = (k, slice(h, h + n), slice(h, h + n))
-    state.obs_scale[k] = (_unit_scale(state.p[inner].max()), _unit_scale(state.u[inner].max()))
+    state.obs_scale[k] = (_unit_scale(p_peak), _unit_scale(u_peak))
 
 
 def reset_world(
@@ -99,34 +99,38 @@ def _start_cells(free, targets, index):
     return pos
 
 
-@njit(cache=CACHE)
-def _write_world(w, k, p, u, free, pos, targets):
+@njit(cache=CACHE, parallel=True)
+def _write_world(w, k, p, u, free, pos, targets, threads):
     """Write world k of w (`WorldState.arrays()`) in one compiled call: its side, the prior p and u (n, n) float64
     as float32 inside the halo and 0 outside, the cells blocked outside `free` (n, n) bool and on the halo, every
     agent's belief the prior (an empty belief box), the agents at pos (N, 2) int64, the targets (j, 2) int64 to
-    find, and the clock, age rate and episode tallies at 0. belief_time, belief_seen and obs_scale are left to
-    the caller."""
+    find, and the clock, age rate and episode tallies at 0. The agents' beliefs, most of what is written (N · 2 · S²
+    values), are cut into up to `threads` chunks of agents, one run in the calling thread (no parallel region).
+    belief_time, belief_seen and obs_scale are left to the caller. Returns the largest p and u written (float32)."""
     state_p, state_u, blocked, occupant, found_grid, swept = w.p, w.u, w.blocked, w.occupant, w.found_grid, w.swept
-    belief, belief_box, agent_pos, target_pos = w.belief, w.belief_box, w.pos, w.target_pos
-    target_valid, target_found = w.target_valid, w.target_found
+    agent_pos, target_pos, target_valid, target_found = w.pos, w.target_pos, w.target_valid, w.target_found
     n, h, side = p.shape[0], w.halo, state_p.shape[1]  # fields read once (kernels.py: no view in the loops)
     w.size[k], w.t[k], w.age_rate[k] = n, 0, 0.0
+    p_peak, u_peak = np.float32(0.0), np.float32(0.0)
     for r in range(side):
         for c in range(side):
             inside = h <= r < h + n and h <= c < h + n
             state_p[k, r, c] = p[r - h, c - h] if inside else 0.0
             state_u[k, r, c] = u[r - h, c - h] if inside else 0.0
+            p_peak, u_peak = max(p_peak, state_p[k, r, c]), max(u_peak, state_u[k, r, c])
             blocked[k, r, c] = not free[r - h, c - h] if inside else True
             occupant[k, r, c] = -1
             found_grid[k, r, c] = False
             swept[k, r, c] = False
-    for i in range(pos.shape[0]):  # every agent starts from the prior (§3.2.1)
-        for r in range(side):
-            for c in range(side):
-                belief[k, i, 0, r, c] = state_p[k, r, c]
-                belief[k, i, 1, r, c] = state_u[k, r, c]
-        belief_box[k, i, 0], belief_box[k, i, 1] = side, -1  # empty: the belief equals the prior
-        belief_box[k, i, 2], belief_box[k, i, 3] = side, -1
+    n_agents = pos.shape[0]
+    n_chunks = chunk_count(n_agents, n_agents, threads)
+    if n_chunks == 1:
+        _write_beliefs(w, k, 0, n_agents)
+    else:
+        for chunk in prange(n_chunks):
+            first, stop = chunk_span(chunk, n_chunks, 0, n_agents)
+            _write_beliefs(w, k, first, stop)
+    for i in range(n_agents):
         agent_pos[k, i, 0], agent_pos[k, i, 1] = pos[i, 0], pos[i, 1]
         occupant[k, pos[i, 0] + h, pos[i, 1] + h] = i
     for s in range(target_valid.shape[1]):
@@ -136,6 +140,22 @@ def _write_world(w, k, p, u, free, pos, targets):
         target_pos[k, s, 1] = targets[s, 1] if real else 0
     w.n_targets[k], w.n_found[k] = targets.shape[0], 0
     w.ep_return[k], w.ep_comm_pairs[k], w.ep_info[k], w.ep_collisions[k], w.ep_stale[k] = 0.0, 0, 0.0, 0, 0
+    return p_peak, u_peak
+
+
+@njit(cache=CACHE)
+def _write_beliefs(w, k, first, stop):
+    """Agents first..stop-1 of world k start from the prior (§3.2.1): their beliefs w.p[k] and w.u[k], and an empty
+    belief box (the belief equals the prior)."""
+    state_p, state_u, belief, belief_box = w.p, w.u, w.belief, w.belief_box
+    side = state_p.shape[1]
+    for i in range(first, stop):
+        for r in range(side):
+            for c in range(side):
+                belief[k, i, 0, r, c] = state_p[k, r, c]
+                belief[k, i, 1, r, c] = state_u[k, r, c]
+        belief_box[k, i, 0], belief_box[k, i, 1] = side, -1
+        belief_box[k, i, 2], belief_box[k, i, 3] = side, -1
 
 
 def reset_worlds(config: WorldConfig, state: WorldState, mask: np.ndarray, rng: np.random.Generator,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numba import njit, prange
@@ -15,6 +16,7 @@ from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
+from searchrl.world.sums import numpy_sum
 from searchrl.world.swept import sweep
 
 
@@ -43,11 +45,21 @@ def check_actions(config: WorldConfig, state: WorldState, actions: np.ndarray) -
     expected = (state.n_worlds, state.n_agents)
     if actions.shape != expected:
         raise ValueError(f"actions have shape {actions.shape}; expected (n_worlds, n_agents) = {expected}")
-    if not np.issubdtype(actions.dtype, np.integer):
+    if actions.dtype.kind not in "iu":  # the integer kinds, as np.issubdtype(dtype, np.integer) says, without its cost
         raise ValueError(f"actions have dtype {actions.dtype}; expected integers in [0, {config.n_actions})")
-    if actions.size and (actions.min() < 0 or actions.max() >= config.n_actions):
+    if actions.size and not _in_range(actions.reshape(-1), config.n_actions):
         raise ValueError(f"actions range over [{actions.min()}, {actions.max()}]; allowed [0, {config.n_actions - 1}]")
     return actions.astype(np.int64, copy=False)
+
+
+@njit(cache=CACHE)
+def _in_range(actions, n_actions):
+    """Whether every one of actions (M,) (any integer dtype) is in [0, n_actions): one pass, where min and max make
+    two."""
+    for a in actions:
+        if a < 0 or a >= n_actions:
+            return False
+    return True
 
 
 def step(
@@ -76,36 +88,46 @@ def step(
     )
     out = (result.collided, result.targets_found, result.info_collected, np.empty((k, n), np.bool_),
            result.comm_pairs, result.comm_gain, result.reward, result.terminated, result.truncated)  # fmt: skip
-    radii = np.array([config.explicit_area // 2, config.comm_range // 2], np.int64)
-    step_worlds(state.arrays(), actions, priority, detect, MOVES, SUPPORT, config.sensing_rate(state.size), radii,
-                config.communication, _reward_terms(config), config.max_steps, scratch, out, threads)  # fmt: skip
+    sensing, radii, reward_terms = _step_terms(config)
+    step_worlds(state.arrays(), actions, priority, detect, MOVES, SUPPORT, sensing, radii, config.communication,
+                reward_terms, config.max_steps, scratch, out, threads)  # fmt: skip
     update_freshness(config, state, 0, k)  # observation only: when each agent last saw a cell, what it saw sensed
     return result
 
 
-def _reward_terms(config: WorldConfig) -> np.ndarray:
-    """(5,) float64: step_reward, collision_reward, target_reward, ξ/λ and τ/λ, the coefficients of SPEC.md's
-    reward (phase 6) in the order it adds them."""
-    return np.array([config.step_reward, config.collision_reward, config.target_reward, config.xi / config.lam,
-                     config.tau / config.lam], np.float64)  # fmt: skip
+@lru_cache(maxsize=16)
+def _step_terms(config: WorldConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The config's numbers `step_worlds` reads, made once per config (read-only): sensing (3,) float64 λ, k and
+    k_per_n (a world of side n senses at c = λ·(k + k_per_n·n), `WorldConfig.sensing_rate`); radii (2,) int64 those
+    of Φ and of communication; reward_terms (5,) float64 step_reward, collision_reward, target_reward, ξ/λ and
+    τ/λ, the coefficients of SPEC.md's reward (phase 6) in the order it adds them."""
+    sensing = np.array([config.lam, config.k, config.k_per_n], np.float64)
+    radii = np.array([config.explicit_area // 2, config.comm_range // 2], np.int64)
+    reward_terms = np.array([config.step_reward, config.collision_reward, config.target_reward,
+                             config.xi / config.lam, config.tau / config.lam], np.float64)  # fmt: skip
+    for terms in (sensing, radii, reward_terms):
+        terms.flags.writeable = False
+    return sensing, radii, reward_terms
 
 
 @njit(cache=CACHE, parallel=True)
-def step_worlds(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps, scratch,
+def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, merge, reward_terms, max_steps, scratch,
                 out, threads):  # fmt: skip
     """SPEC.md's step (move, detect, sense and sweep, refresh, communicate, reward, time) for every world of w, the
     worlds shared among numba's threads (searchrl/world/parallel.py). actions (K,N) int64, priority (K,N) and
-    detect (K,T) float64 the step's draws, moves (A,2) int64, support a `Footprint`, c_coef (K,) float64 λk, radii
-    (2,) int64 those of Φ and of communication, merge whether beliefs merge, reward_terms
-    (`_reward_terms`), max_steps the episode's length, scratch a `Scratch`; out = (collided (K,N) bool, found_by
-    (K,N) int64, collected (K,N) float64, stale (K,N) bool, comm_pairs (K,) int64, comm_gain (K,N) float64, reward
-    (K,N) float32, terminated (K,) bool, truncated (K,) bool) is written; `threads` (`parallel.world_threads()`)
-    bounds the chunks.
+    detect (K,T) float64 the step's draws, moves (A,2) int64, support a `Footprint`, sensing, radii and
+    reward_terms those of `_step_terms`, merge whether beliefs merge, max_steps the episode's length, scratch a
+    `Scratch`; out = (collided (K,N) bool, found_by (K,N) int64, collected (K,N) float64, stale (K,N) bool,
+    comm_pairs (K,) int64, comm_gain (K,N) float64, reward (K,N) float32, terminated (K,) bool, truncated (K,)
+    bool) is written; `threads` (`parallel.world_threads()`) bounds the chunks.
 
     Each thread runs the phases in turn over its span of worlds: a phase touches the rows of its own worlds only,
     so this equals running each phase over all worlds in turn.
     """
-    n_worlds = actions.shape[0]
+    n_worlds, size = actions.shape[0], w.size
+    c_coef = np.empty(n_worlds)  # each world's λk, as `WorldConfig.sensing_rate` computes it
+    for k in range(n_worlds):
+        c_coef[k] = sensing[0] * (sensing[1] + sensing[2] * np.float64(size[k]))
     n_chunks = chunk_count(n_worlds, scratch.claim.shape[0], threads)
     if n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
         _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps,
@@ -169,64 +191,3 @@ def _account(w, first, stop, reward_terms, max_steps, out, reward64, info64):
         ep_comm_pairs[k] += comm_pairs[k]
         ep_collisions[k] += n_collided
         ep_stale[k] += n_stale
-
-
-@njit(cache=CACHE)
-def numpy_sum(values):
-    """values.sum() as numpy adds a contiguous float64 row (N,), so a tally made here equals
-    numpy's bit for bit (tests/test_engine.py checks every length up to 1,100): numpy sums a row of up to 128 in
-    eight partial sums (`_block_sum`) and a longer one as the sum of its halves, the first a multiple of 8 long.
-    Those halves are walked with a stack, not by recursion: numba cannot load a cached recursive function
-    (numba issue #6061: a segfault)."""
-    count = values.shape[0]
-    if count <= 128:
-        return _block_sum(values, 0, count)
-    starts, counts = np.empty(64, np.int64), np.empty(64, np.int64)  # a frame per half being summed
-    stage, left = np.zeros(64, np.int64), np.empty(64, np.float64)  # 0: to do, 1: first half, 2: second half
-    top, total = 0, 0.0
-    starts[0], counts[0] = 0, count
-    while top >= 0:
-        n = counts[top]
-        half = n // 2 - (n // 2) % 8
-        if n <= 128:  # a block: its sum goes back to the frame below
-            total = _block_sum(values, starts[top], n)
-            top -= 1
-        elif stage[top] == 0:
-            stage[top] = 1
-            top += 1
-            starts[top], counts[top], stage[top] = starts[top - 1], half, 0
-        elif stage[top] == 1:
-            left[top], stage[top] = total, 2
-            top += 1
-            starts[top], counts[top], stage[top] = starts[top - 1] + half, n - half, 0
-        else:
-            total = left[top] + total
-            top -= 1
-    return total
-
-
-@njit(cache=CACHE)
-def _block_sum(values, first, count):
-    """numpy's sum of a row of at most 128: in order below 8, else eight partial sums combined pairwise, then the
-    remainder in order."""
-    if count < 8:
-        total = 0.0
-        for i in range(first, first + count):
-            total += values[i]
-        return total
-    r0, r1, r2, r3 = values[first], values[first + 1], values[first + 2], values[first + 3]
-    r4, r5, r6, r7 = values[first + 4], values[first + 5], values[first + 6], values[first + 7]
-    whole = first + count - count % 8
-    for i in range(first + 8, whole, 8):
-        r0 += values[i]
-        r1 += values[i + 1]
-        r2 += values[i + 2]
-        r3 += values[i + 3]
-        r4 += values[i + 4]
-        r5 += values[i + 5]
-        r6 += values[i + 6]
-        r7 += values[i + 7]
-    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    for j in range(whole, first + count):
-        total += values[j]
-    return total
