@@ -212,6 +212,36 @@ def test_bench_train_times_a_recipe_with_the_teacher_term(capsys):
     assert "--experiment=nothing is not allowed: one of" in capsys.readouterr().err
 
 
+def test_the_raw_bound_between_updates_leaves_the_recipe_as_it_would_train_alone():
+    """bench train measures its raw bound after each update, on the recipe's own policy: the parameters and torch's
+    random state are put back, so the recipe's later rollouts and updates are those of a run without it."""
+    from hydra import compose, initialize_config_dir
+
+    import searchrl.train.app  # noqa: F401  (registers the training schemas)
+    from searchrl.bench.train import _then_bound
+    from searchrl.paths import CONF_DIR
+    from searchrl.train.build import make_algorithm, make_vec_env
+    from searchrl.train.plan import make_plan
+
+    def trained(bounded: bool) -> list[torch.Tensor]:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            cfg = compose(config_name="train", overrides=["+model=b", "network=small", "threads=1", "env.n_worlds=2",
+                                                          "env.world.n_agents=4", "env.world.world_size=[12,12]",
+                                                          "algo.n_steps=8", "algo.batch_size=32"])  # fmt: skip
+        torch.manual_seed(0)
+        plan = make_plan(cfg)
+        model = make_algorithm(plan, make_vec_env(plan, seed=0))
+        seconds = [0.0], [0.0], [0.0]
+        if bounded:
+            model.train = _then_bound(model.train, model, lambda: None, *seconds)
+        model.learn(3 * plan.rollout)
+        assert (seconds[0][0] > 0) == bounded
+        return [parameter.detach().clone() for parameter in model.policy.parameters()]
+
+    for alone, bounded in zip(trained(False), trained(True), strict=True):
+        assert torch.equal(alone, bounded)
+
+
 def test_bench_train_takes_a_machine_and_refuses_a_missing_device_in_one_line(capsys):
     with pytest.raises(SystemExit):  # machine=gpu asks for cuda, which this machine lacks (CI has no GPU)
         bench_main(["train", "--machine", "gpu"] if not torch.cuda.is_available() else ["train", "--device", "cuda:99"])

@@ -5,18 +5,24 @@ during the rollout, with SB3's handling of them), the teacher's labels (runs wit
 buffer (filling it, returns and advantages, and forming the minibatches) and the update (the minibatches' forward,
 backward and optimiser steps); what is left is SB3's bookkeeping.
 
-In the same run, the raw bound: the recipe's network alone on the last rollout's own minibatches (taken from the
-rollout buffer before the clock starts), forward + backward + Adam step, the recipe's epochs, in plain torch with
-no SB3 code in the timed loop. The update cannot run faster than that; the ratio says how close the recipe comes,
-and `update_ratio` how close the update alone comes. On a GPU the clocks are read after `torch.cuda.synchronize`.
+In the same run, the raw bound: the recipe's network alone doing the work of each rollout, in plain torch with no
+SB3 code in the timed loop: acting through the rollout's observations, then the recipe's epochs over its own
+minibatches (taken from the rollout buffer before the clock starts), forward + backward + Adam step. It is measured
+right after each update, on that update's rollout, outside the recipe's clock, and the policy's parameters are put
+back after it: the recipe and its bound take turns through the run, so a neighbour that slows the machine for a
+while slows both alike. The recipe cannot run faster than that; the ratio says how close it comes, and
+`acting_ratio` and `update_ratio` how close its acting and its update come. On a GPU the clocks are read after
+`torch.cuda.synchronize`.
 """
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Callable, Iterator
 from typing import TextIO
 
+import numpy as np
 import torch
 from hydra import compose, initialize_config_dir
 
@@ -90,19 +96,21 @@ def run(updates: int = 4, threads: int | None = None, network: str = "paper", ex
     buffer.get = _timed_batches(buffer.get, batching, sync)
     model.collect_rollouts = _timed(model.collect_rollouts, rollout_time, sync)
     model.train = _timed(model.train, train_time, sync)
+    raw_acting, raw_update, bounding = [0.0], [0.0], [0.0]  # the raw bound's seconds, and the wall time it took
+    model.train = _then_bound(model.train, model, sync, raw_acting, raw_update, bounding)
     rollout = plan.rollout
     model.learn(rollout)  # warm-up: numba cache, torch kernels
-    for total in [*spent.values(), rollout_time, train_time, filling, batching]:
+    for total in [*spent.values(), rollout_time, train_time, filling, batching, raw_acting, raw_update, bounding]:
         total[0] = 0.0
     start = time.perf_counter()
     model.learn(rollout * updates, reset_num_timesteps=False)
     sync()
-    wall = time.perf_counter() - start
+    wall = time.perf_counter() - start - bounding[0]  # the recipe's own time
     spent["buffer"][0] = filling[0] + batching[0]
     spent["update"][0] = in_update = train_time[0] - batching[0]
     spent["acting"][0] = rollout_time[0] - spent["world"][0] - spent["labels"][0] - filling[0]
     fps = rollout * updates / wall
-    acting_s, update_s = raw_acting_seconds(model, sync), raw_update_seconds(model, sync)
+    acting_s, update_s = raw_acting[0] / updates, raw_update[0] / updates  # per rollout
     raw = rollout / (acting_s + update_s)
     name = f"recurrent_ppo_{network}_model_b_K{cfg.env.n_worlds}_N{cfg.env.world.n_agents}"
     name = experiment.replace("/", "_") if experiment else name  # term/b -> term_b
@@ -127,6 +135,28 @@ def run(updates: int = 4, threads: int | None = None, network: str = "paper", ex
     return [row]
 
 
+def _then_bound(train: Callable, model, sync: Callable[[], None], acting: list[float], update: list[float],
+                bounding: list[float]) -> Callable:  # fmt: skip
+    """`train` followed by the raw bound on the rollout it trained on: its acting and update seconds added to
+    `acting` and `update`, the wall time the bound took to `bounding`; the policy's parameters, torch's random state
+    and numpy's global one (the rollout buffer's minibatch order) are put back, so the recipe trains as it would
+    alone."""
+
+    def train_then_bound(*args, **kwargs):
+        out = train(*args, **kwargs)
+        start = time.perf_counter()
+        saved, minibatch_order = copy.deepcopy(model.policy.state_dict()), np.random.get_state()  # noqa: NPY002
+        with torch.random.fork_rng(devices=[model.device] if model.device.type == "cuda" else []):  # its samples
+            acting[0] += raw_acting_seconds(model, sync)
+            update[0] += raw_update_seconds(model, sync)
+        model.policy.load_state_dict(saved)
+        np.random.set_state(minibatch_order)  # noqa: NPY002 - the buffer's minibatches are drawn from it
+        bounding[0] += time.perf_counter() - start
+        return out
+
+    return train_then_bound
+
+
 @torch.no_grad()
 def raw_acting_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
     """Seconds `model`'s network alone takes to act through its last rollout, in plain torch: per step, one forward
@@ -134,7 +164,7 @@ def raw_acting_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
     the device (the rollout buffer's), so neither the world nor SB3's handling of the tensors is in it."""
     policy, buffer = model.policy, model.rollout_buffer
     policy.set_training_mode(False)
-    data, _ = next(buffer.get(None))  # every slot, sequence-major: (n_envs·n_steps, ...)
+    data, _ = next(_untimed_get(buffer)(None))  # every slot, sequence-major: (n_envs·n_steps, ...)
     steps = [{key: obs.reshape(buffer.n_envs, buffer.buffer_size, *obs.shape[1:])[:, t]
               for key, obs in data.observations.items()} for t in range(buffer.buffer_size)]  # fmt: skip
     starts = data.episode_starts.reshape(buffer.n_envs, buffer.buffer_size)
@@ -164,8 +194,9 @@ def raw_update_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
     policy = model.policy
     policy.set_training_mode(True)
     optimizer = torch.optim.Adam(policy.parameters(), lr=1e-5)
+    minibatches = _untimed_get(model.rollout_buffer)(model.batch_size)
     batches = [(data.observations, data.lstm_states, data.episode_starts, data.actions.long().flatten(),
-                data.mask > 1e-8) for data in map(_samples, model.rollout_buffer.get(model.batch_size))]  # fmt: skip
+                data.mask > 1e-8) for data in map(_samples, minibatches)]  # fmt: skip
 
     def step(obs, states, starts, actions, mask) -> None:
         features = policy.features_extractor(obs)  # SearchCNN itself (SB3 would only cast to float)
@@ -188,6 +219,11 @@ def raw_update_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
             step(*batch)
     sync()
     return time.perf_counter() - start
+
+
+def _untimed_get(buffer) -> Callable:
+    """The buffer's own `get`: `run` times the one set on the instance, whose time is the recipe's."""
+    return type(buffer).get.__get__(buffer)
 
 
 def device_name(device: str) -> str:
