@@ -30,7 +30,7 @@ timeout 150 python -m searchrl.bench train --experiment term/b --machine gpu --u
 say "evaluate: term/b on the full grid, device=cuda threads=16, a new bound cache (the shipped bounds)"
 start=$(date +%s)
 timeout 300 python -m searchrl.evaluate checkpoint=runs/reference/term/b/model.zip device=cuda threads=16 \
-    bound_cache=runs/device_bounds out_dir=runs/eval/gpu/term_b >>"$LOG" 2>&1
+    progress_bar=false bound_cache=runs/device_bounds out_dir=runs/eval/gpu/term_b >>"$LOG" 2>&1
 say "full-grid evaluation: rc $? after $(( $(date +%s) - start )) s, $(ls runs/eval/gpu/term_b/cells 2>/dev/null \
     | wc -l) cell files"
 tar czf "$OUT/gpu_term_b_eval.tgz" -C runs/eval/gpu term_b 2>/dev/null
