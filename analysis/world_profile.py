@@ -24,7 +24,7 @@ import time
 import numba
 import numpy as np
 
-from searchrl.bench.world import case_config
+from searchrl.bench.world import ACTION_BLOCK, case_config
 from searchrl.world import maps as maps_module
 from searchrl.world import observe as observe_module
 from searchrl.world import step as step_module
@@ -55,7 +55,8 @@ for name, module in KERNELS.items():  # the wrappers look the kernels up in thei
 
 # %% [markdown]
 # The worlds' clocks are spread over an episode, as the bench spreads them, so each stretch of steps resets its
-# share of the worlds.
+# share of the worlds; the random actions are drawn `ACTION_BLOCK` steps at a time, as the bench draws them (up to
+# 479566b both drew them one step at a time).
 
 # %%
 numba.set_num_threads(1)
@@ -70,9 +71,11 @@ for run in range(3):
         spent.update(dict.fromkeys(KERNELS, 0.0))
         parts.update(dict.fromkeys(parts, 0.0))
         begin = time.perf_counter()
-        for _ in range(50 if warm_up else steps):
+        for i in range(50 if warm_up else steps):
             t0 = time.perf_counter()
-            actions = rng.integers(0, config.n_actions, size=(n_worlds, config.n_agents))
+            if i % ACTION_BLOCK == 0:  # as the bench draws them
+                block = rng.integers(0, config.n_actions, size=(ACTION_BLOCK, n_worlds, config.n_agents))
+            actions = block[i % ACTION_BLOCK]
             t1 = time.perf_counter()
             result = step_module.step(config, state, actions, rng)
             observe(config, state)

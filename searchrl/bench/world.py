@@ -25,6 +25,9 @@ _TABLE2 = {20: (4, 8), 40: (8, 16), 80: (16, 32), 160: (32, 64)}  # n -> (target
 # drawing the actions and resetting finished worlds run in the calling thread whatever the thread count, so their
 # share at one thread bounds what more threads can gain (Amdahl's law).
 PARTS = ("actions", "step", "observe", "reset")
+# The random actions are drawn this many steps at a time: the stand-in for a policy, whose actions come from its own
+# threads or device, then costs the calling thread little, and the windows time the world.
+ACTION_BLOCK = 64
 
 
 def _load_oracle() -> tuple[Callable, Callable] | None:
@@ -57,15 +60,18 @@ def case_config(n: int, n_agents: int) -> WorldConfig:
 
 def _steps(config: WorldConfig, state: WorldState, step_fn: Callable, observe_fn: Callable, rng: np.random.Generator,
            seconds: float, min_steps: int) -> tuple[float, dict[str, float]]:  # fmt: skip
-    """Agent-steps/s of one window: step + observe + reset of finished worlds, random actions; and the shares of
-    the window's wall time (`PARTS`) spent drawing the actions, stepping, observing and resetting. Each part runs
-    from the end of the one before, so the shares sum to 1: the loop's own bookkeeping counts with the actions."""
+    """Agent-steps/s of one window: step + observe + reset of finished worlds, random actions (drawn
+    `ACTION_BLOCK` steps at a time); and the shares of the window's wall time (`PARTS`) spent drawing the actions,
+    stepping, observing and resetting. Each part runs from the end of the one before, so the shares sum to 1: the
+    loop's own bookkeeping counts with the actions."""
     n_worlds = state.n_worlds
     spent = dict.fromkeys(PARTS, 0.0)
     steps, start = 0, time.perf_counter()
-    t0 = start
+    t0, block = start, np.empty(0, np.int64)
     while steps < min_steps or t0 - start < seconds:
-        actions = rng.integers(0, config.n_actions, size=(n_worlds, config.n_agents))
+        if steps % ACTION_BLOCK == 0:
+            block = rng.integers(0, config.n_actions, size=(ACTION_BLOCK, n_worlds, config.n_agents))
+        actions = block[steps % ACTION_BLOCK]
         t1 = time.perf_counter()
         result = step_fn(config, state, actions, rng)
         t2 = time.perf_counter()
