@@ -164,8 +164,11 @@ def test_numpy_sum_is_numpys_sum_of_a_row_at_every_length():
     [
         (np.zeros((2, 3), np.int64), "shape"),
         (np.zeros((2, 4), np.float32), "dtype"),
+        (np.zeros((2, 4), np.bool_), "dtype"),
         (np.full((2, 4), 5), "allowed"),
         (np.full((2, 4), -1), "allowed"),
+        (np.full((2, 4), 200, np.uint8), "allowed"),
+        (np.full((2, 4), -1, np.int8), "allowed"),
     ],
 )
 def test_bad_actions_are_rejected_before_any_work(actions, message):
