@@ -20,7 +20,8 @@ from searchrl.controllers import greedy, walls
 from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.controllers.walls import PathGreedy
 from searchrl.threads import use_threads
-from searchrl.world import observe, seen, step
+from searchrl.world import maps, observe, seen, step
+from searchrl.world import reset as reset_module
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.footprint import SUPPORT
@@ -47,7 +48,7 @@ def chunks(monkeypatch):
 
     def use(t: int) -> None:
         numba.set_num_threads(1 if t == 1 else TWO)
-        for module in (step, observe, seen, greedy, walls):  # where the kernels are told how many threads they may use
+        for module in (step, observe, seen, maps, reset_module, greedy, walls):  # where the kernels learn their threads
             monkeypatch.setattr(module, "world_threads", lambda t=t: t)
 
     yield use

@@ -6,7 +6,9 @@ of `chunk_span(c, ...)` one after the other, with scratch slot c where it needs 
 depends on that world's rows alone, its random draws come in (K, ...) arrays drawn before the call, and nothing
 is summed across worlds, so neither the number of threads nor which thread steps a world changes a bit of the
 result (tests/test_threads.py). One chunk (one thread, or one world) runs in the calling thread, outside any
-parallel region, so a single thread costs nothing over a plain loop.
+parallel region, so a single thread costs nothing over a plain loop. A reset's kernels cut their own rows the same
+way: `maps._densities` its (Gaussian, grid row) rows, `maps._mixture_maps` its grid rows and `reset._write_world`
+its agents' beliefs (tests/test_threads.py, and tests/test_generation.py for the maps alone).
 
 The threads are numba's: `numba.set_num_threads` (or `searchrl.threads.use_threads`) sets how many, up to
 `numba.config.NUMBA_NUM_THREADS` (the cores, or the NUMBA_NUM_THREADS environment variable).
