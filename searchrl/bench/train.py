@@ -129,9 +129,10 @@ def run(updates: int = 4, threads: int | None = None, network: str = "paper", ex
         print(f"{row['case']} on {row['device']}: {fps:,.0f} agent-steps/s over {updates} updates of {rollout} "
               f"agent-steps ({slots} slots, minibatch {model.batch_size}); wall time: {shares}, the rest SB3's "
               "bookkeeping", file=log)  # fmt: skip
-        print(f"  raw bound (the network alone, in plain torch: acting on the rollout, {model.n_epochs} epochs on "
-              f"its minibatches): {raw:,.0f} agent-steps/s; the recipe at {fps / raw:.2f} of it; its acting at "
-              f"{row['acting_ratio']:.2f} and its update at {row['update_ratio']:.2f} of theirs", file=log)  # fmt: skip
+        print(f"  raw bound (the network alone, in plain torch, after each update: acting on its rollout, "
+              f"{model.n_epochs} epochs on its minibatches): {raw:,.0f} agent-steps/s; the recipe at {fps / raw:.2f} "
+              f"of it; its acting at {row['acting_ratio']:.2f} and its update at {row['update_ratio']:.2f} of theirs",
+              file=log)  # fmt: skip
     return [row]
 
 
