@@ -216,8 +216,9 @@ def test_bench_train_times_a_recipe_with_the_teacher_term(capsys):
 
 
 def test_the_raw_bound_between_updates_leaves_the_recipe_as_it_would_train_alone():
-    """bench train measures its raw bound after each update, on the recipe's own policy: the parameters and torch's
-    random state are put back, so the recipe's later rollouts and updates are those of a run without it."""
+    """bench train measures its raw bound after each update, on the recipe's own policy: the parameters, torch's
+    random state and numpy's global one are put back, so the recipe's later rollouts and updates are those of a run
+    without it."""
     from hydra import compose, initialize_config_dir
 
     import searchrl.train.app  # noqa: F401  (registers the training schemas)

@@ -131,16 +131,20 @@ def _mixture_maps(densities, m, eta, p, u, threads):
 @njit(cache=CACHE)
 def _mixture_rows(densities, m, p, u, first, stop):
     """Rows first..stop-1 of p = Σ_{i<m} densities[i] and u = Σ_{i>=m} densities[i], each added in order of i."""
-    n, count = p.shape[1], densities.shape[0]
-    for y in range(first, stop):  # component by component along the row: contiguous, as numpy adds them
-        for x in range(n):
-            p[y, x], u[y, x] = densities[0, y, x], densities[m, y, x]
-        for i in range(1, count):
-            if i == m:
-                continue
-            mixture = p if i < m else u
-            for x in range(n):
-                mixture[y, x] += densities[i, y, x]
+    for y in range(first, stop):
+        _add_components(densities, 0, m, p, y)
+        _add_components(densities, m, densities.shape[0], u, y)
+
+
+@njit(cache=CACHE)
+def _add_components(densities, first, stop, mixture, y):
+    """Row y of mixture = densities[first] + ... + densities[stop - 1], component by component along the row:
+    contiguous, and in numpy's order."""
+    for x in range(mixture.shape[1]):
+        mixture[y, x] = densities[first, y, x]
+    for i in range(first + 1, stop):
+        for x in range(mixture.shape[1]):
+            mixture[y, x] += densities[i, y, x]
 
 
 @njit(cache=CACHE)

@@ -15,6 +15,7 @@ from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
+from searchrl.world.truth import rows_cols
 
 
 def _unit_scale(peak: np.float32) -> np.float32:
@@ -88,15 +89,10 @@ def reset_world(
 def _start_cells(free, targets, index):
     """(N, 2) int64: the index[i]-th (N,) int64 of the free cells (n, n) bool without a target (targets (j, 2)
     int64), counted row by row, as (row, col)."""
-    n = free.shape[0]
     left = free.copy()
     for t in range(targets.shape[0]):
         left[targets[t, 0], targets[t, 1]] = False
-    cells = np.flatnonzero(left)
-    pos = np.empty((index.shape[0], 2), np.int64)
-    for i in range(index.shape[0]):
-        pos[i, 0], pos[i, 1] = cells[index[i]] // n, cells[index[i]] % n
-    return pos
+    return rows_cols(np.flatnonzero(left)[index], free.shape[0])
 
 
 @njit(cache=CACHE, parallel=True)

@@ -56,7 +56,7 @@ def place_targets(p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rn
         batch = 4 * count
         placed = _place_batch(cdf, keep_prob, rng.random(batch), rng.random(batch), taken, chosen, placed)
         if placed == count:
-            return _rows_cols(chosen, n)
+            return rows_cols(chosen, n)
     raise RuntimeError(f"could not place {count} targets in {_MAX_TARGET_ROUNDS} batches (maps too peaked?)")
 
 
@@ -76,7 +76,7 @@ def _placement_tables(p, u, free):
 
 
 @njit(cache=CACHE)
-def _rows_cols(cells, n):
+def rows_cols(cells, n):
     """(len, 2) int64: the (row, col) of each of the flat indices cells (len,) int64 of an n×n grid."""
     out = np.empty((cells.shape[0], 2), np.int64)
     for i in range(cells.shape[0]):
