@@ -184,9 +184,10 @@ def sense(w, first, stop, support, c_coef, surv, fsum, removed, done, collected)
 @njit(cache=CACHE)
 def refresh_beliefs(w, first, stop, radius):
     """Phase 4. Copy the true maps w.p, w.u into each agent's belief w.belief (K,N,2,S,S) on its (2·radius+1)²
-    explicit area Φ and grow the agent's belief box w.belief_box (K,N,4) to cover it. (When it was last seen is
-    kept by searchrl/world/seen.py.)"""
-    belief, belief_box, p, u, pos, h = w.belief, w.belief_box, w.p, w.u, w.pos, w.halo
+    explicit area Φ and grow the agent's belief box w.belief_box (K,N,4) and its news since the last merge
+    w.belief_news (K,N,4) to cover it (searchrl/world/merge.py). (When it was last seen is kept by
+    searchrl/world/seen.py.)"""
+    belief, belief_box, news, p, u, pos, h = w.belief, w.belief_box, w.belief_news, w.p, w.u, w.pos, w.halo
     width = 2 * radius + 1
     for k in range(first, stop):
         for i in range(pos.shape[1]):
@@ -201,89 +202,5 @@ def refresh_beliefs(w, first, stop, radius):
             belief_box[k, i, 1] = max(belief_box[k, i, 1], r0 + width - 1)
             belief_box[k, i, 2] = min(belief_box[k, i, 2], c0)
             belief_box[k, i, 3] = max(belief_box[k, i, 3], c0 + width - 1)
-
-
-@njit(cache=CACHE)
-def _find_neighbours(occupant, pos, k, radius, h, nbrs, n_nbrs):
-    """Fill nbrs[i, :n_nbrs[i]] with the agents within Chebyshev distance `radius` of agent i in world k (index
-    order of the scan, which is row-major). Returns the number of unordered neighbour pairs."""
-    pairs = 0
-    for i in range(pos.shape[1]):
-        pr, pc = pos[k, i, 0] + h, pos[k, i, 1] + h
-        m = 0
-        for r in range(pr - radius, pr + radius + 1):
-            for c in range(pc - radius, pc + radius + 1):
-                j = occupant[k, r, c]
-                if j >= 0 and j != i:
-                    nbrs[i, m] = j
-                    m += 1
-                    if j > i:
-                        pairs += 1
-        n_nbrs[i] = m
-    return pairs
-
-
-@njit(cache=CACHE)
-def communicate(w, first, stop, radius, merge, nbrs, n_nbrs, region, offset, comm_pairs, comm_gain):
-    """Phase 5 (eq. 13-16). Counts unordered neighbour pairs (Chebyshev distance <= radius) into comm_pairs (K,)
-    int64 and, when `merge`, replaces each agent's belief w.belief by the elementwise min over itself and its
-    direct neighbours, all read from the pre-merge beliefs. comm_gain (K,N) float64 receives ΔM_p + ΔM_u. Work
-    space: nbrs (N, (2·radius+1)² − 1), n_nbrs (N,), region (N,4), offset (N+1,), all int64.
-
-    Outside the union of its neighbours' belief boxes an agent's value is already the min (neighbours hold the
-    prior there, which bounds every belief from above), so only that union is scanned. New values go to a
-    buffer first and are written back afterwards: the update is simultaneous.
-    """
-    belief, belief_box, occupant, pos, h = w.belief, w.belief_box, w.occupant, w.pos, w.halo
-    n_agents = pos.shape[1]
-    for k in range(first, stop):
-        for i in range(n_agents):
-            comm_gain[k, i] = 0.0
-        comm_pairs[k] = _find_neighbours(occupant, pos, k, radius, h, nbrs, n_nbrs)
-        if not merge or comm_pairs[k] == 0:
-            continue
-        offset[0] = 0
-        for i in range(n_agents):
-            r0, r1, c0, c1 = 1 << 30, -1, 1 << 30, -1
-            for b in range(n_nbrs[i]):
-                j = nbrs[i, b]
-                r0, r1 = min(r0, belief_box[k, j, 0]), max(r1, belief_box[k, j, 1])
-                c0, c1 = min(c0, belief_box[k, j, 2]), max(c1, belief_box[k, j, 3])
-            region[i, 0], region[i, 1], region[i, 2], region[i, 3] = r0, r1, c0, c1
-            cells = (r1 - r0 + 1) * (c1 - c0 + 1) if (n_nbrs[i] > 0 and r1 >= r0) else 0
-            offset[i + 1] = offset[i] + 2 * cells
-        buf = np.empty(offset[n_agents], np.float32)
-        for i in range(n_agents):  # pass 1: new values from the pre-merge beliefs
-            r0, r1, c0, c1 = region[i, 0], region[i, 1], region[i, 2], region[i, 3]
-            if offset[i + 1] == offset[i]:
-                continue
-            width = c1 - c0 + 1
-            at = offset[i]
-            for ch in range(2):
-                for r in range(r0, r1 + 1):
-                    for c in range(width):
-                        buf[at + c] = belief[k, i, ch, r, c0 + c]
-                    for b in range(n_nbrs[i]):
-                        j = nbrs[i, b]
-                        for c in range(width):
-                            if belief[k, j, ch, r, c0 + c] < buf[at + c]:
-                                buf[at + c] = belief[k, j, ch, r, c0 + c]
-                    at += width
-        for i in range(n_agents):  # pass 2: write back, ΔM, and grow the box
-            r0, r1, c0, c1 = region[i, 0], region[i, 1], region[i, 2], region[i, 3]
-            if offset[i + 1] == offset[i]:
-                continue
-            width = c1 - c0 + 1
-            at = offset[i]
-            gain = 0.0
-            for ch in range(2):
-                for r in range(r0, r1 + 1):
-                    for c in range(width):
-                        new, old = buf[at + c], belief[k, i, ch, r, c0 + c]
-                        if new < old:
-                            gain += np.float64(old) - np.float64(new)
-                            belief[k, i, ch, r, c0 + c] = new
-                    at += width
-            comm_gain[k, i] = gain
-            belief_box[k, i, 0], belief_box[k, i, 1] = min(belief_box[k, i, 0], r0), max(belief_box[k, i, 1], r1)
-            belief_box[k, i, 2], belief_box[k, i, 3] = min(belief_box[k, i, 2], c0), max(belief_box[k, i, 3], c1)
+            news[k, i, 0], news[k, i, 1] = min(news[k, i, 0], r0), max(news[k, i, 1], r0 + width - 1)
+            news[k, i, 2], news[k, i, 3] = min(news[k, i, 2], c0), max(news[k, i, 3], c0 + width - 1)

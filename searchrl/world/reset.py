@@ -135,15 +135,16 @@ def _write_world(w, k, p, u, free, pos, targets, threads):
         target_pos[k, s, 0] = targets[s, 0] if real else 0
         target_pos[k, s, 1] = targets[s, 1] if real else 0
     w.n_targets[k], w.n_found[k] = targets.shape[0], 0
+    w.merged[k] = False  # no merge yet: every neighbour is new to the first (merge.py)
     w.ep_return[k], w.ep_comm_pairs[k], w.ep_info[k], w.ep_collisions[k], w.ep_stale[k] = 0.0, 0, 0.0, 0, 0
     return p_peak, u_peak
 
 
 @njit(cache=CACHE)
 def _write_beliefs(w, k, first, stop):
-    """Agents first..stop-1 of world k start from the prior (§3.2.1): their beliefs w.p[k] and w.u[k], and an empty
-    belief box (the belief equals the prior)."""
-    state_p, state_u, belief, belief_box = w.p, w.u, w.belief, w.belief_box
+    """Agents first..stop-1 of world k start from the prior (§3.2.1): their beliefs w.p[k] and w.u[k], an empty
+    belief box (the belief equals the prior) and no news of a merge (merge.py)."""
+    state_p, state_u, belief, belief_box, news, merge_pos = w.p, w.u, w.belief, w.belief_box, w.belief_news, w.merge_pos
     side = state_p.shape[1]
     for i in range(first, stop):
         for r in range(side):
@@ -152,6 +153,8 @@ def _write_beliefs(w, k, first, stop):
                 belief[k, i, 1, r, c] = state_u[k, r, c]
         belief_box[k, i, 0], belief_box[k, i, 1] = side, -1
         belief_box[k, i, 2], belief_box[k, i, 3] = side, -1
+        news[k, i, 0], news[k, i, 1], news[k, i, 2], news[k, i, 3] = side, -1, side, -1
+        merge_pos[k, i, 0], merge_pos[k, i, 1] = 0, 0  # as allocated: no merge yet
 
 
 def reset_worlds(config: WorldConfig, state: WorldState, mask: np.ndarray, rng: np.random.Generator,

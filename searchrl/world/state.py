@@ -37,6 +37,13 @@ class WorldState:
     # the prior; empty when r0 > r1. A neighbour can only lower cells inside its box, so the merge scans the
     # union of the neighbours' boxes instead of the whole map.
     belief_box: np.ndarray  # (K, N, 4) int64
+    # The same for the cells where an agent's belief may have changed since its world's last merge (what that merge
+    # lowered, and the Φ refreshes since), its position at that merge, and whether world k has merged since its
+    # reset: a neighbour kept since then is scanned only on its news (searchrl/world/merge.py). Code that edits
+    # beliefs by hand sets merged[k] false.
+    belief_news: np.ndarray  # (K, N, 4) int64
+    merge_pos: np.ndarray  # (K, N, 2) int64, unpadded
+    merged: np.ndarray  # (K,) bool
     # Step at which each agent last saw a cell's truth in Φ (0: never), for `belief_age`; (K, N, 0, 0) when off.
     belief_time: np.ndarray  # (K, N, S, S) int32
     # Π (1 − Γ) over the neighbours' footprints each agent saw since it last saw a cell's truth, for
@@ -153,6 +160,9 @@ def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
         blocked=np.ones((k, side, side), bool),
         belief=np.zeros((k, n, 2, side, side), np.float32),
         belief_box=np.tile(np.array([side, -1, side, -1], np.int64), (k, n, 1)),
+        belief_news=np.tile(np.array([side, -1, side, -1], np.int64), (k, n, 1)),
+        merge_pos=np.zeros((k, n, 2), np.int64),
+        merged=np.zeros(k, bool),
         belief_time=np.zeros((k, n, side, side) if config.belief_age > 0 else (k, n, 0, 0), np.int32),
         belief_seen=np.ones((k, n, side, side) if config.belief_seen else (k, n, 0, 0), np.float32),
         age_rate=np.zeros(k, np.float64),

@@ -12,6 +12,7 @@ from searchrl.world import kernels
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT
 from searchrl.world.kernels import CACHE
+from searchrl.world.merge import communicate
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
@@ -149,8 +150,8 @@ def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merg
     target, candidate = np.empty((n_agents, 2), np.int64), np.empty(n_agents, np.bool_)
     cover_agent, cover_g = np.empty(n_support, np.int64), np.empty(n_support, np.float64)
     nbrs = np.empty((n_agents, (2 * comm_radius + 1) ** 2 - 1), np.int64)
-    n_nbrs, region, offset = np.empty(n_agents, np.int64), np.empty((n_agents, 4), np.int64), np.empty(
-        n_agents + 1, np.int64)  # fmt: skip
+    n_nbrs, offset = np.empty(n_agents, np.int64), np.empty(n_agents + 1, np.int64)
+    region, scan = np.empty((n_agents, 4), np.int64), np.empty((n_agents, 4), np.int64)
     claim, surv, fsum = scratch.claim[slot], scratch.surv[slot], scratch.fsum[slot]
     removed, done = scratch.removed[slot], scratch.done[slot]
     kernels.move_agents(w, first, stop, actions, priority, moves, claim, target, candidate, collided)
@@ -158,7 +159,7 @@ def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merg
     kernels.sense(w, first, stop, support, c_coef, surv, fsum, removed, done, collected)
     sweep(w, first, stop, support, stale)
     kernels.refresh_beliefs(w, first, stop, phi)
-    kernels.communicate(w, first, stop, comm_radius, merge, nbrs, n_nbrs, region, offset, comm_pairs, comm_gain)
+    communicate(w, first, stop, comm_radius, merge, nbrs, n_nbrs, region, scan, offset, comm_pairs, comm_gain)
     _account(w, first, stop, reward_terms, max_steps, out, np.empty(n_agents), np.empty(n_agents))
 
 
