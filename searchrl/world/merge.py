@@ -11,8 +11,8 @@ its new neighbours' boxes and its kept neighbours' news, within the union.
 
 The result is the whole union's, bit for bit: the same new values; the same ΔM, since the cells that change are
 the same ones, visited in the same row-major order; the same boxes, grown by the whole union. A team that stays
-together scans what changed since the last step instead of everything its members have seen (at n = 160 with 256
-agents, most of a step: docs/performance.md). A world that was just reset (`merged` false) knows no last merge,
+together scans what changed since the last step instead of everything its members have seen
+(docs/performance.md#the-merge). A world that was just reset (`merged` false) knows no last merge,
 and treats every neighbour as new.
 """
 
