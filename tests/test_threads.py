@@ -88,6 +88,23 @@ def test_the_same_seed_gives_the_same_episodes_bit_for_bit_at_any_thread_count(c
         _same(_episodes(CONFIGS[name], scenario), serial)
 
 
+CROWDED = WorldConfig(world_size=(16, 20), n_targets=(2, 4), n_agents=48, max_steps=25)  # merges every step
+
+
+@pytest.mark.parametrize("k", [1, 2])
+def test_fewer_worlds_than_threads_share_each_merge_and_give_the_same_episodes(chunks, k):
+    """One or two crowded worlds on 1 thread, then on more threads than worlds (2, 3, 7): each world's merge is cut
+    into blocks of agents shared among the threads (`step.merge_blocks` > 1), and steps, observations and state
+    agree bit for bit (a block writing before the other blocks have read, or into another's slot of the buffer,
+    breaks this)."""
+    chunks(1)
+    serial = _episodes(CROWDED, Scenario(), steps=40, k=k)
+    for t in (t for t in (2, 3, 7) if t > k):
+        assert step.merge_blocks(k, CROWDED.n_agents, t) > 1
+        chunks(t)
+        _same(_episodes(CROWDED, Scenario(), steps=40, k=k), serial)
+
+
 def test_per_world_streams_give_the_same_episodes_at_any_thread_count(chunks):
     """Evaluation's worlds (one stream each, never reset): the same at 1 and 2 threads, and as batches of one."""
     config = CONFIGS["aged_seen_c"]

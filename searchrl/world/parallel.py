@@ -10,6 +10,11 @@ parallel region, so a single thread costs nothing over a plain loop. A reset's k
 way: `maps._densities` its (Gaussian, grid row) rows, `maps._mixture_maps` its grid rows and `reset._write_world`
 its agents' beliefs (tests/test_threads.py, and tests/test_generation.py for the maps alone).
 
+A batch of fewer worlds than threads (one world: render, the PettingZoo env, `bench world`'s (160, 256, 1)) would
+leave threads idle, and a crowded world's merge is most of its step. So `step.step_worlds` then also cuts each
+world's merge into blocks of agents (`step.merge_blocks`): its first pass reads the beliefs and its second writes
+each agent's own, so within a pass the blocks are independent, and the step is the same bit for bit.
+
 The threads are numba's: `numba.set_num_threads` (or `searchrl.threads.use_threads`) sets how many, up to
 `numba.config.NUMBA_NUM_THREADS` (the cores, or the NUMBA_NUM_THREADS environment variable).
 """

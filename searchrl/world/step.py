@@ -12,7 +12,7 @@ from searchrl.world import kernels
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT
 from searchrl.world.kernels import CACHE
-from searchrl.world.merge import communicate
+from searchrl.world.merge import communicate, merge_values, merge_work, plan_merge, write_merge
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
@@ -90,8 +90,9 @@ def step(
     out = (result.collided, result.targets_found, result.info_collected, np.empty((k, n), np.bool_),
            result.comm_pairs, result.comm_gain, result.reward, result.terminated, result.truncated)  # fmt: skip
     sensing, radii, reward_terms = _step_terms(config)
+    work = merge_work(threads, n, config.comm_range // 2)  # a slot per thread
     step_worlds(state.arrays(), actions, priority, detect, MOVES, SUPPORT, sensing, radii, config.communication,
-                reward_terms, config.max_steps, scratch, out, threads)  # fmt: skip
+                reward_terms, config.max_steps, scratch, work, out, threads)  # fmt: skip
     update_freshness(config, state, 0, k)  # observation only: when each agent last saw a cell, what it saw sensed
     return result
 
@@ -113,7 +114,7 @@ def _step_terms(config: WorldConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 @njit(cache=CACHE, parallel=True)
 def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, merge, reward_terms, max_steps, scratch,
-                out, threads):  # fmt: skip
+                work, out, threads):  # fmt: skip
     """SPEC.md's step (move, detect, sense and sweep, refresh, communicate, reward, time) for every world of w, the
     worlds shared among numba's threads (searchrl/world/parallel.py). actions (K,N) int64, priority (K,N) and
     detect (K,T) float64 the step's draws, moves (A,2) int64, support a `Footprint`, sensing, radii and
@@ -130,28 +131,43 @@ def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, me
     for k in range(n_worlds):
         c_coef[k] = sensing[0] * (sensing[1] + sensing[2] * np.float64(size[k]))
     n_chunks = chunk_count(n_worlds, scratch.claim.shape[0], threads)
+    blocks = merge_blocks(n_worlds, actions.shape[1], threads) if merge else 1
+    if blocks > 1:  # fewer worlds than threads: each world's merge is shared among them too
+        _step_sharing_merges(w, actions, priority, detect, moves, support, c_coef, radii, reward_terms, max_steps,
+                             scratch, work, out, blocks)  # fmt: skip
+        return
     if n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
         _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps,
-                   scratch, out, 0, 0, n_worlds)  # fmt: skip
+                   scratch, work, out, 0, 0, n_worlds)  # fmt: skip
         return
     for chunk in prange(n_chunks):
         first, stop = chunk_span(chunk, n_chunks, 0, n_worlds)
         _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps,
-                   scratch, out, chunk, first, stop)  # fmt: skip
+                   scratch, work, out, chunk, first, stop)  # fmt: skip
 
 
 @njit(cache=CACHE)
-def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps, scratch,
-               out, slot, first, stop):  # fmt: skip
-    """`step_worlds` for worlds first..stop-1, with scratch slot `slot` and work space of its own."""
-    collided, found_by, collected, stale, comm_pairs, comm_gain = out[:6]
-    phi, comm_radius = radii[0], radii[1]
+def merge_blocks(n_worlds, n_agents, threads):
+    """Into how many blocks of agents each world's merge is cut: enough that the worlds' blocks keep `threads`
+    threads busy when there are fewer worlds than threads, each block at least `MERGE_BLOCK_AGENTS` agents; 1
+    (no sharing) otherwise."""
+    if n_worlds >= threads:
+        return 1
+    return max(1, min(-(-threads // n_worlds), n_agents // MERGE_BLOCK_AGENTS))
+
+
+# The fewest agents of a block of a shared merge. A shared step opens three parallel regions where a world's own
+# thread opens none, so a small team (whose merge is a few microseconds) stays whole.
+MERGE_BLOCK_AGENTS = 16
+
+
+@njit(cache=CACHE)
+def _act_and_sense(w, actions, priority, detect, moves, support, c_coef, phi, scratch, out, slot, first, stop):
+    """Phases 1-4 of SPEC.md's step for worlds first..stop-1, with scratch slot `slot`."""
+    collided, found_by, collected, stale = out[:4]
     n_agents, n_support = actions.shape[1], support.dr.shape[0]
     target, candidate = np.empty((n_agents, 2), np.int64), np.empty(n_agents, np.bool_)
     cover_agent, cover_g = np.empty(n_support, np.int64), np.empty(n_support, np.float64)
-    nbrs = np.empty((n_agents, (2 * comm_radius + 1) ** 2 - 1), np.int64)
-    n_nbrs, offset = np.empty(n_agents, np.int64), np.empty(n_agents + 1, np.int64)
-    region, scan = np.empty((n_agents, 4), np.int64), np.empty((n_agents, 4), np.int64)
     claim, surv, fsum = scratch.claim[slot], scratch.surv[slot], scratch.fsum[slot]
     removed, done = scratch.removed[slot], scratch.done[slot]
     kernels.move_agents(w, first, stop, actions, priority, moves, claim, target, candidate, collided)
@@ -159,8 +175,59 @@ def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merg
     kernels.sense(w, first, stop, support, c_coef, surv, fsum, removed, done, collected)
     sweep(w, first, stop, support, stale)
     kernels.refresh_beliefs(w, first, stop, phi)
-    communicate(w, first, stop, comm_radius, merge, nbrs, n_nbrs, region, scan, offset, comm_pairs, comm_gain)
+
+
+@njit(cache=CACHE)
+def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps, scratch,
+               work, out, slot, first, stop):  # fmt: skip
+    """`step_worlds` for worlds first..stop-1, with scratch and work slot `slot`."""
+    comm_pairs, comm_gain = out[4], out[5]
+    n_agents = actions.shape[1]
+    _act_and_sense(w, actions, priority, detect, moves, support, c_coef, radii[0], scratch, out, slot, first, stop)
+    communicate(w, first, stop, radii[1], merge, work, slot, comm_pairs, comm_gain)
     _account(w, first, stop, reward_terms, max_steps, out, np.empty(n_agents), np.empty(n_agents))
+
+
+@njit(cache=CACHE)
+def _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out, k):
+    """World k's phases 1-4 and its merge's plan, in scratch and work slot k; returns its merge's buffer length."""
+    _act_and_sense(w, actions, priority, detect, moves, support, c_coef, radii[0], scratch, out, k, k, k + 1)
+    return plan_merge(w, k, radii[1], True, work, k, out[4], out[5])
+
+
+@njit(cache=CACHE, parallel=True)
+def _step_sharing_merges(w, actions, priority, detect, moves, support, c_coef, radii, reward_terms, max_steps,
+                         scratch, work, out, blocks):  # fmt: skip
+    """`step_worlds` with merges (K < threads): world k's phases 1-4 and its merge's plan on a thread of its own
+    (scratch and work slot k), then its merge's two passes shared among the threads, `blocks` blocks of agents a
+    world (each pass reads what the one before wrote, so each is a parallel region of its own), then phases 6-7
+    in this thread. Each agent's values, ΔM and box are computed as in `communicate`, so the step is the same bit
+    for bit."""
+    comm_gain = out[5]
+    n_worlds, n_agents = actions.shape
+    size = np.empty(n_worlds, np.int64)
+    if n_worlds == 1:  # in this thread: a parallel region of one world would only wake the others
+        size[0] = _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out, 0)
+    else:
+        for k in prange(n_worlds):
+            size[k] = _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out,
+                                     k)  # fmt: skip
+    base = np.zeros(n_worlds + 1, np.int64)
+    for k in range(n_worlds):
+        base[k + 1] = base[k] + size[k]
+    buf = np.empty(base[n_worlds], np.float32)
+    for job in prange(n_worlds * blocks):
+        k, block = job // blocks, job % blocks
+        first, stop = chunk_span(block, blocks, 0, n_agents)
+        merge_values(w, k, first, stop, work, k, buf, base[k])
+    for job in prange(n_worlds * blocks):
+        k, block = job // blocks, job % blocks
+        first, stop = chunk_span(block, blocks, 0, n_agents)
+        write_merge(w, k, first, stop, work, k, buf, base[k], comm_gain)
+    merged = w.merged
+    for k in range(n_worlds):
+        merged[k] = True
+    _account(w, 0, n_worlds, reward_terms, max_steps, out, np.empty(n_agents), np.empty(n_agents))
 
 
 @njit(cache=CACHE)
