@@ -2,9 +2,10 @@
 # The figures of docs/performance.md#machines that need a GPU machine, measured in one run (under ten minutes on one
 # H100/H200 with 16 cores), most needed first: a whole full-grid evaluation of term/b on the GPU from a new bound
 # cache, which starts from the shipped bounds (runs/reference/bounds: no bound of the grid's maps is computed; timed
-# end to end, at most 300 s, each cell's time from its file's); the world at 1 and 16 threads; B's recipe's
-# throughput and the shares of its wall time at machine=gpu; where the time of one n = 160 cell goes (cProfile), only
-# when the full grid did not finish; then the paper's `+model=c` at machine=gpu for the time left.
+# end to end, at most 300 s, each cell's time from its file's); the world at 1 and 16 threads (and one crowded
+# world's step, analysis/one_world.py); B's recipe's throughput and the shares of its wall time at machine=gpu;
+# where the time of one n = 160 cell goes (cProfile), only when the full grid did not finish; then the paper's
+# `+model=c` at machine=gpu for the time left.
 #
 # `+model=c` (18.4M agent-steps) takes longer than one call on a lent machine, so it runs in segments: its run
 # folder comes back under $OUT/gpu_c/ (config, progress.csv, the newest checkpoint, and model.zip at the end), and a
@@ -40,6 +41,9 @@ tar czf "$OUT/gpu_term_b_eval.tgz" -C runs/eval/gpu term_b 2>/dev/null
 
 say "bench world: 1 and 16 threads"
 timeout 60 python -m searchrl.bench world --threads 1,16 --seconds 4 --json 2>>"$LOG" | tee -a "$JSON"
+
+say "one crowded world: target-greedy's moves replayed at 1 and 16 threads (its merge shared among them)"
+timeout 60 python analysis/one_world.py 2>&1 | tee -a "$LOG"
 
 say "bench train: B's recipe, machine=gpu"
 timeout 150 python -m searchrl.bench train --experiment term/b --machine gpu --updates 3 --json 2>>"$LOG" \

@@ -5,15 +5,16 @@
 # ---
 
 # %% [markdown]
-# # One crowded world on two threads (a benchmark)
+# # One crowded world on every thread (a benchmark)
 #
 # A batch of one world (render, the PettingZoo env) cannot share worlds among threads; its step can share its merge,
 # cut into blocks of agents (`searchrl.world.step.merge_blocks`). Here target-greedy (the teacher) plays one world
-# of a Table 2 cell, model B's settings, on one thread, and its moves are replayed on fresh copies of that world
-# at 1 and 2 numba threads in turn, timing `step` alone: the best of 5 replays' mean milliseconds per step. Once
-# target-greedy's team has gathered, its merges scan large belief boxes every step, which random moves (`python -m
-# searchrl.bench world`) never reach. The figures of docs/performance.md came from this script at the commit that
-# shares the merge and, for its parent, with `git checkout <parent> -- searchrl/world`, one sitting.
+# of a Table 2 cell, model B's settings, on one thread, and its moves are replayed on fresh copies of that world at
+# 1 numba thread and at all of them (`NUMBA_NUM_THREADS`: the cores) in turn, timing `step` alone: the best of 5
+# replays' mean milliseconds per step. Once target-greedy's team has gathered, its merges scan large belief boxes
+# every step, which random moves (`python -m searchrl.bench world`) never reach. The figures of docs/performance.md
+# came from this script at the commit that shares the merge (two cores) and, for its parent, with `git checkout
+# <parent> -- searchrl/world`, one sitting.
 #
 #     python analysis/one_world.py
 
@@ -29,7 +30,7 @@ from searchrl.world.engine import SearchWorld
 from searchrl.world.step import step
 
 CELLS = ((80, 128), (160, 256))  # (n, N)
-THREADS = (1, min(2, numba.config.NUMBA_NUM_THREADS))
+THREADS = (1, numba.config.NUMBA_NUM_THREADS)
 MAX_STEPS, REPLAYS = 150, 5
 
 
