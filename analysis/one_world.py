@@ -8,7 +8,7 @@
 # # One crowded world on every thread (a benchmark)
 #
 # A batch of one world (render, the PettingZoo env) cannot share worlds among threads; its step can share its merge,
-# cut into blocks of agents (`searchrl.world.step.merge_blocks`). Here target-greedy (the teacher) plays one world
+# cut into blocks of agents (`searchrl.world.parallel.agent_blocks`). Here target-greedy (the teacher) plays one world
 # of a Table 2 cell, model B's settings, on one thread, and its moves are replayed on fresh copies of that world at
 # 1 numba thread and at all of them (`NUMBA_NUM_THREADS`: the cores) in turn, timing `step` alone: the best of 5
 # replays' mean milliseconds per step. Once target-greedy's team has gathered, its merges scan large belief boxes

@@ -25,7 +25,7 @@ from searchrl.world import reset as reset_module
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.footprint import SUPPORT
-from searchrl.world.parallel import chunk_span
+from searchrl.world.parallel import agent_blocks, chunk_span
 from searchrl.world.scenario import Scenario
 from searchrl.world.streams import WorldStreams
 
@@ -88,21 +88,28 @@ def test_the_same_seed_gives_the_same_episodes_bit_for_bit_at_any_thread_count(c
         _same(_episodes(CONFIGS[name], scenario), serial)
 
 
-CROWDED = WorldConfig(world_size=(16, 20), n_targets=(2, 4), n_agents=48, max_steps=25)  # merges every step
+CROWDED = {  # merges every step, and enough agents for blocks of both the merge and the observation
+    "model_b": WorldConfig(world_size=(20, 24), n_targets=(2, 4), n_agents=128, max_steps=25),
+    "aged_seen": WorldConfig(world_size=(20, 24), n_targets=(2, 4), n_agents=128, max_steps=25, belief_age=0.5,
+                             belief_seen=True),
+}  # fmt: skip
 
 
+@pytest.mark.parametrize("name", list(CROWDED))
 @pytest.mark.parametrize("k", [1, 2])
-def test_fewer_worlds_than_threads_share_each_merge_and_give_the_same_episodes(chunks, k):
-    """One or two crowded worlds on 1 thread, then on more threads than worlds (2, 3, 7): each world's merge is cut
-    into blocks of agents shared among the threads (`step.merge_blocks` > 1), and steps, observations and state
-    agree bit for bit (a block writing before the other blocks have read, or into another's slot of the buffer,
-    breaks this)."""
+def test_fewer_worlds_than_threads_share_their_agents_and_give_the_same_episodes(chunks, k, name):
+    """One or two crowded worlds on 1 thread, then on more threads than worlds (2, 3, 7): each world's merge and
+    observation are cut into blocks of agents shared among the threads (`parallel.agent_blocks` > 1), and steps,
+    observations and state agree bit for bit (a block writing before the other blocks have read, into another's
+    slot of the buffer, or observing the wrong agents, breaks this)."""
+    config = CROWDED[name]
     chunks(1)
-    serial = _episodes(CROWDED, Scenario(), steps=40, k=k)
+    serial = _episodes(config, Scenario(), steps=40, k=k)
     for t in (t for t in (2, 3, 7) if t > k):
-        assert step.merge_blocks(k, CROWDED.n_agents, t) > 1
+        assert agent_blocks(k, config.n_agents, t, step.MERGE_BLOCK_AGENTS) > 1
+        assert agent_blocks(k, config.n_agents, t, observe.OBSERVE_BLOCK_AGENTS) > 1
         chunks(t)
-        _same(_episodes(CROWDED, Scenario(), steps=40, k=k), serial)
+        _same(_episodes(config, Scenario(), steps=40, k=k), serial)
 
 
 def test_per_world_streams_give_the_same_episodes_at_any_thread_count(chunks):

@@ -7,7 +7,7 @@ from numba import njit, prange
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.kernels import CACHE
-from searchrl.world.parallel import chunk_count, chunk_span, world_threads
+from searchrl.world.parallel import agent_blocks, chunk_count, chunk_span, world_threads
 from searchrl.world.seen import freshness
 from searchrl.world.state import WorldState
 
@@ -61,6 +61,11 @@ def _observe_listed(w, maps, vec, worlds):
         _observe_span(w, maps, vec, k, k + 1)
 
 
+# The fewest agents of a block when a batch of fewer worlds than threads shares its worlds' agents among the
+# threads: an agent's observation copies a few hundred cells, so a smaller block costs more to hand over than it does.
+OBSERVE_BLOCK_AGENTS = 64
+
+
 @njit(cache=CACHE, parallel=True)
 def observe_into(w, maps, vec, threads):
     """Observation of §3.2.1 of the state w (`WorldState.arrays()`) into maps (K,N,C,F,F) float32 and vec (K,N,3)
@@ -68,10 +73,18 @@ def observe_into(w, maps, vec, threads):
     exp(−age_rate·(t − belief_time)), times belief_seen where that is kept (not (K, N, 0, 0)), scales the belief
     channels (C = 5) or fills channel 5 (C = 6).
 
-    The worlds are shared among numba's threads (searchrl/world/parallel.py), a whole world to a thread: a
-    `prange` over agents was 15x slower on two cores, its thread wake-ups costing more than the work.
+    The worlds are shared among numba's threads (searchrl/world/parallel.py), a whole world to a thread; a batch of
+    fewer worlds than threads shares blocks of at least `OBSERVE_BLOCK_AGENTS` agents (a `prange` over single
+    agents was 15x slower on two cores, its thread wake-ups costing more than the work).
     """
-    n_worlds = maps.shape[0]
+    n_worlds, n_agents = maps.shape[0], maps.shape[1]
+    blocks = agent_blocks(n_worlds, n_agents, threads, OBSERVE_BLOCK_AGENTS)
+    if blocks > 1:
+        for job in prange(n_worlds * blocks):
+            k, block = job // blocks, job % blocks
+            first, stop = chunk_span(block, blocks, 0, n_agents)
+            _observe_span(w, maps, vec, k, k + 1, first, stop)
+        return
     n_chunks = chunk_count(n_worlds, n_worlds, threads)
     if n_chunks == 1:  # in this thread: no parallel region to start
         _observe_span(w, maps, vec, 0, n_worlds)
@@ -82,21 +95,21 @@ def observe_into(w, maps, vec, threads):
 
 
 @njit(cache=CACHE)
-def _observe_span(w, maps, vec, first, stop):
-    """`observe_into` for worlds first..stop-1, written channel by channel so every inner loop runs over
-    contiguous memory. Every element is indexed from the whole arrays, with no view taken in the loops (see
-    kernels.py: views count references to the shared arrays atomically, a counter all threads would contend for)."""
+def _observe_span(w, maps, vec, first, stop, agent_first=0, agent_stop=-1):
+    """`observe_into` for worlds first..stop-1, their agents agent_first..agent_stop-1 (-1: to the last), written
+    channel by channel so every inner loop runs over contiguous memory. Every element is indexed from the whole
+    arrays, with no view taken in the loops (see kernels.py: views count references to the shared arrays
+    atomically, a counter all threads would contend for)."""
     occupant, blocked, found_grid, belief, obs_scale = w.occupant, w.blocked, w.found_grid, w.belief, w.obs_scale
     belief_time, belief_seen, age_rate, t, pos, h = w.belief_time, w.belief_seen, w.age_rate, w.t, w.pos, w.halo
     size, n_targets, n_found = w.size, w.n_targets, w.n_found
-    n_agents = pos.shape[1]
     fov = maps.shape[3]
     half = fov // 2
     as_channel = maps.shape[2] > 5  # a sixth channel (observe.n_channels) holds the freshness
     with_seen = belief_seen.shape[2] > 0
     for k in range(first, stop):
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
-        for i in range(n_agents):
+        for i in range(agent_first, agent_stop if agent_stop >= 0 else maps.shape[1]):
             r0 = pos[k, i, 0] + h - half
             c0 = pos[k, i, 1] + h - half
             for a in range(fov):

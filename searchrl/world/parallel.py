@@ -12,8 +12,9 @@ its agents' beliefs (tests/test_threads.py, and tests/test_generation.py for the
 
 A batch of fewer worlds than threads (one world: render, the PettingZoo env, `bench world`'s (160, 256, 1)) would
 leave threads idle, and a crowded world's merge is most of its step. So `step.step_worlds` then also cuts each
-world's merge into blocks of agents (`step.merge_blocks`): its first pass reads the beliefs and its second writes
-each agent's own, so within a pass the blocks are independent, and the step is the same bit for bit.
+world's merge into blocks of agents (`agent_blocks`): its first pass reads the beliefs and its second writes each
+agent's own, so within a pass the blocks are independent, and the step is the same bit for bit. `observe_into`
+cuts such worlds' agents into blocks the same way (each agent's observation is its own rows).
 
 The threads are numba's: `numba.set_num_threads` (or `searchrl.threads.use_threads`) sets how many, up to
 `numba.config.NUMBA_NUM_THREADS` (the cores, or the NUMBA_NUM_THREADS environment variable).
@@ -73,3 +74,13 @@ def chunk_span(chunk, n_chunks, first, stop):
     chunks whose sizes differ by at most one."""
     n = stop - first
     return first + chunk * n // n_chunks, first + (chunk + 1) * n // n_chunks
+
+
+@njit(cache=CACHE)
+def agent_blocks(n_worlds, n_agents, threads, least):
+    """Into how many blocks of agents to cut each world of a batch: enough that the worlds' blocks keep `threads`
+    threads busy when there are fewer worlds than threads, each block at least `least` agents (a smaller block
+    costs more to hand to a thread than its work); 1 (whole worlds) otherwise."""
+    if n_worlds >= threads:
+        return 1
+    return max(1, min(-(-threads // n_worlds), n_agents // least))

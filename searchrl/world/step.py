@@ -13,7 +13,7 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT
 from searchrl.world.kernels import CACHE
 from searchrl.world.merge import communicate, merge_values, merge_work, plan_merge, write_merge
-from searchrl.world.parallel import chunk_count, chunk_span, world_threads
+from searchrl.world.parallel import agent_blocks, chunk_count, chunk_span, world_threads
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
@@ -131,7 +131,7 @@ def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, me
     for k in range(n_worlds):
         c_coef[k] = sensing[0] * (sensing[1] + sensing[2] * np.float64(size[k]))
     n_chunks = chunk_count(n_worlds, scratch.claim.shape[0], threads)
-    blocks = merge_blocks(n_worlds, actions.shape[1], threads) if merge else 1
+    blocks = agent_blocks(n_worlds, actions.shape[1], threads, MERGE_BLOCK_AGENTS) if merge else 1
     if blocks > 1:  # fewer worlds than threads: each world's merge is shared among them too
         _step_sharing_merges(w, actions, priority, detect, moves, support, c_coef, radii, reward_terms, max_steps,
                              scratch, work, out, blocks)  # fmt: skip
@@ -144,16 +144,6 @@ def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, me
         first, stop = chunk_span(chunk, n_chunks, 0, n_worlds)
         _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps,
                    scratch, work, out, chunk, first, stop)  # fmt: skip
-
-
-@njit(cache=CACHE)
-def merge_blocks(n_worlds, n_agents, threads):
-    """Into how many blocks of agents each world's merge is cut: enough that the worlds' blocks keep `threads`
-    threads busy when there are fewer worlds than threads, each block at least `MERGE_BLOCK_AGENTS` agents; 1
-    (no sharing) otherwise."""
-    if n_worlds >= threads:
-        return 1
-    return max(1, min(-(-threads // n_worlds), n_agents // MERGE_BLOCK_AGENTS))
 
 
 # The fewest agents of a block of a shared merge. A shared step opens three parallel regions where a world's own
