@@ -116,15 +116,16 @@ def _step_terms(config: WorldConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray
 def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, merge, reward_terms, max_steps, scratch,
                 work, out, threads):  # fmt: skip
     """SPEC.md's step (move, detect, sense and sweep, refresh, communicate, reward, time) for every world of w, the
-    worlds shared among numba's threads (searchrl/world/parallel.py). actions (K,N) int64, priority (K,N) and
-    detect (K,T) float64 the step's draws, moves (A,2) int64, support a `Footprint`, sensing, radii and
-    reward_terms those of `_step_terms`, merge whether beliefs merge, max_steps the episode's length, scratch a
-    `Scratch`; out = (collided (K,N) bool, found_by (K,N) int64, collected (K,N) float64, stale (K,N) bool,
-    comm_pairs (K,) int64, comm_gain (K,N) float64, reward (K,N) float32, terminated (K,) bool, truncated (K,)
-    bool) is written; `threads` (`parallel.world_threads()`) bounds the chunks.
+    worlds shared among numba's threads (searchrl/world/parallel.py). actions (K,N) int64, priority (K,N) and detect
+    (K,T) float64 the step's draws, moves (A,2) int64, support a `Footprint`, sensing, radii and reward_terms those of
+    `_step_terms`, merge whether beliefs merge, max_steps the episode's length, scratch a `Scratch` and work a
+    `merge.MergeWork` (a slot per thread each); out = (collided (K,N) bool, found_by (K,N) int64, collected (K,N)
+    float64, stale (K,N) bool, comm_pairs (K,) int64, comm_gain (K,N) float64, reward (K,N) float32, terminated (K,)
+    bool, truncated (K,) bool) is written; `threads` (`parallel.world_threads()`) bounds the chunks.
 
     Each thread runs the phases in turn over its span of worlds: a phase touches the rows of its own worlds only,
-    so this equals running each phase over all worlds in turn.
+    so this equals running each phase over all worlds in turn. With fewer worlds than threads, the merges are
+    shared among the threads as well (`_step_sharing_merges`).
     """
     n_worlds, size = actions.shape[0], w.size
     c_coef = np.empty(n_worlds)  # each world's λk, as `WorldConfig.sensing_rate` computes it
