@@ -59,9 +59,10 @@ def merge_work(slots: int, n_agents: int, radius: int) -> MergeWork:
 
 
 @njit(cache=CACHE)
-def _find_neighbours(occupant, pos, k, radius, h, work, slot):
+def _find_neighbours(w, k, radius, work, slot):
     """Fill nbrs[slot, i, :n_nbrs[slot, i]] with the agents within Chebyshev distance `radius` of agent i in world k
     (index order of the scan, which is row-major). Returns the number of unordered neighbour pairs."""
+    occupant, pos, h = w.occupant, w.pos, w.halo
     nbrs, n_nbrs = work.nbrs, work.n_nbrs
     pairs = 0
     for i in range(pos.shape[1]):
@@ -111,20 +112,21 @@ def _plan(w, k, i, radius, known, work, slot):
 
 @njit(cache=CACHE)
 def plan_merge(w, k, radius, merge, work, slot, comm_pairs, comm_gain):
-    """World k's neighbours and, when `merge`, what each agent scans, in work slot `slot`; comm_pairs[k] the
-    unordered neighbour pairs, comm_gain[k] zeroed. Returns the length of the merge's buffer of new values (agent
-    i's at offset[slot, i]..offset[slot, i + 1]: two channels of its scan)."""
+    """World k's neighbours and, when `merge`, what each agent scans (in work slot `slot`), w.merged[k] then set;
+    comm_pairs[k] the unordered neighbour pairs, comm_gain[k] zeroed. Returns the length of the merge's buffer of
+    new values (agent i's at offset[slot, i]..offset[slot, i + 1]: two channels of its scan)."""
     n_agents = w.pos.shape[1]
     offset = work.offset
     for i in range(n_agents):
         comm_gain[k, i] = 0.0
-    comm_pairs[k] = _find_neighbours(w.occupant, w.pos, k, radius, w.halo, work, slot)
+    comm_pairs[k] = _find_neighbours(w, k, radius, work, slot)
     offset[slot, 0] = 0
     if not merge:
         return 0
     known = w.merged[k]
     for i in range(n_agents):
         offset[slot, i + 1] = offset[slot, i] + 2 * _plan(w, k, i, radius, known, work, slot)
+    w.merged[k] = True  # read by the plan alone; the passes that follow record this merge's news and positions
     return offset[slot, n_agents]
 
 
@@ -203,4 +205,3 @@ def communicate(w, first, stop, radius, merge, work, slot, comm_pairs, comm_gain
         buf = np.empty(size, np.float32)
         merge_values(w, k, 0, n_agents, work, slot, buf, 0)
         write_merge(w, k, 0, n_agents, work, slot, buf, 0, comm_gain)
-        w.merged[k] = True

@@ -7,7 +7,7 @@ from numba import njit, prange
 
 from searchrl.world.config import WorldConfig
 from searchrl.world.kernels import CACHE
-from searchrl.world.parallel import agent_blocks, chunk_count, chunk_span, world_threads
+from searchrl.world.parallel import agent_blocks, block_span, chunk_count, chunk_span, world_threads
 from searchrl.world.seen import freshness
 from searchrl.world.state import WorldState
 
@@ -81,8 +81,7 @@ def observe_into(w, maps, vec, threads):
     blocks = agent_blocks(n_worlds, n_agents, threads, OBSERVE_BLOCK_AGENTS)
     if blocks > 1:
         for job in prange(n_worlds * blocks):
-            k, block = job // blocks, job % blocks
-            first, stop = chunk_span(block, blocks, 0, n_agents)
+            k, first, stop = block_span(job, blocks, n_agents)
             _observe_span(w, maps, vec, k, k + 1, first, stop)
         return
     n_chunks = chunk_count(n_worlds, n_worlds, threads)

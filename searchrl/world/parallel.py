@@ -84,3 +84,11 @@ def agent_blocks(n_worlds, n_agents, threads, least):
     if n_worlds >= threads:
         return 1
     return max(1, min(-(-threads // n_worlds), n_agents // least))
+
+
+@njit(cache=CACHE)
+def block_span(job, blocks, n_agents):
+    """(world, start, end): job `job` of a batch cut into `blocks` blocks of agents a world (`agent_blocks`) works
+    agents start..end-1 of that world; jobs 0..K·blocks-1 cover every agent of every world once."""
+    first, stop = chunk_span(job % blocks, blocks, 0, n_agents)
+    return job // blocks, first, stop

@@ -13,7 +13,7 @@ from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT
 from searchrl.world.kernels import CACHE
 from searchrl.world.merge import communicate, merge_values, merge_work, plan_merge, write_merge
-from searchrl.world.parallel import agent_blocks, chunk_count, chunk_span, world_threads
+from searchrl.world.parallel import agent_blocks, block_span, chunk_count, chunk_span, world_threads
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
@@ -208,16 +208,11 @@ def _step_sharing_merges(w, actions, priority, detect, moves, support, c_coef, r
         base[k + 1] = base[k] + size[k]
     buf = np.empty(base[n_worlds], np.float32)
     for job in prange(n_worlds * blocks):
-        k, block = job // blocks, job % blocks
-        first, stop = chunk_span(block, blocks, 0, n_agents)
+        k, first, stop = block_span(job, blocks, n_agents)
         merge_values(w, k, first, stop, work, k, buf, base[k])
     for job in prange(n_worlds * blocks):
-        k, block = job // blocks, job % blocks
-        first, stop = chunk_span(block, blocks, 0, n_agents)
+        k, first, stop = block_span(job, blocks, n_agents)
         write_merge(w, k, first, stop, work, k, buf, base[k], comm_gain)
-    merged = w.merged
-    for k in range(n_worlds):
-        merged[k] = True
     _account(w, 0, n_worlds, reward_terms, max_steps, out, np.empty(n_agents), np.empty(n_agents))
 
 
