@@ -90,7 +90,7 @@ def _guidance_span(w, params, memory, radius, floor, out, start, stop, side):
         for a in range(1, n_actions):
             out[k, i, a - 1] = best[a] / top if top > 0.0 else 0.0
         if top <= floor[k] * 13.0:  # the pocket is cleared: the first move towards the nearest worthwhile cell
-            reached = bfs(w.blocked, k, r0, c0, -1, n_actions, dist, first, queue)
+            reached = bfs(w.blocked, k, r0, c0, np.int64(-1), n_actions, dist, first, queue)
             rate = memory.rates[k] if memory.known.shape[2] > 0 else 0.0
             for q in range(1, reached):
                 r, c = queue[q, 0], queue[q, 1]

@@ -107,3 +107,69 @@ def test_one_function_gives_the_repository_root():
     """searchrl.paths.repository_root; no other module climbs from its own file."""
     climbers = [name for name, path in MODULES.items() if "Path(__file__)" in path.read_text()]
     assert climbers == ["searchrl.paths"]
+
+
+def _is_compiled(node: ast.AST) -> bool:
+    """A function under numba's @njit (an inlined one, `inline="always"`, is typed in its caller: not counted)."""
+    if not isinstance(node, ast.FunctionDef):
+        return False
+    for d in node.decorator_list:
+        target = d.func if isinstance(d, ast.Call) else d
+        inline = isinstance(d, ast.Call) and any(k.arg == "inline" for k in d.keywords)
+        if ast.unparse(target) in {"njit", "numba.njit"} and not inline:
+            return True
+    return False
+
+
+def _retyped_compiled_calls(sources: dict[str, str]) -> list[str]:
+    """Calls, inside compiled functions, to a compiled function of `sources` (name: text) that would compile it
+    again for other argument types: an int or bool constant (typed Literal[int](0), not int64), a prange loop's
+    own index (uint64), or an argument left to its default (a type of its own)."""
+    trees = {name: ast.parse(text) for name, text in sources.items()}
+    params = {f.name: len(f.args.args) for tree in trees.values() for f in ast.walk(tree) if _is_compiled(f)}
+    found = []
+    for name, tree in trees.items():
+        for caller in filter(_is_compiled, ast.walk(tree)):
+            loops = [n for n in ast.walk(caller) if isinstance(n, ast.For) and ast.unparse(n.iter)[:7] == "prange("]
+            for call in (n for n in ast.walk(caller) if isinstance(n, ast.Call)):
+                callee = call.func.attr if isinstance(call.func, ast.Attribute) else getattr(call.func, "id", None)
+                if callee not in params:
+                    continue
+                indices = {ast.unparse(loop.target) for loop in loops if call in ast.walk(loop)}
+                for arg in call.args:
+                    constant = isinstance(arg, ast.Constant) or (
+                        isinstance(arg, ast.UnaryOp) and isinstance(arg.operand, ast.Constant)
+                    )
+                    if constant or ast.unparse(arg) in indices:
+                        found.append(f"{name}:{call.lineno} {callee}(... {ast.unparse(arg)} ...)")
+                if len(call.args) != params[callee] or call.keywords:
+                    found.append(f"{name}:{call.lineno} {callee}: not every argument given by position")
+    return found
+
+
+def test_compiled_calls_keep_one_signature_per_function():
+    """numba compiles a function once per argument types, and everything it calls with it: a constant or a prange
+    index where elsewhere an int64 variable goes compiled the world's step three to six times over (a cold start
+    spent 147 s compiling, 85 s since). Such arguments are given as np.int64(...)."""
+    sources = {name: path.read_text() for name, path in MODULES.items()}
+    assert sum(_is_compiled(n) for text in sources.values() for n in ast.walk(ast.parse(text))) > 40
+    assert not _retyped_compiled_calls(sources)
+
+
+def test_the_signature_finder_finds_each_kind():
+    planted = """
+@njit
+def leaf(a, b, c=0):
+    return a + b + c
+
+@njit(parallel=True)
+def top(n):
+    s = leaf(0, n, n) + leaf(n, -1, n) + leaf(n, n) + leaf(np.int64(0), n, n)
+    for k in prange(n):
+        s += leaf(k, n, n) + leaf(np.int64(k), n, n)
+    return s
+"""
+    found = _retyped_compiled_calls({"m": planted})
+    assert sorted(f.split(" ", 1)[1] for f in found) == [
+        "leaf(... -1 ...)", "leaf(... 0 ...)", "leaf(... k ...)", "leaf: not every argument given by position",
+    ], found  # fmt: skip

@@ -195,7 +195,7 @@ def greedy_actions(w, params, memory, fallback, out, threads):
     n_slots = out.shape[0] * out.shape[1]
     n_chunks = chunk_count(n_slots, n_slots, threads)
     if n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
-        _greedy_span(w, params, memory, fallback, out, 0, n_slots)
+        _greedy_span(w, params, memory, fallback, out, np.int64(0), n_slots)
         return
     for chunk in prange(n_chunks):
         first, stop = chunk_span(chunk, n_chunks, 0, n_slots)

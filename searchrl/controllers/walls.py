@@ -74,7 +74,7 @@ def pocket_values(w, params, memory, k, i, r0, c0, radius, dist, first, queue, b
     int64 scratch (no agent is contested here); values: `view_values`' scratch (`view_scratch`)."""
     reached = bfs(w.blocked, k, r0, c0, radius, params.n_actions, dist, first, queue)
     best[:] = 0.0
-    view_values(w, params, memory, k, i, r0, c0, others, 0, values)
+    view_values(w, params, memory, k, i, r0, c0, others, np.int64(0), values)
     for q in range(1, reached):
         r, c = queue[q, 0], queue[q, 1]
         value = footprint_information(params, values, r - r0, c - c0)
@@ -95,7 +95,7 @@ def path_greedy_actions(w, params, memory, radius, floor, fallback, out, threads
     n_slots, side = out.shape[0] * out.shape[1], w.blocked.shape[1]
     n_chunks = chunk_count(n_slots, n_slots, threads)
     if n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
-        _path_greedy_span(w, params, memory, radius, floor, fallback, out, 0, n_slots, side)
+        _path_greedy_span(w, params, memory, radius, floor, fallback, out, np.int64(0), n_slots, side)
         return
     for chunk in prange(n_chunks):
         start, stop = chunk_span(chunk, n_chunks, 0, n_slots)
@@ -122,7 +122,7 @@ def _path_greedy_span(w, params, memory, radius, floor, fallback, out, start, st
             if best[a] > score and occupant[k, r0 + MOVES[a, 0], c0 + MOVES[a, 1]] < 0:
                 choice, score = a, best[a]
         if choice == 0:  # the pocket in reach is cleared: the nearest worthwhile cell, over the whole world
-            reached = bfs(w.blocked, k, r0, c0, -1, n_actions, dist, first, queue)
+            reached = bfs(w.blocked, k, r0, c0, np.int64(-1), n_actions, dist, first, queue)
             sp, su = sp_all[k, 0], su_all[k, 1]
             rate = rate_all[k] if memory.known.shape[2] > 0 else 0.0
             for q in range(1, reached):
@@ -183,7 +183,7 @@ def sweep_actions(pos, occupant, blocked, h, left, spacing, n_actions, fallback,
         claimed[:] = False
         for i in range(pos.shape[1]):
             r0, c0 = pos[k, i, 0] + h, pos[k, i, 1] + h
-            reached = bfs(blocked, k, r0, c0, -1, n_actions, dist, first, queue)
+            reached = bfs(blocked, k, r0, c0, np.int64(-1), n_actions, dist, first, queue)
             out[k, i] = fallback[k, i]
             for q in range(1, reached):
                 r, c = queue[q, 0], queue[q, 1]

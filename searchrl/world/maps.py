@@ -75,7 +75,7 @@ def _densities(mu, var, rho, out, threads):
     rows = m * n
     n_chunks = chunk_count(rows, rows, threads)
     if n_chunks == 1:
-        _density_rows(dx, dy, two_rho, divisor, norm, out, 0, rows)
+        _density_rows(dx, dy, two_rho, divisor, norm, out, np.int64(0), rows)
         return
     for chunk in prange(n_chunks):
         first, stop = chunk_span(chunk, n_chunks, 0, rows)
@@ -113,7 +113,7 @@ def _mixture_maps(densities, m, eta, p, u, threads):
     n = p.shape[0]
     n_chunks = chunk_count(n, n, threads)
     if n_chunks == 1:
-        _mixture_rows(densities, m, p, u, 0, n)
+        _mixture_rows(densities, m, p, u, np.int64(0), n)
     else:
         for chunk in prange(n_chunks):
             first, stop = chunk_span(chunk, n_chunks, 0, n)
@@ -121,7 +121,7 @@ def _mixture_maps(densities, m, eta, p, u, threads):
     p_total, u_total = numpy_sum(p.ravel()), numpy_sum(u.ravel())
     floor = eta * p_total / p.size  # eq. 7's η spread evenly, as `probability_map` computes it
     if n_chunks == 1:
-        _normalised_rows(p, u, 1.0 - eta, floor, p_total, u_total, 0, n)
+        _normalised_rows(p, u, 1.0 - eta, floor, p_total, u_total, np.int64(0), n)
         return
     for chunk in prange(n_chunks):
         first, stop = chunk_span(chunk, n_chunks, 0, n)
@@ -132,7 +132,7 @@ def _mixture_maps(densities, m, eta, p, u, threads):
 def _mixture_rows(densities, m, p, u, first, stop):
     """Rows first..stop-1 of p = Σ_{i<m} densities[i] and u = Σ_{i>=m} densities[i], each added in order of i."""
     for y in range(first, stop):
-        _add_components(densities, 0, m, p, y)
+        _add_components(densities, np.int64(0), m, p, y)
         _add_components(densities, m, densities.shape[0], u, y)
 
 

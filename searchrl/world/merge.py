@@ -203,5 +203,5 @@ def communicate(w, first, stop, radius, merge, work, slot, comm_pairs, comm_gain
         if not merge:
             continue
         buf = np.empty(size, np.float32)
-        merge_values(w, k, 0, n_agents, work, slot, buf, 0)
-        write_merge(w, k, 0, n_agents, work, slot, buf, 0, comm_gain)
+        merge_values(w, k, np.int64(0), n_agents, work, slot, buf, np.int64(0))
+        write_merge(w, k, np.int64(0), n_agents, work, slot, buf, np.int64(0), comm_gain)

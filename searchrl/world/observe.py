@@ -58,7 +58,7 @@ def observe_worlds(config: WorldConfig, state: WorldState, out: tuple[np.ndarray
 @njit(cache=CACHE)
 def _observe_listed(w, maps, vec, worlds):
     for k in worlds:  # a few worlds: in this thread, no parallel region to start
-        _observe_span(w, maps, vec, k, k + 1)
+        _observe_span(w, maps, vec, k, k + 1, np.int64(0), np.int64(-1))
 
 
 # The fewest agents of a block when a batch of fewer worlds than threads shares its worlds' agents among the
@@ -86,15 +86,15 @@ def observe_into(w, maps, vec, threads):
         return
     n_chunks = chunk_count(n_worlds, n_worlds, threads)
     if n_chunks == 1:  # in this thread: no parallel region to start
-        _observe_span(w, maps, vec, 0, n_worlds)
+        _observe_span(w, maps, vec, np.int64(0), n_worlds, np.int64(0), np.int64(-1))
         return
     for chunk in prange(n_chunks):
         first, stop = chunk_span(chunk, n_chunks, 0, n_worlds)
-        _observe_span(w, maps, vec, first, stop)
+        _observe_span(w, maps, vec, first, stop, np.int64(0), np.int64(-1))
 
 
 @njit(cache=CACHE)
-def _observe_span(w, maps, vec, first, stop, agent_first=0, agent_stop=-1):
+def _observe_span(w, maps, vec, first, stop, agent_first, agent_stop):
     """`observe_into` for worlds first..stop-1, their agents agent_first..agent_stop-1 (-1: to the last), written
     channel by channel so every inner loop runs over contiguous memory. Every element is indexed from the whole
     arrays, with no view taken in the loops (see kernels.py: views count references to the shared arrays

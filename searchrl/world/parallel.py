@@ -61,14 +61,14 @@ def world_threads() -> int:
     return numba.get_num_threads()
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, inline="always")
 def chunk_count(n_worlds, slots, threads):
     """How many chunks to split n_worlds worlds into: one per thread (`threads`, `world_threads()`), at most one
     per world and per scratch slot (`slots`), at least one."""
     return max(1, min(n_worlds, slots, threads))
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, inline="always")
 def chunk_span(chunk, n_chunks, first, stop):
     """(start, end): the worlds start..end-1 of chunk `chunk` when first..stop-1 is cut into n_chunks contiguous
     chunks whose sizes differ by at most one."""
@@ -76,7 +76,7 @@ def chunk_span(chunk, n_chunks, first, stop):
     return first + chunk * n // n_chunks, first + (chunk + 1) * n // n_chunks
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, inline="always")
 def agent_blocks(n_worlds, n_agents, threads, least):
     """Into how many blocks of agents to cut each world of a batch: enough that the worlds' blocks keep `threads`
     threads busy when there are fewer worlds than threads, each block at least `least` agents (a smaller block
@@ -86,7 +86,7 @@ def agent_blocks(n_worlds, n_agents, threads, least):
     return max(1, min(-(-threads // n_worlds), n_agents // least))
 
 
-@njit(cache=CACHE)
+@njit(cache=CACHE, inline="always")
 def block_span(job, blocks, n_agents):
     """(world, start, end): job `job` of a batch cut into `blocks` blocks of agents a world (`agent_blocks`) works
     agents start..end-1 of that world; jobs 0..K·blocks-1 cover every agent of every world once."""

@@ -121,7 +121,7 @@ def _write_world(w, k, p, u, free, pos, targets, threads):
     n_agents = pos.shape[0]
     n_chunks = chunk_count(n_agents, n_agents, threads)
     if n_chunks == 1:
-        _write_beliefs(w, k, 0, n_agents)
+        _write_beliefs(w, k, np.int64(0), n_agents)
     else:
         for chunk in prange(n_chunks):
             first, stop = chunk_span(chunk, n_chunks, 0, n_agents)

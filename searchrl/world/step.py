@@ -139,12 +139,12 @@ def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, me
         return
     if n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
         _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps,
-                   scratch, work, out, 0, 0, n_worlds)  # fmt: skip
+                   scratch, work, out, np.int64(0), np.int64(0), n_worlds)  # fmt: skip
         return
     for chunk in prange(n_chunks):
         first, stop = chunk_span(chunk, n_chunks, 0, n_worlds)
         _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps,
-                   scratch, work, out, chunk, first, stop)  # fmt: skip
+                   scratch, work, out, np.int64(chunk), first, stop)  # fmt: skip
 
 
 # The fewest agents of a block of a shared merge. A shared step opens three parallel regions where a world's own
@@ -183,7 +183,7 @@ def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merg
 def _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out, k):
     """World k's phases 1-4 and its merge's plan, in scratch and work slot k; returns its merge's buffer length."""
     _act_and_sense(w, actions, priority, detect, moves, support, c_coef, radii[0], scratch, out, k, k, k + 1)
-    return plan_merge(w, k, radii[1], True, work, k, out[4], out[5])
+    return plan_merge(w, k, radii[1], np.bool_(True), work, k, out[4], out[5])
 
 
 @njit(cache=CACHE, parallel=True)
@@ -198,11 +198,12 @@ def _step_sharing_merges(w, actions, priority, detect, moves, support, c_coef, r
     n_worlds, n_agents = actions.shape
     size = np.empty(n_worlds, np.int64)
     if n_worlds == 1:  # in this thread: a parallel region of one world would only wake the others
-        size[0] = _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out, 0)
+        size[0] = _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out,
+                                 np.int64(0))  # fmt: skip
     else:
         for k in prange(n_worlds):
             size[k] = _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out,
-                                     k)  # fmt: skip
+                                     np.int64(k))  # fmt: skip
     base = np.zeros(n_worlds + 1, np.int64)
     for k in range(n_worlds):
         base[k + 1] = base[k] + size[k]
@@ -213,7 +214,7 @@ def _step_sharing_merges(w, actions, priority, detect, moves, support, c_coef, r
     for job in prange(n_worlds * blocks):
         k, first, stop = block_span(job, blocks, n_agents)
         write_merge(w, k, first, stop, work, k, buf, base[k], comm_gain)
-    _account(w, 0, n_worlds, reward_terms, max_steps, out, np.empty(n_agents), np.empty(n_agents))
+    _account(w, np.int64(0), n_worlds, reward_terms, max_steps, out, np.empty(n_agents), np.empty(n_agents))
 
 
 @njit(cache=CACHE)

@@ -17,7 +17,7 @@ def numpy_sum(values):
     by recursion: numba cannot load a cached recursive function (numba issue #6061: a segfault)."""
     count = values.shape[0]
     if count <= 128:
-        return _block_sum(values, 0, count)
+        return _block_sum(values, np.int64(0), count)
     starts, counts = np.empty(64, np.int64), np.empty(64, np.int64)  # a frame per half being summed
     stage, left = np.zeros(64, np.int64), np.empty(64, np.float64)  # 0: to do, 1: first half, 2: second half
     top, total = 0, 0.0
