@@ -48,7 +48,7 @@ from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.coverage import GeometricCoverage
-from searchrl.controllers.greedy import cell_information, view_scratch
+from searchrl.controllers.greedy_kernels import cell_information, view_scratch
 from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import make_controller, register
 from searchrl.controllers.switch import MIN_EXPECTED, EvidenceSwitch, sweep_footprints

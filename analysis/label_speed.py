@@ -20,7 +20,7 @@ import time
 import numpy as np
 from hydra import compose, initialize_config_dir
 
-from searchrl.controllers.greedy import greedy_actions
+from searchrl.controllers.greedy_kernels import greedy_actions
 from searchrl.paths import CONF_DIR
 from searchrl.train.build import make_vec_env
 from searchrl.train.plan import make_plan

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from searchrl.controllers.greedy import FootprintGreedy, reach_weights
+from searchrl.controllers.greedy import FootprintGreedy
+from searchrl.controllers.greedy_kernels import reach_weights
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import GAMMA
 from searchrl.world.observe import observe

@@ -26,13 +26,8 @@ import numpy as np
 from numba import njit, prange
 
 from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
-from searchrl.controllers.greedy import (
-    FootprintGreedy,
-    cell_information,
-    footprint_information,
-    view_scratch,
-    view_values,
-)
+from searchrl.controllers.greedy import FootprintGreedy
+from searchrl.controllers.greedy_kernels import cell_information, footprint_information, view_scratch, view_values
 from searchrl.controllers.switch import sweep_footprints
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G
