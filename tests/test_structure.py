@@ -115,7 +115,9 @@ def _is_compiled(node: ast.AST) -> bool:
         return False
     for d in node.decorator_list:
         target = d.func if isinstance(d, ast.Call) else d
-        inline = isinstance(d, ast.Call) and any(k.arg == "inline" for k in d.keywords)
+        inline = isinstance(d, ast.Call) and any(
+            k.arg == "inline" and ast.unparse(k.value) in {"'always'", '"always"'} for k in d.keywords
+        )
         if ast.unparse(target) in {"njit", "numba.njit"} and not inline:
             return True
     return False
@@ -162,9 +164,13 @@ def test_the_signature_finder_finds_each_kind():
 def leaf(a, b, c=0):
     return a + b + c
 
+@njit(inline="always")
+def inlined(a):
+    return a
+
 @njit(parallel=True)
 def top(n):
-    s = leaf(0, n, n) + leaf(n, -1, n) + leaf(n, n) + leaf(np.int64(0), n, n)
+    s = leaf(0, n, n) + leaf(n, -1, n) + leaf(n, n) + leaf(np.int64(0), n, n) + inlined(0)
     for k in prange(n):
         s += leaf(k, n, n) + leaf(np.int64(k), n, n)
     return s
