@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # The figures of docs/performance.md#machines that need a GPU machine, measured in one run (under ten minutes on one
-# H100/H200 with 16 cores), most needed first: a whole full-grid evaluation of term/b on the GPU from a new bound
-# cache, which starts from the shipped bounds (runs/reference/bounds: no bound of the grid's maps is computed; timed
-# end to end, at most 300 s, each cell's time from its file's); the world at 1 and 16 threads (and one crowded
-# world's step, analysis/one_world.py); B's recipe's throughput and the shares of its wall time at machine=gpu;
-# where the time of one n = 160 cell goes (cProfile), only when the full grid did not finish; then the paper's
-# `+model=c` at machine=gpu for the time left.
+# H100/H200 with 16 cores), most needed first: numba's compile on the fresh machine (a one-cell evaluation of term/b
+# on the GPU, timed apart: every later command loads the cache it leaves); a whole full-grid evaluation of term/b on
+# the GPU from a new bound cache, which starts from the shipped bounds (runs/reference/bounds: no bound of the
+# grid's maps is computed; timed end to end, at most 300 s, each cell's time from its file's); the world at 1 and 16
+# threads (and one crowded world's step, analysis/one_world.py); B's recipe's throughput and the shares of its wall
+# time at machine=gpu; where the time of one n = 160 cell goes (cProfile), only when the full grid did not finish;
+# then the paper's `+model=c` at machine=gpu for the time left.
 #
 # `+model=c` (18.4M agent-steps) takes longer than one call on a lent machine, so it runs in segments: its run
 # folder comes back under $OUT/gpu_c/ (config, progress.csv, the newest checkpoint, and model.zip at the end), and a
@@ -28,6 +29,13 @@ say "machine"
 { nvidia-smi --query-gpu=name,memory.total --format=csv,noheader; nproc; git rev-parse --short HEAD 2>/dev/null
   python -c "import torch, numba, numpy; print('torch', torch.__version__, 'numba', numba.__version__, \
 'numpy', numpy.__version__, 'cuda', torch.cuda.is_available())"; } 2>&1 | tee -a "$LOG"
+
+say "compile: term/b on one small cell, device=cuda threads=16, an empty numba cache"
+start=$(date +%s)
+timeout 240 python -m searchrl.evaluate checkpoint=runs/reference/term/b/model.zip device=cuda threads=16 \
+    grid.world_sizes=[20] grid.n_targets=[4] grid.n_distributions=[8] grid.max_agents=[2] grid.maps_per_cell=1 \
+    grid.repeats=1 progress_bar=false out_dir=runs/eval/gpu/compile >>"$LOG" 2>&1
+say "compile: rc $? after $(( $(date +%s) - start )) s"
 
 say "evaluate: term/b on the full grid, device=cuda threads=16, a new bound cache (the shipped bounds)"
 start=$(date +%s)
