@@ -139,9 +139,8 @@ def _retyped_compiled_calls(sources: dict[str, str]) -> list[str]:
                     continue
                 indices = {ast.unparse(loop.target) for loop in loops if call in ast.walk(loop)}
                 for arg in call.args:
-                    constant = isinstance(arg, ast.Constant) or (
-                        isinstance(arg, ast.UnaryOp) and isinstance(arg.operand, ast.Constant)
-                    )
+                    value = arg.operand if isinstance(arg, ast.UnaryOp) else arg
+                    constant = isinstance(value, ast.Constant) and isinstance(value.value, int)  # bool is an int
                     if constant or ast.unparse(arg) in indices:
                         found.append(f"{name}:{call.lineno} {callee}(... {ast.unparse(arg)} ...)")
                 if len(call.args) != params[callee] or call.keywords:
@@ -170,7 +169,7 @@ def inlined(a):
 
 @njit(parallel=True)
 def top(n):
-    s = leaf(0, n, n) + leaf(n, -1, n) + leaf(n, n) + leaf(np.int64(0), n, n) + inlined(0)
+    s = leaf(0, n, n) + leaf(n, -1, n) + leaf(n, n) + leaf(np.int64(0), n, n) + inlined(0) + leaf(n, n, 0.5)
     for k in prange(n):
         s += leaf(k, n, n) + leaf(np.int64(k), n, n)
     return s
