@@ -58,7 +58,7 @@ def observe_worlds(config: WorldConfig, state: WorldState, out: tuple[np.ndarray
 @njit(cache=CACHE)
 def _observe_listed(w, maps, vec, worlds):
     for k in worlds:  # a few worlds: in this thread, no parallel region to start
-        _observe_span(w, maps, vec, k, k + 1, np.int64(0), np.int64(-1))
+        _observe_span(w, maps, vec, k, k + 1, np.int64(0), maps.shape[1])
 
 
 # The fewest agents of a block when a batch of fewer worlds than threads shares its worlds' agents among the
@@ -86,16 +86,16 @@ def observe_into(w, maps, vec, threads):
         return
     n_chunks = chunk_count(n_worlds, n_worlds, threads)
     if n_chunks == 1:  # in this thread: no parallel region to start
-        _observe_span(w, maps, vec, np.int64(0), n_worlds, np.int64(0), np.int64(-1))
+        _observe_span(w, maps, vec, np.int64(0), n_worlds, np.int64(0), n_agents)
         return
     for chunk in prange(n_chunks):
         first, stop = chunk_span(chunk, n_chunks, 0, n_worlds)
-        _observe_span(w, maps, vec, first, stop, np.int64(0), np.int64(-1))
+        _observe_span(w, maps, vec, first, stop, np.int64(0), n_agents)
 
 
 @njit(cache=CACHE)
 def _observe_span(w, maps, vec, first, stop, agent_first, agent_stop):
-    """`observe_into` for worlds first..stop-1, their agents agent_first..agent_stop-1 (-1: to the last), written
+    """`observe_into` for worlds first..stop-1, their agents agent_first..agent_stop-1, written
     channel by channel so every inner loop runs over contiguous memory. Every element is indexed from the whole
     arrays, with no view taken in the loops (see kernels.py: views count references to the shared arrays
     atomically, a counter all threads would contend for)."""
@@ -108,7 +108,7 @@ def _observe_span(w, maps, vec, first, stop, agent_first, agent_stop):
     with_seen = belief_seen.shape[2] > 0
     for k in range(first, stop):
         sp, su = obs_scale[k, 0], obs_scale[k, 1]
-        for i in range(agent_first, agent_stop if agent_stop >= 0 else maps.shape[1]):
+        for i in range(agent_first, agent_stop):
             r0 = pos[k, i, 0] + h - half
             c0 = pos[k, i, 1] + h - half
             for a in range(fov):
