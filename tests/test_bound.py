@@ -20,6 +20,7 @@ from searchrl.world.bound import (
     team_reach,
 )
 from searchrl.world.footprint import GAMMA, MOVES
+from searchrl.world.libm import log  # the C library's log, as target_marginals takes it
 from searchrl.world.truth import place_targets
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -434,6 +435,6 @@ def test_each_draw_places_its_targets_on_the_cells_of_largest_key():
     noise (one chunk of draws here, so the noise can be drawn again in the same order)."""
     weights = np.random.default_rng(3).random((40, 40))
     _, chosen = target_marginals(weights, 16, 40, np.random.default_rng(8))
-    keys = np.log(weights.ravel()) + np.random.default_rng(8).gumbel(size=(40, 1600))
+    keys = log(weights.ravel()) + np.random.default_rng(8).gumbel(size=(40, 1600))
     top = np.argsort(-keys, axis=1)[:, :16]
     assert all(set(a) == set(b) for a, b in zip(chosen.tolist(), top.tolist(), strict=True))

@@ -10,6 +10,7 @@ import numpy as np
 from numba import njit, prange
 
 from searchrl.world.footprint import GAMMA, SUPPORT_DC, SUPPORT_DR, SUPPORT_G
+from searchrl.world.libm import power
 from searchrl.world.parallel import chunk_count, chunk_span
 from searchrl.world.seen import freshness
 
@@ -196,4 +197,4 @@ def reach_weights(blocked: np.ndarray, exponent: float) -> np.ndarray:
         mass[:, g : side - g, g : side - g] += weight * free[:, g - dr : side - g - dr, g - dc : side - g - dc]
     weights = np.zeros(blocked.shape, np.float64)
     np.divide(GAMMA.sum(), mass, out=weights, where=free & (mass > 0))
-    return np.power(weights, exponent, out=weights, where=free)
+    return np.where(free, power(weights, float(exponent)), 0.0)  # searchrl/world/libm.py: why not numpy's power

@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 
 from searchrl.world.footprint import GAMMA, MOVES, SUPPORT, Footprint
+from searchrl.world.libm import log
 from searchrl.world.truth import keep_probability
 
 
@@ -93,7 +94,7 @@ def target_marginals(
     successive sampling with `weights`, each the `count` largest of log w + Gumbel noise, and the fraction of
     draws that put a target on each cell. π̂ sums to `count`."""
     flat = weights.ravel()
-    log_w = np.where(flat > 0, np.log(np.where(flat > 0, flat, 1.0)), -np.inf)
+    log_w = np.where(flat > 0, log(np.where(flat > 0, flat, 1.0)), -np.inf)  # libm.py: why not numpy's
     if np.isfinite(log_w).sum() < count:
         raise ValueError(f"count={count} targets need as many cells of positive weight ({np.isfinite(log_w).sum()})")
     chosen = np.empty((draws, count), np.int64)

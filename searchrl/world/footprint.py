@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 
 
 def make_footprint(radius: int = 2) -> np.ndarray:
-    """Γ[dy + r, dx + r] = exp(-(dx² + dy²) / 2) on the disc dx² + dy² <= r², 0 outside. Shape (2r+1, 2r+1)."""
-    d = np.arange(-radius, radius + 1)
-    d2 = d[:, None] ** 2 + d[None, :] ** 2
-    return np.where(d2 <= radius**2, np.exp(-d2 / 2.0), 0.0)
+    """Γ[dy + r, dx + r] = exp(-(dx² + dy²) / 2) on the disc dx² + dy² <= r², 0 outside. Shape (2r+1, 2r+1).
+    Python's math.exp, the C library's, not numpy's (searchrl/world/libm.py says why)."""
+    d = range(-radius, radius + 1)
+    return np.array([[math.exp(-(dy * dy + dx * dx) / 2.0) if dy * dy + dx * dx <= radius**2 else 0.0 for dx in d]
+                     for dy in d])  # fmt: skip
 
 
 GAMMA: np.ndarray = make_footprint(2)  # (5, 5) float64; the paper prints it to 4 decimals

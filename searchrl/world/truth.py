@@ -18,6 +18,7 @@ same cells and nothing more drawn from `rng`), and s grows with how wrong the pr
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
@@ -27,6 +28,7 @@ from numba import njit
 
 from searchrl.world.config import WorldConfig, is_int, need
 from searchrl.world.kernels import CACHE
+from searchrl.world.libm import power
 from searchrl.world.state import WorldState
 
 _MAX_TARGET_ROUNDS = 1_000
@@ -224,7 +226,7 @@ class ShiftedTargets(PriorError):
         """(rows, cols) the truth is moved by, from one uniform of `rng`."""
         theta = 2 * np.pi * rng.random()
         reach = self.severity * self.distance * n
-        return round(float(reach * np.sin(theta))), round(float(reach * np.cos(theta)))
+        return round(reach * math.sin(theta)), round(reach * math.cos(theta))
 
     def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
               ) -> np.ndarray:  # fmt: skip
@@ -254,7 +256,7 @@ class TemperedTargets(PriorError):
               ) -> np.ndarray:  # fmt: skip
         if self.power == 1:
             return place_targets(p, u, free, count, rng)
-        truth = np.where(free, p, 0.0) ** (1.0 + self.severity * (self.power - 1.0))
+        truth = power(np.where(free, p, 0.0), 1.0 + self.severity * (self.power - 1.0))  # libm.py: why not numpy's
         return place_targets(truth / truth.sum(), u, free, count, rng)
 
     def check(self, config: WorldConfig) -> None:
