@@ -55,6 +55,7 @@ from searchrl.controllers.switch import MIN_EXPECTED, EvidenceSwitch, sweep_foot
 from searchrl.controllers.walls import PathGreedy, bfs, pocket_values
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.policies.checkpoint import load_checkpoint
 from searchrl.train.teacher_labels import TeacherLabels
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import SUPPORT_DC, SUPPORT_DR, SUPPORT_G
@@ -265,10 +266,10 @@ def make_guided_vec_env(plan, seed=None):
     return env
 
 
-def widened_init(model, path: str) -> None:
+def widened_init(model, path: str, cfg=None) -> None:
     """init= from a policy without guidance: every weight copied, the vector layer's new input columns zero, so the
-    policy first acts exactly as the one it starts from."""
-    source = type(model).load(path, device="cpu").policy.state_dict()
+    policy first acts exactly as the one it starts from (read under its own run's config, as searchrl reads any)."""
+    source = load_checkpoint(path, device="cpu").policy.state_dict()
     target = model.policy.state_dict()
     for key, value in source.items():
         if target[key].shape != value.shape:  # the vector's first layer: (out, 3) -> (out, 3 + guidance)

@@ -29,10 +29,12 @@ from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.results import load
 from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
+from searchrl.policies.checkpoint import REBUILT, load_checkpoint
 from searchrl.schema import check_group_choices
 from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
+from tests.test_untrusted_checkpoints import SHIPPED, poisoned
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
 
@@ -229,6 +231,45 @@ def test_a_run_killed_before_its_first_checkpoint_starts_again_from_its_init(tmp
     (run / "config.yaml").write_text(OmegaConf.to_yaml(config))
     overrides = [f"resume={run}"]
     _refused(capsys, lambda: train(_compose("train", overrides), run / "r", overrides), "init=", "does not fit")
+
+
+# 3b. A model.zip from anyone runs no code: its pickled entries are rebuilt, its tensors read as weights only.
+def test_the_apps_load_a_zip_with_every_entry_poisoned_and_run_none(tmp_path, tiny_run, capsys):
+    """evaluate, render, init= and resume= on zips whose every pickled entry is a payload: each runs to its end."""
+    from searchrl.render import main as render
+
+    marker = tmp_path / "ran"
+    every = tuple(REBUILT)
+    shipped = poisoned(SHIPPED, tmp_path / "shipped", marker, entries=every)
+    _evaluate(tmp_path / "eval", f"checkpoint={shipped}")
+    assert (tmp_path / "eval" / "evaluation.yaml").exists()
+    render(["--checkpoint", str(shipped), "--n", "20", "--agents", "2", "--out", str(tmp_path / "episode.gif")])
+    assert (tmp_path / "episode.gif").stat().st_size > 0
+
+    init = poisoned(tiny_run, tmp_path / "tiny", marker, entries=every)
+    overrides = [*TINY, f"init={init}", "total_timesteps=256"]
+    assert train(_compose("train", overrides), tmp_path / "init", overrides).exists()
+    shutil.rmtree(tmp_path / "tiny")
+    run = tmp_path / "tiny"
+    poisoned(tiny_run, run, marker, entries=every, name="checkpoints/step_2048.zip")
+    (run / "model.zip").unlink()  # as if killed after its last checkpoint
+    overrides = [f"resume={run}", "total_timesteps=2304"]
+    final = train(_compose("train", overrides), run / "r", overrides)
+    assert "resuming" in capsys.readouterr().err and load_checkpoint(final).num_timesteps == 2304
+    assert not marker.exists()
+
+
+def test_the_apps_refuse_a_poisoned_tensor_file_in_one_line(tmp_path, tiny_run, capsys):
+    from searchrl.render import main as render
+
+    marker = tmp_path / "ran"
+    shipped = poisoned(SHIPPED, tmp_path / "shipped", marker, tensor="policy.pth")
+    _refused(capsys, lambda: _evaluate(tmp_path / "eval", f"checkpoint={shipped}"), "Weights only load failed")
+    _refused(capsys, lambda: render(["--checkpoint", str(shipped), "--out", str(tmp_path / "x.gif")]), "Weights only")
+    init = poisoned(tiny_run, tmp_path / "tiny", marker, tensor="policy.pth")
+    overrides = [*TINY, f"init={init}"]
+    _refused(capsys, lambda: train(_compose("train", overrides), tmp_path / "init", overrides), "init=", "Weights")
+    assert not marker.exists()
 
 
 # 4. A failed evaluation claims nothing; cells impossible for their n or N fail before any other cell runs.

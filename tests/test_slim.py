@@ -4,12 +4,14 @@ shipped `model.zip` slim (a folder of 1.6 MB files, not 6 MB ones)."""
 from __future__ import annotations
 
 import zipfile
+from dataclasses import asdict
 from pathlib import Path
 
 import pytest
 import torch
+from omegaconf import OmegaConf
 
-from searchrl.policies.checkpoint import load_checkpoint
+from searchrl.policies.checkpoint import load_checkpoint, run_config
 from searchrl.policies.slim import is_slim, main, slim_checkpoint, weights_sha256
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -24,12 +26,15 @@ def trained(tmp_path_factory):
     from sb3_contrib import RecurrentPPO
 
     from searchrl.envs.vec_env import SearchVecEnv
-    from tests.test_teacher_term import WORLD, _model
+    from tests.test_teacher_term import EXTRACTOR, WORLD, _model
 
     model = _model(RecurrentPPO, SearchVecEnv(WORLD, n_worlds=2, seed=0))
     model.learn(48)
     path = tmp_path_factory.mktemp("run") / "model.zip"
     model.save(path)
+    run = {"env": {"world": asdict(WORLD)}, "network": {**EXTRACTOR, "lstm_hidden_size": 16},
+           "algo": {"name": "recurrent_ppo", "learning_rate": model.learning_rate, "clip_range": 0.2}}  # fmt: skip
+    OmegaConf.save(OmegaConf.create(run), path.parent / "config.yaml")  # what load_checkpoint builds the model from
     return path
 
 
@@ -38,7 +43,7 @@ def test_slimming_keeps_the_weights_and_the_file_loads(trained, tmp_path):
     assert not is_slim(trained) and is_slim(out)
     assert weights_sha256(out) == weights_sha256(trained)
     assert out.stat().st_size < trained.stat().st_size
-    full, slim = (load_checkpoint(p, "recurrent_ppo", device="cpu") for p in (trained, out))
+    full, slim = (load_checkpoint(p, run_config(trained), device="cpu") for p in (trained, out))
     for name, value in full.policy.state_dict().items():
         assert torch.equal(slim.policy.state_dict()[name], value), name
     assert slim.num_timesteps == full.num_timesteps and not slim.policy.optimizer.state

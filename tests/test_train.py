@@ -144,7 +144,7 @@ def test_init_copies_policy_weights_only(tmp_path, capsys):
     source = _run(tmp_path / "source", ["+model=b", *TINY, "validation.every=0"])
     plan = make_plan(_compose(["+model=b", *TINY]))
     model = make_algorithm(plan, make_vec_env(plan))
-    init_weights(model, str(source))
+    init_weights(model, str(source), plan.cfg)
     loaded = RecurrentPPO.load(source)
     for name, value in loaded.policy.state_dict().items():
         torch.testing.assert_close(model.policy.state_dict()[name], value)
@@ -152,7 +152,7 @@ def test_init_copies_policy_weights_only(tmp_path, capsys):
     wider = make_plan(_compose(["+model=b", *TINY, "network.lstm_hidden_size=16"]))
     other = make_algorithm(wider, make_vec_env(wider))
     with pytest.raises(ValueError, match="does not fit this run's policy"):
-        init_weights(other, str(source))
+        init_weights(other, str(source), wider.cfg)
 
 
 def test_resume_of_an_initialised_run_needs_no_init_file(tmp_path):

@@ -32,7 +32,7 @@ SHIPPED_B = Path(__file__).resolve().parents[1] / "runs" / "reference" / "term" 
 def test_same_weights_give_the_same_validation_and_leave_the_training_stream_alone():
     world_dict, _, _ = checkpoint_config(SHIPPED_B)
     config = WorldConfig.from_dict({**world_dict, "world_size": 20, "n_agents": 2, "max_steps": 24})
-    model = load_checkpoint(SHIPPED_B, "recurrent_ppo", device="cpu")
+    model = load_checkpoint(SHIPPED_B, device="cpu")
     torch.manual_seed(123)
     before = torch.get_rng_state()
     first = run_episodes(config, 3, seed=5, model=model)
@@ -48,7 +48,7 @@ def test_validation_reports_what_evaluation_reports_on_the_same_worlds_and_seed(
     metrics are the means of `run_cell`'s rows (the evaluation app's episode runner and inference path), in the
     paper's scenario and in another, with sampled and with argmax actions."""
     world = WorldConfig.from_dict(checkpoint_config(SHIPPED_B)[0])
-    model = load_checkpoint(SHIPPED_B, "recurrent_ppo", device="cpu")
+    model = load_checkpoint(SHIPPED_B, device="cpu")
     actor = load_actor(SHIPPED_B, world)
     cell = Cell(20, 2, 4, 8)
     for scenario, deterministic in ((Scenario(), False), (Scenario(IidObstacles(0.2)), True)):

@@ -108,10 +108,10 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
     if args.suite in ("eval", "policy"):
         device = _device(parser, args.device, checkpoint)
     if checkpoint:  # read it now: a corrupt file or run config is named before any measurement
-        from searchrl.policies.checkpoint import checkpoint_config, load_checkpoint
+        from searchrl.policies.checkpoint import load_checkpoint
 
         try:
-            load_checkpoint(checkpoint, checkpoint_config(checkpoint)[1], device="cpu")
+            load_checkpoint(checkpoint, device="cpu")
         except (ValueError, FileNotFoundError) as err:
             parser.error(str(err))
     if args.suite == "world":

@@ -36,7 +36,7 @@ def run(checkpoint: str, threads: int = 2, worlds: int = 128, seconds: float = 3
     """Two rows, SB3's predict and the actor's controller on the same batch, each with its network on `device` (a
     checked one, searchrl/policies/device.py): agent-steps/s, and the actor's speedup."""
     use_threads(threads, network_on_cpu=str(device) == "cpu")
-    world_dict, algo, _ = checkpoint_config(checkpoint)
+    world_dict, _, _ = checkpoint_config(checkpoint)
     config = cell_config(WorldConfig.from_dict(world_dict), Cell(80, 32, 16, 32))
     state = allocate(config, worlds)
     for w in range(worlds):
@@ -45,7 +45,7 @@ def run(checkpoint: str, threads: int = 2, worlds: int = 128, seconds: float = 3
     batch = worlds * config.n_agents
     obs = {"map": maps.reshape(batch, *maps.shape[2:]), "vector": vector.reshape(batch, -1)}
 
-    model = load_checkpoint(checkpoint, algo, device=device)
+    model = load_checkpoint(checkpoint, device=device)
     lstm = [None]
     starts = np.zeros(batch, bool)
 

@@ -1,24 +1,37 @@
 """A trained run's files: where its world and algorithm are recorded (`config.yaml` beside or above a checkpoint),
-the name it is evaluated under, and loading its SB3 model or just its actor, old checkpoints included."""
+the name it is evaluated under, and loading its SB3 model or just its actor.
+
+Every use of a checkpoint (evaluate, render, `init=`, `resume=`, the benches and the notebooks) loads it through
+`load_checkpoint`, which unpickles nothing of the file: SB3's `load` would unpickle six or more entries of a model.zip
+(its policy class, policy_kwargs, spaces and schedules), and a pickle runs whatever code its author put there. Those
+entries are made again from the run's config.yaml and searchrl's code; the tensors are read with torch's weights-only
+loader. So a model.zip from anyone is safe to evaluate, provided it is read this way (plain `RecurrentPPO.load` is
+not safe on a file of unknown origin)."""
 
 from __future__ import annotations
 
+import json
+import zipfile
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import torch
-from omegaconf import OmegaConf
+from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.save_util import load_from_zip_file
+from stable_baselines3.common.utils import FloatSchedule
 
-from searchrl.envs.spaces import observation_space
+from searchrl.envs.spaces import action_space, observation_space
 from searchrl.policies.actor import Actor
 from searchrl.policies.algorithms import ALGORITHMS
+from searchrl.policies.extractor import SearchCNN
 from searchrl.world.config import WorldConfig
 
 
-def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
-    """(world settings, algorithm name, model name) from the run directory of a checkpoint: `<run>/model.zip` or
-    `<run>/checkpoints/step_*.zip`, next to or above which the run's `config.yaml` lies."""
+def run_config(path: str | Path) -> DictConfig:
+    """The run config of a checkpoint: `<run>/model.zip` or `<run>/checkpoints/step_*.zip`, next to or above which
+    the run's `config.yaml` lies, read as plain YAML (OmegaConf's loader is YAML's safe one); FileNotFoundError or
+    ValueError in one line naming the file."""
     if not str(path).strip() or not Path(path).is_file():  # checkpoint= (empty) is Path("."), a folder
         raise FileNotFoundError(f"checkpoint={str(path)!r} does not exist (expected a model.zip of a run)")
     path = Path(path)
@@ -26,8 +39,9 @@ def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
         if (folder / "config.yaml").exists():
             try:
                 cfg = OmegaConf.load(folder / "config.yaml")
-                model = str(cfg.model.name) if cfg.get("model") else "unknown"
-                return OmegaConf.to_container(cfg.env.world, resolve=True), str(cfg.algo.name), model
+                OmegaConf.select(cfg, "env.world", throw_on_missing=True)  # a run config has both
+                str(cfg.algo.name)
+                return cfg
             except Exception as err:  # not YAML, not a mapping, no env.world or algo.name: all say the same
                 raise ValueError(
                     f"checkpoint={str(path)!r}: its run's {folder / 'config.yaml'} cannot be read as a run config "
@@ -37,15 +51,18 @@ def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
     raise FileNotFoundError(f"checkpoint={str(path)!r} has no run config.yaml beside it or one folder up")
 
 
+def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
+    """(world settings, algorithm name, model name) of a checkpoint's run (`run_config`)."""
+    cfg = run_config(path)
+    model = str(cfg.model.name) if cfg.get("model") else "unknown"
+    return OmegaConf.to_container(cfg.env.world, resolve=True), str(cfg.algo.name), model
+
+
 def training_scenario(path: str | Path) -> dict | None:
     """The scenario mapping (`Scenario.from_dict`'s form) a checkpoint's run trained under, from its config.yaml
-    (`checkpoint_config` finds and checks it); None when the run records none (the paper's)."""
-    path = Path(path)
-    for folder in (path.parent, path.parent.parent):
-        if (folder / "config.yaml").exists():
-            node = OmegaConf.load(folder / "config.yaml").get("scenario")
-            return None if node is None else OmegaConf.to_container(node, resolve=True)
-    return None
+    (`run_config`); None when the run records none (the paper's)."""
+    node = run_config(path).get("scenario")
+    return None if node is None else OmegaConf.to_container(node, resolve=True)
 
 
 def checkpoint_label(path: str | Path) -> str:
@@ -60,42 +77,99 @@ def checkpoint_label(path: str | Path) -> str:
     return name if path.name == "model.zip" else f"{name}@{path.stem}"
 
 
-def load_checkpoint(path: str | Path, algo: str, cls: type[BaseAlgorithm] | None = None,
+def policy_kwargs(network: Mapping[str, Any], algo: str) -> dict[str, Any]:
+    """SB3 policy_kwargs of a run's `network` settings (its config's `network` node) for algorithm `algo`."""
+    kwargs: dict[str, Any] = {
+        "features_extractor_class": SearchCNN,
+        "features_extractor_kwargs": {
+            "conv_channels": [int(c) for c in network["conv_channels"]],
+            "vector_size": int(network["vector_size"]),
+            "fc_sizes": [int(c) for c in network["fc_sizes"]],
+        },
+        "net_arch": [],  # policy and value heads are linear on the features (or the LSTM output), as in PRIMAL
+    }
+    if algo == "recurrent_ppo":
+        kwargs["lstm_hidden_size"] = int(network["lstm_hidden_size"])
+    return kwargs
+
+
+# The entries of a model.zip's `data` that SB3 pickles (cloudpickle). Each is rebuilt from the run's config and
+# searchrl's own code and handed to SB3 as a `custom_objects` replacement, so no load unpickles anything of the file:
+# a pickle runs whatever code its author chose. The episode-info buffers, the rollout in progress and the rollout
+# buffer's class are left empty: SB3 makes them anew (a resumed training resets its envs, as SB3's `load` with an env
+# always does; `_setup_model` picks the buffer class of the observation space).
+REBUILT = (
+    *("policy_class", "policy_kwargs", "observation_space", "action_space", "clip_range", "lr_schedule"),
+    *("ep_info_buffer", "ep_success_buffer", "_last_obs", "_last_original_obs", "_last_episode_starts"),
+    "rollout_buffer_class",
+)
+
+
+def pickled_entries(path: str | Path) -> list[str]:
+    """The names of the entries of a model.zip's `data` that SB3 would unpickle, read as JSON only; ValueError in
+    one line if the file is no SB3 zip."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data").decode())
+    except OSError:
+        raise
+    except Exception as err:  # BadZipFile, KeyError (no data), a decode or JSON error
+        raise ValueError(
+            f"checkpoint={str(path)!r} cannot be read as an SB3 model ({type(err).__name__}: "
+            f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a searchrl model"
+        ) from None
+    if not isinstance(data, dict):
+        raise ValueError(f"checkpoint={str(path)!r} cannot be read as an SB3 model (its data is not a mapping)")
+    return [k for k, v in data.items() if isinstance(v, dict) and ":serialized:" in v]
+
+
+def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
+    """SB3 `custom_objects` for the model.zip at `path` of a run configured by `cfg`: every entry of REBUILT, made
+    from `cfg` and searchrl's code; ValueError in one line if the file pickles any other entry (it is not opened)."""
+    unknown = [name for name in pickled_entries(path) if name not in REBUILT]
+    if unknown:
+        raise ValueError(
+            f"checkpoint={str(path)!r} holds a pickled {unknown[0]!r} entry that searchrl does not rebuild; it is "
+            "refused, since unpickling a file runs whatever code it holds (a searchrl model pickles only "
+            f"{', '.join(REBUILT)})"
+        )
+    algo, world = str(cfg.algo.name), WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
+    cls, policy = ALGORITHMS[algo]
+    clip_range = cfg.algo.get("clip_range")
+    empty = dict.fromkeys(REBUILT[6:])
+    return empty | {
+        "policy_class": cls.policy_aliases[policy] if isinstance(policy, str) else policy,
+        "policy_kwargs": policy_kwargs(cfg.network, algo),
+        "observation_space": observation_space(world),
+        "action_space": action_space(world),
+        "clip_range": None if clip_range is None else float(clip_range),  # SB3 makes it a schedule again
+        "lr_schedule": FloatSchedule(float(cfg.algo.learning_rate)),  # made again from learning_rate too
+    }
+
+
+def load_checkpoint(path: str | Path, cfg: DictConfig | None = None, cls: type[BaseAlgorithm] | None = None,
                     **kwargs: object) -> BaseAlgorithm:  # fmt: skip
-    """The SB3 model saved at `path` by algorithm `algo` (loaded as `cls`, a subclass of that algorithm's class, if
-    given); ValueError naming the file if what it holds cannot be read (truncated, not an SB3 zip, another
-    algorithm's). An OSError (no permission now, an I/O fault) passes through as it is: the file may be whole."""
+    """The SB3 model saved at `path` by a run configured by `cfg` (default: the run's own config.yaml,
+    `run_config`), loaded as `cls` (a subclass of the run's algorithm class, if given), without unpickling anything
+    of the file: its pickled entries are rebuilt (`rebuilt_entries`) and its tensors read by SB3 with torch's
+    weights-only loader. ValueError in one line naming the file if it cannot be read (truncated, not an SB3 zip,
+    another algorithm's or network's weights, a pickled entry searchrl does not rebuild, tensors that are not
+    weights only). An OSError (no permission now, an I/O fault) passes through as it is: the file may be whole."""
+    cfg = run_config(path) if cfg is None else cfg
+    algo = str(cfg.algo.name)
     if algo not in ALGORITHMS:
         raise ValueError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
+    custom = rebuilt_entries(path, cfg)
     try:
-        custom = retired_kwargs_dropped(path) or {}
-        if isinstance(ALGORITHMS[algo][1], type):  # checkpoints saved with sb3-contrib's own class load as this one
-            custom["policy_class"] = ALGORITHMS[algo][1]
         return (cls or ALGORITHMS[algo][0]).load(str(path), custom_objects=custom, **kwargs)
     except OSError:
         raise
-    except Exception as err:  # BadZipFile, EOFError, KeyError, RuntimeError of torch.load, ...
+    except Exception as err:  # BadZipFile, EOFError, KeyError, torch's UnpicklingError, state_dict mismatches, ...
         raise ValueError(
-            f"checkpoint={str(path)!r} cannot be read as a {algo} model ({type(err).__name__}: "
-            f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a searchrl model"
+            f"checkpoint={str(path)!r} cannot be read as a {algo} model of its run's config ({type(err).__name__}: "
+            f"{str(err).strip().splitlines()[0] if str(err).strip() else 'no detail'}); it may be truncated, not "
+            "a searchrl model, or of another network"
         ) from None
-
-
-# Keyword arguments of the features extractor removed since some checkpoints were saved (the whole-belief context
-# stream's widths, inert without a context observation): a checkpoint holding them loads without them.
-RETIRED_EXTRACTOR_KWARGS = ("context_channels", "context_size")
-
-
-def retired_kwargs_dropped(path: str | Path) -> dict | None:
-    """SB3 `custom_objects` replacing a checkpoint's policy_kwargs by the same without RETIRED_EXTRACTOR_KWARGS, or
-    None when it has none of them."""
-    data, _, _ = load_from_zip_file(str(path), load_data=True, device="cpu")
-    kwargs = dict((data or {}).get("policy_kwargs") or {})
-    extractor = dict(kwargs.get("features_extractor_kwargs") or {})
-    if not any(name in extractor for name in RETIRED_EXTRACTOR_KWARGS):
-        return None
-    kwargs["features_extractor_kwargs"] = {k: v for k, v in extractor.items() if k not in RETIRED_EXTRACTOR_KWARGS}
-    return {"policy_kwargs": kwargs}
 
 
 def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True,
@@ -103,9 +177,8 @@ def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True,
     """The actor of a saved RecurrentPPO / PPO / A2C model.zip, its network on `device` (a checked one:
     searchrl/policies/device.py); ValueError if it sees another field of view (channels, side) or acts in another
     action set than `config`'s world."""
-    _, algo, _ = checkpoint_config(path)
     # Loaded on the CPU and moved to `device` by the Actor: one path for every device.
-    model = load_checkpoint(path, algo, device="cpu")
+    model = load_checkpoint(path, device="cpu")
     space = observation_space(config)
     seen, shown = model.observation_space["map"].shape, space["map"].shape
     if seen != shown:

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-from typing import Any
-
-from omegaconf import OmegaConf
+from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.algorithms import ALGORITHMS
-from searchrl.policies.checkpoint import load_checkpoint, retired_kwargs_dropped
-from searchrl.policies.extractor import SearchCNN
+from searchrl.policies.checkpoint import load_checkpoint, policy_kwargs
 from searchrl.train.plan import Plan
 from searchrl.train.teacher_labels import TeacherLabels
 from searchrl.train.teacher_term import TeacherTerm
@@ -29,29 +26,13 @@ def make_vec_env(plan: Plan, seed: int | None = None) -> VecEnv:
     return env
 
 
-def policy_kwargs(plan: Plan) -> dict[str, Any]:
-    net = plan.cfg.network
-    kwargs: dict[str, Any] = {
-        "features_extractor_class": SearchCNN,
-        "features_extractor_kwargs": {
-            "conv_channels": list(net.conv_channels),
-            "vector_size": int(net.vector_size),
-            "fc_sizes": list(net.fc_sizes),
-        },
-        "net_arch": [],  # policy and value heads are linear on the features (or the LSTM output), as in PRIMAL
-    }
-    if plan.cfg.algo.name == "recurrent_ppo":
-        kwargs["lstm_hidden_size"] = int(net.lstm_hidden_size)
-    return kwargs
-
-
 def make_algorithm(plan: Plan, env: VecEnv) -> BaseAlgorithm:
     """A fresh algorithm on `env`, with the teacher term's settings and labels where the run uses them."""
     cfg = plan.cfg
     settings = OmegaConf.to_container(cfg.algo, resolve=True)
     settings.pop("name")
     model = plan.algorithm(ALGORITHMS[cfg.algo.name][1], env, seed=int(cfg.seed), device=cfg.device,
-                           policy_kwargs=policy_kwargs(plan), verbose=0, **settings)  # fmt: skip
+                           policy_kwargs=policy_kwargs(cfg.network, cfg.algo.name), verbose=0, **settings)  # fmt: skip
     attach_teacher(plan, model, env)
     return model
 
@@ -59,16 +40,17 @@ def make_algorithm(plan: Plan, env: VecEnv) -> BaseAlgorithm:
 def load_algorithm(plan: Plan, path: str, env: VecEnv) -> BaseAlgorithm:
     """A checkpoint with its step count and optimiser state, attached to `env` (and its teacher labels); ValueError
     naming the file if it cannot be read."""
-    model = load_checkpoint(path, plan.cfg.algo.name, cls=plan.algorithm, env=env, device=plan.cfg.device)
+    model = load_checkpoint(path, plan.cfg, cls=plan.algorithm, env=env, device=plan.cfg.device)
     attach_teacher(plan, model, env)
     return model
 
 
-def init_weights(model: BaseAlgorithm, path: str) -> None:
-    """Copy the policy weights of checkpoint `path` into the fresh `model` (its optimiser state is not taken);
-    ValueError with the reason if they do not fit."""
+def init_weights(model: BaseAlgorithm, path: str, cfg: DictConfig) -> None:
+    """Copy the policy weights of checkpoint `path` into the fresh `model` of a run configured by `cfg` (its optimiser
+    state is not taken), read as `load_checkpoint` reads any file: built from `cfg`, so weights of another network
+    do not fit; ValueError with the reason if they do not fit."""
     try:
-        params = type(model).load(path, device="cpu", custom_objects=retired_kwargs_dropped(path)).get_parameters()
+        params = load_checkpoint(path, cfg, device="cpu").get_parameters()
         model.set_parameters({"policy": params["policy"]}, exact_match=False, device=model.device)
     except Exception as err:  # a zip of another algorithm, a corrupt file, other shapes: all end here
         lines = str(err).strip().splitlines() or [type(err).__name__]
