@@ -272,6 +272,64 @@ def test_the_apps_refuse_a_poisoned_tensor_file_in_one_line(tmp_path, tiny_run, 
     assert not marker.exists()
 
 
+# 3c. A run folder is trusted by what its files say of themselves, not by their names.
+def _rewrite_identity(path: Path, change) -> None:
+    """Apply `change` to the run settings a checkpoint's searchrl.json records, every other member kept."""
+    import json
+    import zipfile
+
+    with zipfile.ZipFile(path) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    identity = json.loads(members["searchrl.json"])
+    change(identity["run"])
+    members["searchrl.json"] = json.dumps(identity).encode()
+    with zipfile.ZipFile(path, "w") as archive:
+        for name, content in members.items():
+            archive.writestr(name, content)
+
+
+def _files(run: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(run)): p.read_bytes() for p in sorted(run.rglob("*")) if p.is_file() and p.name != ".lock"
+    }
+
+
+def test_resume_refuses_a_checkpoint_of_another_run_or_step_and_changes_nothing(tmp_path, tiny_run, capsys):
+    """A checkpoint copied in under another step's name, one saved by a run of another model, and a config.yaml
+    edited since (another LSTM width) are each refused in one line naming both sides; no file changes."""
+    run = _copy(tiny_run, tmp_path / "run")
+    overrides = [f"resume={run}", "total_timesteps=4096"]
+    resume = lambda: train(_compose("train", overrides), run / "r", overrides)  # noqa: E731
+    shutil.copy(run / "checkpoints" / "step_1024.zip", run / "checkpoints" / "step_3072.zip")
+    before = _files(run)
+    _refused(capsys, resume, "checkpoints/step_3072.zip holds a model saved at step 1024, not 3072")
+    assert _files(run) == before
+    (run / "checkpoints" / "step_3072.zip").unlink()
+
+    _rewrite_identity(run / "checkpoints" / "step_2048.zip", lambda r: r["model"].update(name="a"))
+    before = _files(run)
+    _refused(capsys, resume, "step_2048.zip was saved by a run with model.name='a'", "config.yaml says model.name='b'")
+    assert _files(run) == before
+
+    shutil.rmtree(run)
+    run = _copy(tiny_run, tmp_path / "run")
+    config = OmegaConf.load(run / "config.yaml")
+    config.network.lstm_hidden_size = 256
+    (run / "config.yaml").write_text(OmegaConf.to_yaml(config))
+    before = _files(run)
+    _refused(capsys, resume, "network.lstm_hidden_size=128", "config.yaml says network.lstm_hidden_size=256")
+    assert _files(run) == before
+
+
+def test_a_resume_with_nothing_to_do_changes_no_file(tmp_path, tiny_run, capsys):
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    before = _files(run)
+    overrides = [f"resume={run}", "total_timesteps=2048"]
+    assert train(_compose("train", overrides), run / "r", overrides) == run / "model.zip"
+    assert "nothing to do" in capsys.readouterr().err and _files(run) == before
+
+
 # 4. A failed evaluation claims nothing; cells impossible for their n or N fail before any other cell runs.
 @pytest.mark.parametrize(
     "bad, needle",

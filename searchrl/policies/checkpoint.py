@@ -21,6 +21,7 @@ from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.utils import FloatSchedule
 
+from searchrl.atomic import write_atomic
 from searchrl.envs.spaces import action_space, observation_space
 from searchrl.policies.actor import Actor
 from searchrl.policies.algorithms import ALGORITHMS
@@ -105,22 +106,22 @@ REBUILT = (
 )
 
 
-def pickled_entries(path: str | Path) -> list[str]:
-    """The names of the entries of a model.zip's `data` that SB3 would unpickle, read as JSON only; ValueError in
-    one line if the file is no SB3 zip."""
+def _data(path: str | Path) -> dict[str, Any]:
+    """The JSON `data` member of a model.zip, read as JSON only; ValueError in one line if the file is no SB3 zip."""
+    raw = _member(path, "data")
     try:
-        with zipfile.ZipFile(path) as archive:
-            data = json.loads(archive.read("data").decode())
-    except OSError:
-        raise
-    except Exception as err:  # BadZipFile, KeyError (no data), a decode or JSON error
-        raise ValueError(
-            f"checkpoint={str(path)!r} cannot be read as an SB3 model ({type(err).__name__}: "
-            f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a searchrl model"
-        ) from None
+        data = json.loads(raw) if raw is not None else None
+    except ValueError:
+        data = None
     if not isinstance(data, dict):
-        raise ValueError(f"checkpoint={str(path)!r} cannot be read as an SB3 model (its data is not a mapping)")
-    return [k for k, v in data.items() if isinstance(v, dict) and ":serialized:" in v]
+        raise ValueError(f"checkpoint={str(path)!r} cannot be read as an SB3 model (no JSON data mapping); it may be "
+                         "truncated or not a searchrl model")  # fmt: skip
+    return data
+
+
+def pickled_entries(path: str | Path) -> list[str]:
+    """The names of the entries of a model.zip's `data` that SB3 would unpickle."""
+    return [k for k, v in _data(path).items() if isinstance(v, dict) and ":serialized:" in v]
 
 
 def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
@@ -145,6 +146,56 @@ def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
         "clip_range": None if clip_range is None else float(clip_range),  # SB3 makes it a schedule again
         "lr_schedule": FloatSchedule(float(cfg.algo.learning_rate)),  # made again from learning_rate too
     }
+
+
+# The member of a model.zip that searchrl writes beside SB3's: {"step": agent-steps, "run": the run's settings}
+# (searchrl/train/run_record.py). SB3 ignores members it does not know, so plain SB3 still opens the file.
+IDENTITY = "searchrl.json"
+
+
+def save_model(model: BaseAlgorithm, path: str | Path, run: dict[str, Any]) -> Path:
+    """Save `model` at `path` atomically, with IDENTITY: its step and `run` (plain JSON values)."""
+
+    def write(tmp: Path) -> None:
+        model.save(tmp)
+        with zipfile.ZipFile(tmp, "a") as archive:
+            archive.writestr(IDENTITY, json.dumps({"step": int(model.num_timesteps), "run": run}, sort_keys=True))
+
+    return write_atomic(path, write)
+
+
+def _member(path: str | Path, name: str) -> bytes | None:
+    """A member of the zip at `path`, None if it has none; ValueError in one line if it is no zip."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return archive.read(name) if name in archive.namelist() else None
+    except OSError:
+        raise
+    except Exception as err:  # BadZipFile, a truncated member
+        raise ValueError(f"checkpoint={str(path)!r} cannot be read as an SB3 model ({type(err).__name__}: "
+                         f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a "
+                         "searchrl model") from None  # fmt: skip
+
+
+def saved_identity(path: str | Path) -> dict[str, Any] | None:
+    """The IDENTITY a searchrl run saved in the model.zip at `path`, None for a file without one; ValueError in one
+    line if it is damaged."""
+    raw = _member(path, IDENTITY)
+    if raw is None:
+        return None
+    try:
+        identity = json.loads(raw)
+    except ValueError:
+        identity = None
+    if not isinstance(identity, dict):
+        raise ValueError(f"checkpoint={str(path)!r}: its {IDENTITY} is damaged (not a JSON mapping)")
+    return identity
+
+
+def saved_step(path: str | Path) -> int | None:
+    """The agent-steps SB3 recorded in the model.zip at `path` (`num_timesteps` of its JSON data); None if none."""
+    step = _data(path).get("num_timesteps")
+    return step if isinstance(step, int) else None
 
 
 def load_checkpoint(path: str | Path, cfg: DictConfig | None = None, cls: type[BaseAlgorithm] | None = None,

@@ -11,7 +11,6 @@ while in use (docs/files.md).
 
 from __future__ import annotations
 
-import copy
 import signal
 import sys
 from pathlib import Path
@@ -34,14 +33,14 @@ from searchrl.atomic import (
     hold,
     remove_temporaries,
     storage_message,
-    write_atomic,
     write_text_atomic,
 )
 from searchrl.multirun import Stopped, in_sweep
 from searchrl.paths import CONF_DIR
+from searchrl.policies.checkpoint import save_model
 from searchrl.schema import override_keys
 from searchrl.threads import use_threads
-from searchrl.train.build import init_weights, load_algorithm, make_algorithm, make_vec_env
+from searchrl.train.build import init_weights, make_algorithm, make_vec_env
 from searchrl.train.callbacks import (
     AtomicCheckpointCallback,
     Preemption,
@@ -53,11 +52,11 @@ from searchrl.train.command_line import fail
 from searchrl.train.csv_log import AppendingCSV, ContinuedClock, ResumableTensorBoard, check_log, clock_offsets
 from searchrl.train.imitation import clone, collect
 from searchrl.train.plan import Plan, make_plan
+from searchrl.train.run_record import config_record, is_finished, load_newest_checkpoint, run_identity, set_aside_logs
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig, register_configs, saved_config
 from searchrl.train.score import read_score, write_score
 from searchrl.train.sweep_job import continued_job
 from searchrl.world.config import ConfigError
-from searchrl.world.scenario import Scenario
 
 register_configs()
 
@@ -123,6 +122,11 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
     env = make_vec_env(plan)
     model, resuming = start_model(plan, run_dir, env, resuming)
     start_step = model.num_timesteps if resuming else 0
+    if resuming and is_finished(run_dir, start_step, int(cfg.total_timesteps)):
+        print(f"{run_dir} has trained its {start_step} agent-steps and saved model.zip: nothing to do, no file "
+              "changed", file=sys.stderr)  # fmt: skip
+        env.close()
+        return run_dir / "model.zip"
     if resuming:  # a damaged log is refused before anything is rewritten
         try:
             check_log(run_dir / "progress.csv", start_step, plan.rollout * int(cfg.log_interval))
@@ -140,7 +144,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
     callbacks: list[BaseCallback] = [
         TeamMetricsCallback(),
         AtomicCheckpointCallback(
-            run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints), preemption
+            run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints), preemption, run_identity(cfg)
         ),
         validation,
     ]
@@ -152,7 +156,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
         print(f"stopped by {name} at {model.num_timesteps} agent-steps (checkpoints/step_{model.num_timesteps}.zip); "
               f"continue with resume={run_dir}", file=sys.stderr)  # fmt: skip
         raise Stopped(128 + preemption.signal)  # 143 for SIGTERM, 130 for SIGINT, as a shell reports them
-    final = write_atomic(run_dir / "model.zip", lambda tmp: model.save(tmp))
+    final = save_model(model, run_dir / "model.zip", run_identity(cfg))
     score = write_score(run_dir, int(cfg.validation.score_last))
     print(f"trained {model.num_timesteps} agent-steps; model: {final}; score {score['score']:.4f} (mean found "
           f"fraction of the last {score['validations']} validations)", file=sys.stderr)  # fmt: skip
@@ -206,51 +210,10 @@ def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple
     return model, False
 
 
-def set_aside_logs(run_dir: Path) -> Path | None:
-    """Move the logs of an attempt killed before its first checkpoint (progress.csv, tensorboard/, imitation.csv)
-    into `<run>/killed/<k>/`, so the restart from step 0 logs every step once; the folder, or None if none."""
-    logs = [run_dir / name for name in ("progress.csv", "tensorboard", "imitation.csv") if (run_dir / name).exists()]
-    if not logs:
-        return None
-    k = 0
-    while (run_dir / "killed" / str(k)).exists():
-        k += 1
-    aside = run_dir / "killed" / str(k)
-    aside.mkdir(parents=True)
-    for path in logs:
-        path.rename(aside / path.name)
-    return aside
-
-
-def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[BaseAlgorithm | None, Path | None]:
-    """The newest checkpoint of the run that loads, with its step count and optimiser state. One that cannot be
-    read (truncated by a full disk, a broken copy) is set aside as `<name>.unreadable`, said so, and the one
-    before it is tried. (None, None) if the run has none: it was killed before its first checkpoint."""
-    found = sorted(checkpoints(run_dir / "checkpoints"), reverse=True)
-    if not found:
-        return None, None
-    for _, path in found:
-        try:
-            return load_algorithm(plan, str(path), env), path
-        except OSError as err:  # cannot be read now (permission, I/O): maybe whole, so nothing is set aside
-            fail(f"resume={plan.cfg.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
-                 f"{err.strerror or err}); nothing was renamed: restore access and resume again")  # fmt: skip
-        except ValueError as err:
-            aside = path.with_name(f"{path.name}.unreadable")
-            path.rename(aside)
-            print(f"warning: {err}; set aside as {aside.name}, trying the checkpoint before it", file=sys.stderr)
-    fail(f"resume={plan.cfg.resume!r}: no checkpoint under checkpoints/ can be read (set aside as *.unreadable)")
-
-
 def record_config(cfg: DictConfig, run_dir: Path) -> None:
-    """The run's record, written once the run has started well: a resume writes back what it changed (say
-    total_timesteps) but never what it resumes from."""
-    record = copy.deepcopy(cfg)
-    record.resume = None
-    # the scenario as the run draws it, every part written out (a run made before a part existed drew its default)
-    record.scenario = Scenario.from_dict(OmegaConf.to_container(record.scenario, resolve=True)
-                                         if "scenario" in record else None).to_dict()  # fmt: skip
-    write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(record, resolve=True))
+    """The run's record (`config_record`), written once the run has started well: a resume writes back what it
+    changed (say total_timesteps) but never what it resumes from."""
+    write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(config_record(cfg)))
 
 
 def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:
@@ -272,8 +235,8 @@ def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:
 
     fit = (int(im.epochs), int(im.value_epochs), int(im.batch_sequences), float(im.learning_rate))
     clone(model.policy, demos, *fit, seed, on_epoch=record, lr_schedule=str(im.lr_schedule))
-    write_atomic(run_dir / "imitation.zip", lambda tmp: model.save(tmp))  # the clone before RL, to evaluate
-    write_atomic(run_dir / "checkpoints" / "step_0.zip", lambda tmp: model.save(tmp))
+    save_model(model, run_dir / "imitation.zip", run_identity(plan.cfg))  # the clone before RL, to evaluate
+    save_model(model, run_dir / "checkpoints" / "step_0.zip", run_identity(plan.cfg))
 
 
 def set_logs(model: BaseAlgorithm, run_dir: Path, resume_step: int | None) -> None:

@@ -14,7 +14,7 @@ from types import FrameType
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
-from searchrl.atomic import write_atomic
+from searchrl.policies.checkpoint import save_model
 from searchrl.train.validation import run_episodes
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import Scenario
@@ -78,7 +78,8 @@ class Preemption:
 
 class AtomicCheckpointCallback(BaseCallback):
     """Saves `checkpoints/step_<agent-steps>.zip` every `every` agent-steps and at the end of training, each
-    written atomically (model weights, optimiser state and step count in SB3's zip).
+    written atomically (model weights, optimiser state and step count in SB3's zip, and `run`, the run's identity:
+    searchrl/train/run_record.py).
 
     Saves happen when a rollout starts, i.e. after the previous rollout has been trained on: a checkpoint taken
     mid-rollout would count steps whose update it does not hold, and a resumed run would skip that update. When
@@ -86,9 +87,10 @@ class AtomicCheckpointCallback(BaseCallback):
     at its first step (`Preemption.stopped`), and the checkpoint then saved holds every update: nothing trained is
     lost."""
 
-    def __init__(self, directory: Path, every: int, keep: int = 3, preemption: Preemption | None = None) -> None:
+    def __init__(self, directory: Path, every: int, keep: int = 3, preemption: Preemption | None = None,
+                 run: dict | None = None) -> None:  # fmt: skip
         super().__init__()
-        self.directory, self.every, self.keep = Path(directory), every, keep
+        self.directory, self.every, self.keep, self.run = Path(directory), every, keep, run or {}
         self.preemption = preemption
         self._next = 0
         self._rollout_start = 0
@@ -120,7 +122,7 @@ class AtomicCheckpointCallback(BaseCallback):
 
     def save(self) -> Path:
         """Write this step's checkpoint, then drop all but the newest `keep` (only once the new one is whole)."""
-        path = write_atomic(self.directory / f"step_{self.num_timesteps}.zip", lambda tmp: self.model.save(tmp))
+        path = save_model(self.model, self.directory / f"step_{self.num_timesteps}.zip", self.run)
         for old in sorted(checkpoints(self.directory))[: -self.keep]:
             old[1].unlink(missing_ok=True)
         return path
