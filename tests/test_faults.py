@@ -141,6 +141,34 @@ def test_evaluation_killed_at_any_moment_resumes_to_the_same_results(tmp_path):
     pd.testing.assert_frame_equal(load(_evaluate(out, *args[len(SLICE) :])), whole)
 
 
+# 1b. An evaluation folder is trusted by what its cells say of themselves: each records the settings it ran under.
+def test_a_lost_record_is_rebuilt_from_the_cells_not_taken_from_the_next_command(tmp_path, capsys):
+    out = _evaluate(tmp_path / "eval", "shard=0", "num_shards=2")  # one of the two cells
+    record = (out / "evaluation.yaml").read_text()
+    (out / "evaluation.yaml").unlink()
+    _refused(capsys, lambda: _evaluate(out, "seed=1"), "seed: 7000000 there, 1 here")  # not other maps beside them
+    assert (out / "evaluation.yaml").read_text() == record and len(list((out / "cells").iterdir())) == 1
+
+
+def test_a_cell_of_other_settings_is_refused_by_the_rerun_and_the_loader(tmp_path, capsys):
+    ours, other = _evaluate(tmp_path / "ours", "shard=0", "num_shards=2"), _evaluate(tmp_path / "other", "seed=1")
+    stray = sorted((other / "cells").iterdir())[1]  # the cell `ours` has not run, from seed 1's maps
+    shutil.copy(stray, ours / "cells" / stray.name)
+    _refused(capsys, lambda: _evaluate(ours), f"cells/{stray.name} holds results of other settings", "seed: 1 there")
+    with pytest.raises(ValueError, match=r"hold results of other settings .*seed"):
+        load(ours)
+
+
+def test_a_damaged_cell_is_set_aside_and_run_again(tmp_path, capsys):
+    out = _evaluate(tmp_path / "eval")
+    clean = load(out)
+    cell = sorted((out / "cells").iterdir())[0]
+    cell.write_bytes(cell.read_bytes()[:100])  # a broken copy
+    _evaluate(out)
+    assert f"set aside as {cell.name}.unreadable" in capsys.readouterr().err
+    pd.testing.assert_frame_equal(load(out), clean)
+
+
 # 2. A run folder has one owner.
 def test_a_run_folder_in_use_is_refused(tmp_path, tiny_run, capsys):
     run = _copy(tiny_run, tmp_path / "run")

@@ -8,6 +8,7 @@ import hashlib
 from dataclasses import replace
 
 import numpy as np
+import pandas as pd
 import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
@@ -158,7 +159,9 @@ def test_an_unreadable_record_is_named_and_kept(tmp_path, record, why):
 
 
 def test_a_folder_of_results_without_a_record_adopts_this_runs(tmp_path, capsys):
+    """Cells made before cells recorded their settings: the record is this run's."""
     (tmp_path / "cells").mkdir()
+    pd.DataFrame({"found_fraction": [0.5]}).to_parquet(tmp_path / "cells" / "n20_N1.parquet")
     claim_folder(tmp_path, {"controller": "surfing"})
     assert capsys.readouterr().err == f"note: {tmp_path} has results but no {RECORD}; recording this run's settings\n"
     assert (tmp_path / RECORD).read_text() == "controller: surfing\n"

@@ -28,7 +28,7 @@ from searchrl.controllers.factory import heuristic_factory, policy_factory
 from searchrl.controllers.registry import heuristic
 from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds, map_prior
 from searchrl.evaluate.grid import Cell, map_seed, table2_cells
-from searchrl.evaluate.record import claim_folder, evaluation_settings, option_defaults
+from searchrl.evaluate.record import CELL_SETTINGS, claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.multirun import refuse
@@ -167,6 +167,7 @@ class Evaluation:
     factory: object
     needs_observation: bool
     shard_offset: int = 0  # a suite's folders rotate which shard runs their first cell
+    settings: dict | None = None  # what its claimed folder records, and so each cell it writes
 
 
 def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | None = None) -> Evaluation:
@@ -207,8 +208,8 @@ def claim_evaluation(plan: Evaluation) -> None:
     if plan.cfg.bound_cache is not None:  # the bounds are written after a cell's episodes: refused now, not then
         check_writable(plan.cfg.bound_cache, "bound_cache", folder=True)
     with hold(plan.out_dir / LOCKS / "evaluation.lock", f"out_dir={str(plan.out_dir)!r}", wait_s=60):
-        claim_folder(plan.out_dir, evaluation_settings(plan.cfg, plan.controller, plan.model),
-                     option_defaults(plan.cfg))  # fmt: skip
+        plan.settings = claim_folder(plan.out_dir, evaluation_settings(plan.cfg, plan.controller, plan.model),
+                                     option_defaults(plan.cfg))  # fmt: skip
 
 
 def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
@@ -259,6 +260,7 @@ def run_evaluation(plan: Evaluation) -> Path:
                         frame.insert(0, "world", world.sensing_label)
                         frame.insert(0, "model", plan.model)
                         frame.insert(0, "controller", plan.controller)
+                        frame.attrs[CELL_SETTINGS] = plan.settings  # the cell says what it holds (record.py)
                         write_atomic(target, lambda tmp, f=frame: f.to_parquet(tmp))
                 except FolderBusy as busy:
                     print(f"skipped: {busy}", file=sys.stderr)

@@ -13,11 +13,13 @@ and a folder mixing both would hold cells no one command reproduces. A record ma
 from __future__ import annotations
 
 import hashlib
+import json
 import sys
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
+import pyarrow.parquet as pq
 from omegaconf import DictConfig, OmegaConf
 
 from searchrl.atomic import write_text_atomic
@@ -91,37 +93,98 @@ def _flatten(tree: Any, prefix: str = "") -> dict[str, Any]:
     return flat
 
 
-def claim_folder(out_dir: str | Path, settings: dict[str, Any], defaults: dict[str, Any] | None = None) -> None:
-    """Record `settings` in `out_dir`, or check them against the record there; ConfigError naming the folder and
-    every setting that differs. A setting the record lacks matches when this run has it at its value in `defaults`
-    (flattened keys; `option_defaults`). A folder with results but no record (made before records existed) adopts
-    these."""
-    defaults = defaults or {}
-    path = Path(out_dir) / RECORD
-    mine = OmegaConf.to_container(OmegaConf.create(settings))  # the types a YAML round trip gives
-    if path.exists():
+# The key of a cell frame's `attrs` (kept in its parquet file's metadata) that holds the settings it ran under.
+CELL_SETTINGS = "searchrl"
+
+
+def cell_settings(path: str | Path) -> dict[str, Any] | None:
+    """The settings a cell's parquet file records (CELL_SETTINGS), None for a cell written before cells recorded
+    them; ValueError if the file cannot be read as a parquet file."""
+    try:
+        metadata = pq.read_schema(path).metadata or {}
+        attrs = json.loads(metadata.get(b"PANDAS_ATTRS", b"{}"))
+    except Exception as err:  # pyarrow's errors for a damaged file have no common base but Exception
+        raise ValueError(f"{path} cannot be read as a cell's results ({type(err).__name__})") from None
+    settings = attrs.get(CELL_SETTINGS) if isinstance(attrs, dict) else None
+    return settings if isinstance(settings, dict) else None
+
+
+def setting_differences(theirs: dict[str, Any], ours: dict[str, Any], defaults: dict[str, Any]) -> list[str]:
+    """`key: A there, B here` for each flattened setting that differs; one a side lacks matches the other side's
+    value when that is its default (a setting added since the side was recorded)."""
+    theirs, ours = _flatten(theirs), _flatten(ours)
+    keys = sorted(theirs.keys() | ours.keys())
+    absent = {key: defaults.get(key, "(absent)") for key in keys}
+    return [f"{key}: {theirs.get(key, '(absent)')!r} there, {ours.get(key, '(absent)')!r} here"
+            for key in keys if theirs.get(key, absent[key]) != ours.get(key, absent[key])]  # fmt: skip
+
+
+def _read_record(out_dir: Path) -> dict[str, Any]:
+    """The folder's record, retired settings dropped; ConfigError if it cannot say what the cells hold."""
+    try:
+        record = OmegaConf.to_container(OmegaConf.load(out_dir / RECORD))
+        if not isinstance(record, dict) or "controller" not in record:
+            raise ValueError("no controller recorded")
+        return drop_retired(record, RETIRED_SETTINGS)
+    except ConfigError as err:
+        raise ConfigError(f"out_dir={str(out_dir)!r} holds results of a removed setting: {err}") from None
+    except Exception as err:  # empty, not YAML, not a mapping: the record cannot say what the cells hold
+        raise ConfigError(
+            f"out_dir={str(out_dir)!r}: its {RECORD} cannot be read ({type(err).__name__}); restore it, or "
+            "remove that folder to start it afresh"
+        ) from None
+
+
+def _cells_settings(out_dir: Path) -> dict[Path, dict[str, Any] | None]:
+    """The settings each finished cell of the folder records (None: a cell made before cells recorded them). A cell
+    that cannot be read is set aside as `<cell>.unreadable`, said so, and run again."""
+    from searchrl.evaluate.results import cell_files
+
+    found = {}
+    for path in cell_files(out_dir):
         try:
-            record = OmegaConf.to_container(OmegaConf.load(path))
-            if not isinstance(record, dict) or "controller" not in record:
-                raise ValueError("no controller recorded")
-            record = drop_retired(record, RETIRED_SETTINGS)
-        except ConfigError as err:
-            raise ConfigError(f"out_dir={str(out_dir)!r} holds results of a removed setting: {err}") from None
-        except Exception as err:  # empty, not YAML, not a mapping: the record cannot say what the cells hold
-            raise ConfigError(
-                f"out_dir={str(out_dir)!r}: its {RECORD} cannot be read ({type(err).__name__}); restore it, or "
-                "remove that folder to start it afresh"
-            ) from None
-        theirs, ours = _flatten(record), _flatten(mine)
-        differ = [f"{key}: {theirs.get(key, '(absent)')!r} there, {ours.get(key, '(absent)')!r} here"
-                  for key in sorted(theirs.keys() | ours.keys())
-                  if theirs.get(key, defaults.get(key, "(absent)")) != ours.get(key)]  # fmt: skip
+            found[path] = cell_settings(path)
+        except ValueError as err:
+            aside = path.with_name(f"{path.name}.unreadable")
+            path.rename(aside)
+            print(f"warning: {err}; set aside as {aside.name}, and run again", file=sys.stderr)
+    return found
+
+
+def claim_folder(out_dir: str | Path, settings: dict[str, Any], defaults: dict[str, Any] | None = None
+                 ) -> dict[str, Any]:  # fmt: skip
+    """Record `settings` in `out_dir`, or check them against the record there; ConfigError naming the folder and
+    every setting that differs. Every finished cell is checked against the record too: one of other settings (a
+    file copied in, a run that wrote into the folder before its record) is refused, naming it; one that cannot be
+    read is set aside and run again. A record that was lost is rebuilt from the settings its cells record, not
+    taken from this command. A setting a record lacks matches when this run has it at its value in `defaults`
+    (flattened keys; `option_defaults`). A folder whose cells record nothing (made before records existed) adopts
+    these settings. Returns the settings each cell this run writes records (CELL_SETTINGS)."""
+    defaults, out_dir = defaults or {}, Path(out_dir)
+    mine = OmegaConf.to_container(OmegaConf.create(settings))  # the types a YAML round trip gives
+    cells = _cells_settings(out_dir)
+    if (out_dir / RECORD).exists():
+        record = _read_record(out_dir)
+    else:
+        recorded = [s for s in cells.values() if s is not None]
+        record = recorded[0] if recorded else mine
+        if cells and not recorded:
+            print(f"note: {out_dir} has results but no {RECORD}; recording this run's settings", file=sys.stderr)
+    for path, theirs in cells.items():
+        differ = [] if theirs is None else setting_differences(theirs, record, defaults)
         if differ:
-            raise ConfigError(
-                f"out_dir={str(out_dir)!r} holds results of other settings ({'; '.join(differ)}): give this run "
-                f"another out_dir, or remove that folder to start it afresh"
-            )
-        return
-    if (Path(out_dir) / "cells").exists():
-        print(f"note: {out_dir} has results but no {RECORD}; recording this run's settings", file=sys.stderr)
-    write_text_atomic(path, OmegaConf.to_yaml(OmegaConf.create(mine)))
+            raise ConfigError(f"out_dir={str(out_dir)!r}: cells/{path.name} holds results of other settings than "
+                              f"the folder's ({'; '.join(differ)}): remove that cell, or the folder to start it "
+                              "afresh")  # fmt: skip
+    if not (out_dir / RECORD).exists() and record is not mine:  # the folder's own record again, whatever comes
+        write_text_atomic(out_dir / RECORD, OmegaConf.to_yaml(OmegaConf.create(record)))
+        print(f"note: {out_dir} had lost its {RECORD}: rebuilt from the settings its cells record", file=sys.stderr)
+    differ = setting_differences(record, mine, defaults)
+    if differ:
+        raise ConfigError(
+            f"out_dir={str(out_dir)!r} holds results of other settings ({'; '.join(differ)}): give this run "
+            f"another out_dir, or remove that folder to start it afresh"
+        )
+    if not (out_dir / RECORD).exists():
+        write_text_atomic(out_dir / RECORD, OmegaConf.to_yaml(OmegaConf.create(record)))
+    return mine

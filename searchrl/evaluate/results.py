@@ -9,6 +9,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from searchrl.evaluate.grid import CELL_FILE_RE
+from searchrl.evaluate.record import CELL_SETTINGS, setting_differences
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import PAPER
 
@@ -47,12 +48,19 @@ def load(*out_dirs: str | Path) -> pd.DataFrame:
     `<controller>@<folder>` (the folder's name, or its path where the names are equal too), and a note says so."""
     frames = []
     for d in out_dirs:
+        first: tuple[Path, dict] | None = None
         for f in cell_files(d):
             try:
                 frame = pd.read_parquet(f)
             except Exception as err:  # pyarrow's errors for a damaged file have no common base but Exception
                 raise ValueError(f"{f} cannot be read as a cell's results ({type(err).__name__}); remove it and "
                                  "rerun the evaluation into its folder to write it again") from None  # fmt: skip
+            settings = frame.attrs.get(CELL_SETTINGS)
+            if settings is not None and first is None:
+                first = (f, settings)
+            elif settings is not None and (differ := setting_differences(settings, first[1], {})):
+                raise ValueError(f"{f} and {first[0].name} hold results of other settings ({'; '.join(differ)}): "
+                                 "one folder holds one evaluation; remove the cell that does not belong")  # fmt: skip
             if "world" not in frame:
                 frame.insert(2, "world", world_of(d))
             if "scenario" not in frame:  # cells made before scenarios existed ran the paper's
