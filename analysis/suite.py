@@ -39,6 +39,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from omegaconf import OmegaConf
 
 from searchrl.analysis import cli
 from searchrl.analysis.stats import bootstrap_mean_ci, worst_tenth
@@ -87,14 +88,24 @@ absent = [(c, sc) for c in controllers for sc in scenarios if (c, sc) not in hel
 if absent:
     cli.stop(f"{absent[0][0]} has no results under scenario {absent[0][1]!r} ({len(absent)} controller and scenario "
              f"pairs missing): run it, or leave that controller's folder out")  # fmt: skip
+# The suite's own list of scenarios (suite.yaml beside each controller's scenario folders): the tables name those
+# with no results, and call a column "whole suite" only when there are none.
+listed = {label for folder in folders for record in [folder.parent / "suite.yaml"] if record.exists()
+          for label in OmegaConf.load(record).scenarios}  # fmt: skip
+missing = sorted(listed - set(scenarios))
+WHOLE = "whole suite" if listed and not missing else f"the {len(scenarios)} scenarios held"
+MISSING = (f"; no results for {len(missing)} of the suite's {len(listed)} scenarios ({', '.join(missing)})"
+           if missing else "" if listed else "; the suite's list of scenarios is unknown (no suite.yaml)")  # fmt: skip
 common = frozenset.intersection(*held)
 if not common:
     cli.stop("the controllers and scenarios share no map (cell and map seed): folders of different grids or seeds")
 left_out = episodes["map"].nunique() - len(common)
 episodes = episodes[episodes["map"].isin(common)].reset_index(drop=True)
 CELLS = sorted({(int(n), int(a)) for n, a in zip(episodes["n"], episodes["N"], strict=True)})
-GRID = f"cells {', '.join(f'n{n}_N{a}' for n, a in CELLS)}" + (
-    f"; {left_out} maps that not every controller and scenario has left out" if left_out else ""
+GRID = (
+    f"cells {', '.join(f'n{n}_N{a}' for n, a in CELLS)}"
+    + (f"; {left_out} maps that not every controller and scenario has left out" if left_out else "")
+    + MISSING
 )
 if left_out:
     print(f"note: {left_out} maps left out, held by some controllers or scenarios only (a run not finished?)",
@@ -128,7 +139,7 @@ for c in controllers:
     mine = episodes[episodes["controller"] == c]
     row = {first: ci(per_map(mine[mine[GROUP] == "paper"]))} if (mine[GROUP] == "paper").any() else {}
     row |= {f: ci(per_map(mine[mine[GROUP] == f])) for f in families}
-    row["whole suite"] = ci(per_map(mine))
+    row[WHOLE] = ci(per_map(mine))
     family_rows[c] = row
 note = "a family's column averages its severities 0.25, 0.5 and 1" if GROUP == "family" else "a column per scenario"
 text = (f"Mean found fraction, 95 % CI over maps ({episodes['map'].nunique()} maps: cells x map seeds; {GRID}); "

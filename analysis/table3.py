@@ -24,7 +24,7 @@ from pathlib import Path
 from searchrl.analysis import cli
 from searchrl.analysis.stats import beside_paper, efficiency_summary, markdown, paper_table3, summarize, table3
 from searchrl.atomic import write_atomic, write_text_atomic
-from searchrl.evaluate.results import load
+from searchrl.evaluate.results import coverage_line, load
 
 ROOT = Path.cwd()
 EVAL_DIRS, OUT = cli.eval_inputs(
@@ -33,12 +33,16 @@ EVAL_DIRS, OUT = cli.eval_inputs(
 OUT.mkdir(parents=True, exist_ok=True)
 episodes = load(*EVAL_DIRS)
 print(f"{len(episodes)} episodes from {[d.name for d in EVAL_DIRS]}")
+# What each folder covers (scenario, seed, maps, cells held and missing): at the head of every table written here.
+COVERS = "Covers:\n" + "".join(f"- {coverage_line(d)}\n" for d in EVAL_DIRS) + "\n"
+print(COVERS)
 
 # %% [markdown]
 # ## Per-cell means with 95 % bootstrap CIs, beside the paper
 #
 # Heuristics are evaluated with one model's world settings (`model` column); the paper's number shown beside a
-# heuristic is that of the DRL model with the same settings, for reference.
+# heuristic is that of the DRL model with the same settings, for reference. Only results of the paper's scenario
+# (the open grid, the prior right) stand beside the paper's numbers; other scenarios' `paper` is empty.
 
 # %%
 summary = summarize(episodes)
@@ -51,7 +55,7 @@ compared.head(12)
 
 # %%
 wide = table3(summary)
-write_text_atomic(OUT / "table3.md", markdown(wide))
+write_text_atomic(OUT / "table3.md", COVERS + markdown(wide))
 print(markdown(wide))
 
 # %% [markdown]
@@ -65,7 +69,7 @@ if len(policies):
     entries = policies.assign(entry=[f"{o:.3f} ({p:.2f})" for o, p in zip(policies["mean"], policies.paper,
                                                                           strict=True)])  # fmt: skip
     side_by_side = entries.pivot_table(index=["model", "N"], columns="n", values="entry", aggfunc="first")
-    write_text_atomic(OUT / "table3_vs_paper.md", markdown(side_by_side.fillna("–")))
+    write_text_atomic(OUT / "table3_vs_paper.md", COVERS + markdown(side_by_side.fillna("–")))
     print(markdown(side_by_side.fillna("–")))
 
 # %% [markdown]
@@ -79,5 +83,5 @@ if len(policies):
 if "efficiency" in summary and summary["efficiency"].notna().any():
     per_cell, overall = markdown(table3(summary, "efficiency")), markdown(efficiency_summary(summary))
     efficiency = f"Efficiency, found / search bound:\n\n{per_cell}\nOver the hard and unsaturated cells:\n\n{overall}"
-    write_text_atomic(OUT / "table3_efficiency.md", efficiency)
+    write_text_atomic(OUT / "table3_efficiency.md", COVERS + efficiency)
     print(efficiency)

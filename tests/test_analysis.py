@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import runpy
+import shutil
 from pathlib import Path
 
 import jupytext
@@ -117,9 +118,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
     # first line and its number of table lines. efficiency.csv has a row per row of the shipped analysis/out/table3.csv.
     shipped = len(pd.read_csv(ROOT / "analysis" / "out" / "table3.csv"))
     expected = {
-        "table3.py": {"table3.csv": (12, 14), "table3.md": ("| controller | model | N | 20 | 160 |", 8),
-                      "table3_vs_paper.md": ("| model | N | 20 | 160 |", 4),
-                      "table3_efficiency.md": ("Efficiency, found / search bound:", 13)},
+        "table3.py": {"table3.csv": (12, 15), "table3.md": ("Covers:", 8), "table3_vs_paper.md": ("Covers:", 4),
+                      "table3_efficiency.md": ("Covers:", 13)},
         "bounds.py": {"bounds.csv": (30, 15), "bounds.md": ("Mean bound fraction per cell (1 maps, 100 placements per "
                                                             "map; the largest Monte Carlo standard error", 33),
                       "efficiency.csv": (shipped, 17), "efficiency.md": (f"Upper-bound check: 0 of {shipped} cells "
@@ -133,7 +133,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "compare.py": {"compare.csv": (8, 11), "compare.md": ("# surfing against coverage, policy", 8)},
         "missed_targets.py": {"small.csv": (2, 11),
                               "missed_targets.md": ("# Missed targets by distance to the edge", 4)},
-        "calibration.py": {"calibration.csv": (12, 15), "calibration.png": (880, 396),
+        "calibration.py": {"calibration.csv": (12, 16), "calibration.png": (880, 396),
                            "calibration.md": ("# Which k: heuristics in four worlds beside the paper", 11)},
         "prior_quality.py": {"prior_quality.csv": (2 * 4 * 5 * 3, 9),
                              "prior_quality.md": ("Mean prior quality over 2 maps per n", 10)},
@@ -185,6 +185,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         assert (table["efficiency"] == table["mean"] / table["bound"]).all()
         policy = table[table.controller == "policy:run"].iloc[0]
         assert f"{policy['mean']:.3f} ({policy['paper']:.2f})" in (tmp_path / "table3_vs_paper.md").read_text()
+        covers = (tmp_path / "table3.md").read_text().split("\n\n")[0].splitlines()  # each folder: what it holds
+        assert len(covers) == 4 and all("scenario paper, seed" in line and " cells" in line for line in covers[1:])
     if notebook == "compare.py":  # the first directory against each other one, labelled by folder name
         compared = pd.read_csv(tmp_path / "compare.csv")
         assert set(zip(compared.controller, compared.baseline, strict=True)) == {("surfing", "coverage"),
@@ -207,6 +209,20 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         bounds = pd.read_csv(tmp_path / "bounds.csv")
         assert len(bounds) == 30 and (bounds.maps == 1).all() and bounds.bound.between(0, 1).all()
         assert len(list((tmp_path / "cache").glob("*.parquet"))) == 30  # per-map rows kept for the next run
+
+
+def test_table3_says_what_it_covers_and_sets_the_paper_beside_the_paper_scenario_only(tmp_path):
+    """A walls evaluation with two of its three cells run: its tables name the scenario, the seed and the missing
+    cell, and no row stands beside the paper's open-grid numbers."""
+    from tests.test_evaluate import _evaluate
+
+    _evaluate(tmp_path / "walls", "scenario=walls", "shard=0", "num_shards=2")
+    out = _script("table3.py", str(tmp_path / "walls"), "--out", str(tmp_path / "t3"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    table = pd.read_csv(tmp_path / "t3" / "table3.csv")
+    assert table["paper"].isna().all() and (table["scenario"] != "paper").all()
+    head = (tmp_path / "t3" / "table3.md").read_text().splitlines()[1]
+    assert f"scenario {table['scenario'][0]}, seed 7000000" in head and "2 of 3 cells; missing n20_N2" in head
 
 
 def test_notebooks_take_folders_and_out_as_arguments(fixture_dirs, tmp_path):
@@ -487,6 +503,16 @@ def test_a_suite_of_scenarios_is_tabulated_per_scenario(tmp_path):
     moves = (tmp_path / "out" / "moves.md").read_text()
     assert "| coverage |" in moves and "| sweep |" in moves and "| sweep_again |" in moves
     assert "## sweep − sweep_again" in (tmp_path / "out" / "compare.md").read_text()
+    # One of its two scenarios left: no "whole suite" column, and the missing scenario named
+    for folder in (tmp_path / "suite").glob("*/maze*"):
+        shutil.rmtree(folder)
+    out = _script("suite.py", str(tmp_path / "suite"), "--out", str(tmp_path / "part"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    lines = (tmp_path / "part" / "scenario.md").read_text().splitlines()
+    assert (
+        lines[2].endswith("| the 1 scenarios held |")
+        and "no results for 1 of the suite's 2 scenarios (maze" in lines[0]
+    )
 
 
 def test_a_suite_run_part_way_is_compared_on_the_maps_all_have_and_a_missing_scenario_is_refused(tmp_path):

@@ -8,6 +8,8 @@ import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
+from searchrl.world.scenario import PAPER
+
 GROUP = ["controller", "model", "n", "N"]
 # Where search is hard (issue 29): the largest team per world size whose cells are far from saturated.
 HARD_CELLS = {40: 2, 80: 8, 160: 32}  # n = 40 with N <= 2, n = 80 with N <= 8, n = 160 with N <= 32: 12 cells
@@ -70,7 +72,11 @@ def summarize(episodes: pd.DataFrame, metric: str = "found_fraction", n_boot: in
         if "bound_fraction" in group:  # NaN for a cell run before bounds were recorded: no efficiency
             rows[-1]["bound"] = bound = group["bound_fraction"].mean(skipna=False)
             rows[-1].update(efficiency=mean / bound, efficiency_low=low / bound, efficiency_high=high / bound)
-    return pd.DataFrame(rows)
+    summary = pd.DataFrame(rows)
+    if "scenario" in episodes:  # what each (controller, model) ran under: a comparison with the paper needs its own
+        held = episodes.groupby(["controller", "model"])["scenario"].agg(lambda v: "+".join(sorted(set(v))))
+        summary = summary.merge(held.reset_index(), on=["controller", "model"], how="left")
+    return summary
 
 
 def with_bounds(summary: pd.DataFrame, bounds: pd.DataFrame) -> pd.DataFrame:
@@ -138,8 +144,11 @@ def paper_table3(path: str | Path) -> pd.DataFrame:
 
 def beside_paper(summary: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
     """Our found fraction (with CI) beside the paper's for the same model and cell; `model` matched
-    case-insensitively (the paper's A, B, C, diagonal)."""
+    case-insensitively (the paper's A, B, C, diagonal). Only rows of the paper's scenario (a summary's `scenario`
+    column, where it has one) are compared: the paper's numbers are of the open grid with the prior right."""
     ours = summary.assign(key=summary["model"].str.lower())
+    if "scenario" in ours:
+        ours.loc[ours["scenario"] != PAPER.label, "key"] = None
     theirs = paper.assign(key=paper["model"].str.lower()).rename(columns={"found_fraction": "paper"})
     merged = ours.merge(theirs[["key", "n", "N", "paper"]], on=["key", "n", "N"], how="left").drop(columns="key")
     return merged.assign(diff=merged["mean"] - merged["paper"])

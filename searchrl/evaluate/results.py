@@ -11,7 +11,7 @@ from omegaconf import OmegaConf
 from searchrl.evaluate.grid import CELL_FILE_RE
 from searchrl.evaluate.record import CELL_SETTINGS, setting_differences
 from searchrl.world.config import WorldConfig
-from searchrl.world.scenario import PAPER
+from searchrl.world.scenario import PAPER, Scenario
 
 
 def cell_files(out_dir: str | Path) -> list[Path]:
@@ -90,3 +90,35 @@ def _named_apart(frames: list[pd.DataFrame]) -> pd.DataFrame:
             file=sys.stderr,
         )
     return episodes.drop(columns="folder")
+
+
+def coverage(out_dir: str | Path) -> dict[str, object]:
+    """What an evaluation folder's results cover, from its record and cells: controller, scenario label, seed, maps
+    and repeats per cell, the cells held and those of its grid it lacks (cell keys). Empty for a folder without a
+    readable record."""
+    from searchrl.evaluate.grid import table2_cells
+
+    record_path = Path(out_dir) / "evaluation.yaml"
+    try:
+        record = OmegaConf.to_container(OmegaConf.load(record_path))
+        grid = record["grid"]
+        cells = table2_cells(grid["world_sizes"], grid["n_targets"], grid["n_distributions"], grid["max_agents"])
+    except Exception:  # no record, or one made before it held these: nothing to say beyond the cells
+        return {}
+    agents = grid.get("agents")
+    wanted = [c.key for c in cells if agents is None or c.n_agents in agents]
+    held = {f.stem for f in cell_files(out_dir)}
+    scenario = Scenario.from_dict(record.get("scenario")).label if record.get("scenario") else PAPER.label
+    return {"controller": record.get("controller"), "scenario": scenario, "seed": record.get("seed"),
+            "maps": grid["maps_per_cell"], "repeats": grid["repeats"], "cells": [k for k in wanted if k in held],
+            "missing": [k for k in wanted if k not in held]}  # fmt: skip
+
+
+def coverage_line(out_dir: str | Path) -> str:
+    """One line saying what a folder's results cover (`coverage`), for the head of every table made from it."""
+    c = coverage(out_dir)
+    if not c:
+        return f"{out_dir}: {len(cell_files(out_dir))} cells (no record says of which grid, seed or scenario)"
+    missing = f"; missing {', '.join(c['missing'])}" if c["missing"] else ""
+    return (f"{c['controller']}: scenario {c['scenario']}, seed {c['seed']}, {c['maps']} maps x {c['repeats']} "
+            f"repeats per cell, {len(c['cells'])} of {len(c['cells']) + len(c['missing'])} cells{missing}")  # fmt: skip

@@ -19,7 +19,7 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from searchrl.atomic import FolderBusy, storage_message
+from searchrl.atomic import FolderBusy, storage_message, write_text_atomic
 from searchrl.evaluate.app import claim_evaluation, fail, given_out_dir, plan_evaluation, run_evaluation
 from searchrl.evaluate.schema import GridConfig
 from searchrl.schema import override_keys
@@ -27,6 +27,7 @@ from searchrl.world.config import ConfigError, need
 from searchrl.world.scenario import Scenario, scenario_grid
 
 FROZEN = ("suite", "grid", "scenario", "seed")  # what a suite fixes: the command line may not set them
+SUITE_RECORD = "suite.yaml"  # in a controller's suite folder: the suite's name, seed and scenario labels
 
 
 @dataclass
@@ -86,6 +87,9 @@ def evaluate_suite(cfg: DictConfig, overrides: list[str]) -> list[Path]:
             plans.append(plan)
         for plan in plans:
             claim_evaluation(plan)
+        # what the suite is, beside its scenario folders: a table of part of it can say what it lacks
+        record = {"suite": suite["name"], "seed": suite["seed"], "scenarios": [s.label for s in scenarios]}
+        write_text_atomic(base / SUITE_RECORD, OmegaConf.to_yaml(OmegaConf.create(record)))
     except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException, FolderBusy) as err:
         fail(str(err))
     except OSError as err:
