@@ -455,6 +455,25 @@ def test_parallel_env_refuses_wrong_types_and_names():
         SearchWorld(env.config, 2, seed=-1)  # the engine under the VecEnv and the env checks its seed the same way
 
 
+def test_envs_stepped_before_their_reset_say_so_as_gymnasium_and_pettingzoo_do():
+    """Out of order: the VecEnv raises gymnasium's ResetNeeded, the world a one-line RuntimeError, the PettingZoo env
+    its own line; none reaches the kernels (which raised numba's SystemError on the empty state)."""
+    from gymnasium.error import ResetNeeded
+
+    from searchrl.envs.vec_env import SearchVecEnv
+
+    config = WorldConfig(world_size=(10, 10), n_targets=(2, 2), n_agents=2, max_steps=5)
+    env = SearchVecEnv(config, n_worlds=2, seed=0)
+    with pytest.raises(ResetNeeded, match=r"Cannot call env.step\(\) before calling env.reset\(\)"):
+        env.step(np.zeros(env.num_envs, np.int64))
+    env.reset()
+    env.step(np.zeros(env.num_envs, np.int64))
+    with pytest.raises(RuntimeError, match=r"step\(\) called before reset\(\)"):
+        SearchWorld(config, 2, seed=0).step(np.zeros((2, 2), np.int64))
+    with pytest.raises(RuntimeError, match=r"step\(\) called before reset\(\)"):
+        SearchParallelEnv(config).step({"agent_0": 0, "agent_1": 0})
+
+
 @pytest.mark.parametrize(
     "kwargs, needle",
     [

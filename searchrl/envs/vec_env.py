@@ -14,6 +14,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.error import ResetNeeded
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
@@ -54,6 +55,8 @@ class SearchVecEnv(VecEnv):
         return self._flat_obs(maps, vector)
 
     def step_async(self, actions: np.ndarray) -> None:
+        if not self.world.started:  # what gymnasium's OrderEnforcing says of an env stepped before its reset
+            raise ResetNeeded("Cannot call env.step() before calling env.reset()")
         actions = np.asarray(actions)
         if actions.size != self.num_envs:
             raise ValueError(f"actions have shape {actions.shape}: one action per slot, ({self.num_envs},)")

@@ -55,6 +55,7 @@ class SearchWorld:
         self._final = tuple(np.zeros_like(a) for a in self._obs) if observe else (None, None)
         self.observation: tuple[np.ndarray, np.ndarray] | tuple[None, None] = (None, None)  # of the last reset/step
         self._last_map: tuple[int, DrawnWorld] | None = None  # the map seed `_draw_maps` wrote last, and its draw
+        self.started = False  # a world is stepped only once reset (`reset`, `from_maps`) has drawn it
 
     @classmethod
     def from_maps(cls, config: WorldConfig, map_seeds: Sequence[int], streams: WorldStreams,
@@ -66,7 +67,7 @@ class SearchWorld:
         world = cls(config, len(map_seeds), scenario=scenario, auto_reset=False, observe=observe)
         world.rng = streams
         world._draw_maps(range(len(map_seeds)), map_seeds)
-        world.observation = world._observe()
+        world.observation, world.started = world._observe(), True
         return world
 
     def start_episodes(self, worlds: Sequence[int], map_seeds: Sequence[int], keys: Sequence[Sequence[int]]) -> None:
@@ -105,11 +106,13 @@ class SearchWorld:
             self.rng = np.random.default_rng(seed)
         mask = np.ones(self.n_worlds, bool) if mask is None else np.asarray(mask, bool)
         reset_worlds(self.config, self.state, mask, self.rng, self.scenario)
-        self.observation = self._observe()
+        self.observation, self.started = self._observe(), True
         return self.observation
 
     def step(self, actions: np.ndarray) -> Transition:
         """Step all worlds with actions (K, N), then (with auto_reset) reset the finished ones."""
+        if not self.started:  # the state is empty memory: its kernels would read garbage
+            raise RuntimeError("step() called before reset(): reset the worlds first")
         result = step(self.config, self.state, actions, self.rng)
         maps, vector = self._observe()
         done = result.done
