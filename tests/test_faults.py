@@ -141,6 +141,31 @@ def test_evaluation_killed_at_any_moment_resumes_to_the_same_results(tmp_path):
     pd.testing.assert_frame_equal(load(_evaluate(out, *args[len(SLICE) :])), whole)
 
 
+def test_an_interrupted_evaluation_says_so_in_one_line_and_keeps_its_cells(tmp_path, capsys, monkeypatch):
+    """Ctrl-C in the second cell: exit 130 (as a shell reports SIGINT), one line, the first cell kept; a rerun
+    runs the rest."""
+    import searchrl.evaluate.app as app
+
+    original, calls = app.run_cell, []
+
+    def interrupted_in_the_second(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(app, "run_cell", interrupted_in_the_second)
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exit_, exits():
+        _evaluate(tmp_path / "eval")
+    err = capsys.readouterr().err
+    assert exit_.value.code == 130 and "Traceback" not in err
+    assert err.strip().splitlines()[-1].startswith("interrupted: the cells already written stay")
+    assert len(list((tmp_path / "eval" / "cells").iterdir())) == 1
+    monkeypatch.setattr(app, "run_cell", original)
+    assert len(load(_evaluate(tmp_path / "eval"))) == len(load(_evaluate(tmp_path / "clean")))
+
+
 # 1b. An evaluation folder is trusted by what its cells say of themselves: each records the settings it ran under.
 def test_a_lost_record_is_rebuilt_from_the_cells_not_taken_from_the_next_command(tmp_path, capsys):
     out = _evaluate(tmp_path / "eval", "shard=0", "num_shards=2")  # one of the two cells

@@ -31,7 +31,7 @@ from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import CELL_SETTINGS, claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
-from searchrl.multirun import refuse
+from searchrl.multirun import Stopped, refuse
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor, training_scenario
 from searchrl.policies.device import check_device, resolve_device
 from searchrl.schema import MAX_THREADS, check_known_keys, override_keys
@@ -271,6 +271,10 @@ def run_evaluation(plan: Evaluation) -> Path:
         if message is None:
             raise
         fail(f"{message}; the cells already written stay, and a rerun into {out_dir} does the rest")
+    except KeyboardInterrupt:  # Ctrl-C: the cell under way is dropped whole (nothing of it was written)
+        print(f"interrupted: the cells already written stay, and a rerun into {out_dir} does the rest",
+              file=sys.stderr)  # fmt: skip
+        raise Stopped(130) from None
     elapsed = time.perf_counter() - start
     if todo:
         print(f"done in {elapsed:.1f} s; {done_steps / max(elapsed, 1e-9):,.0f} agent-steps/s "
