@@ -391,6 +391,8 @@ def test_a_resume_with_nothing_to_do_changes_no_file(tmp_path, tiny_run, capsys)
         ("threads=0", "threads=0"),
         ("batch_mb=0", "batch_mb=0"),
         ("grid.world_sizes=[20,5] grid.n_targets=[4,2] grid.n_distributions=[8,2] grid.max_agents=[2,32]", "n=5, N=32"),
+        ("scenario=walls scenario.obstacles.density=[1]", "scenario.obstacles.density=[1] is not allowed"),
+        ("scenario=off_prior scenario.targets.severity=abc", "scenario.targets.severity='abc' is not allowed"),
     ],
 )
 def test_a_failed_evaluation_claims_no_folder(tmp_path, capsys, bad, needle):

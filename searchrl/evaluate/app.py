@@ -174,11 +174,11 @@ def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | N
     """Every check of an evaluation, before any work or file (ConfigError naming the bad value)."""
     cells, out_dir, scenario = check_evaluation(cfg, overrides)
     world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
-    walls = draws_walls(scenario)
     for index, cell in cells:  # a cell impossible for its n or N fails now, not when reached
         try:
-            scenario.check(cell_config(world, cell))
+            scenario.check(cell_config(world, cell))  # first: each value's type and range
             factory(cell_config(world, cell))
+            walls = draws_walls(scenario)
             for m in range(int(cfg.grid.maps_per_cell) if walls else 0):  # exact: every map its episodes will draw
                 map_prior(cell_config(world, cell), map_seed(int(cfg.seed), index, m), scenario)
         except ConfigError as err:
