@@ -9,7 +9,9 @@ swept setting in turn, and refuses in one line naming the value.
 
 from __future__ import annotations
 
+import os
 import re
+from pathlib import Path
 
 # Hydra's flags that take no value; any other flag (`--cfg job`, `--config-name x`, `--info`) leaves the check to Hydra
 _PLAIN_FLAGS = {"-m", "--multirun"}
@@ -71,7 +73,13 @@ def check_jobs_compose(argv: list[str], config_name: str) -> None:
             except Exception as error:  # Hydra's ConfigCompositionException, OmegaConf's validation errors
                 failure = (what, error, _misspelt_hints(compose, config_name, overrides))
                 break
+        hydra_args = [arg for arg in argv if arg not in _PLAIN_FLAGS and arg.lstrip("+~").startswith("hydra")]
+        storage = None  # a sweeper with a study storage (Optuna's) is checked too
+        if not failure and any(arg.startswith("hydra/sweeper=") for arg in hydra_args):
+            storage = _sweeper_storage(compose, config_name, variants[0][1] + hydra_args)
     GlobalHydra.instance().clear()
+    if storage:
+        refuse(storage)
     if failure is not None:
         what, error, hints = failure
         lines = [str(error).strip()] + ([str(error.__cause__).strip()] if error.__cause__ else [])
@@ -92,6 +100,28 @@ def check_jobs_compose(argv: list[str], config_name: str) -> None:
         if missing and missing.group(1) in hints:  # a misspelt setting, worded as schema.unknown_keys words it
             message = "no such setting" + hints[missing.group(1)]
         refuse(f"{what or 'the command line'} is not allowed: {message}")
+
+
+def _sweeper_storage(compose, config_name: str, overrides: list[str]) -> str | None:
+    """Why the sweeper's `storage` (Optuna's study database) cannot be opened, or None: a SQLite file whose folder
+    does not exist or cannot be written fails only when the sweep starts, in a traceback of SQLAlchemy's."""
+    from omegaconf import OmegaConf
+
+    try:
+        url = OmegaConf.select(compose(config_name=config_name, overrides=overrides, return_hydra_config=True),
+                               "hydra.sweeper.storage", default=None)  # fmt: skip
+    except Exception:  # a composition error is the compose check's to name
+        return None
+    if not isinstance(url, str) or not url.startswith("sqlite:///"):
+        return None  # no storage (an in-memory study), or a server the sweep connects to itself
+    folder = Path(url.removeprefix("sqlite:///")).parent
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        why = "does not exist" if not folder.is_dir() else "cannot be written"
+        return (
+            f"hydra.sweeper.storage={url!r} is not allowed: its folder {str(folder)!r} {why} (the study's "
+            "SQLite file is made there)"
+        )
+    return None
 
 
 def _misspelt_hints(compose, config_name: str, overrides: list[str]) -> dict[str, str]:

@@ -625,6 +625,9 @@ def test_group_options_that_exist_and_what_hydra_checks_pass_the_command_line_ch
         (["-m", "grid.map_per_cell=2,3"], "evaluate",
          ["grid.map_per_cell=2,3 is not allowed: no such setting (did you mean grid.maps_per_cell?)"]),
         (["network.zzz=1"], "train", ["network.zzz=1 is not allowed: no such setting"]),
+        (["-m", "+model=b", "hydra/sweeper=optuna_searchrl", "hydra.sweeper.storage=sqlite:////nowhere/study.db"],
+         "train", ["hydra.sweeper.storage='sqlite:////nowhere/study.db' is not allowed: its folder '/nowhere' does "
+                   "not exist"]),
     ],
 )  # fmt: skip
 def test_a_job_that_cannot_compose_is_one_line_before_hydra(capsys, argv, app, needles):
