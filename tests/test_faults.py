@@ -194,6 +194,88 @@ def test_a_damaged_cell_is_set_aside_and_run_again(tmp_path, capsys):
     pd.testing.assert_frame_equal(load(out), clean)
 
 
+# Each way a file can be damaged: (name, damage(path, the same file of another folder)).
+DAMAGES = {
+    "deleted": lambda path, other: path.unlink(),
+    "truncated": lambda path, other: path.write_bytes(path.read_bytes()[: path.stat().st_size // 2]),
+    "garbage": lambda path, other: path.write_bytes(b"\x00\xffnot this file" * 9),
+    "swapped": lambda path, other: shutil.copy(other, path),  # another evaluation's (seed 1) file of that name
+}
+
+
+def _rerun(capsys, call) -> str:
+    """'repaired' when `call` runs to its end, 'refused' when it exits 2 with one error line and no traceback."""
+    capsys.readouterr()
+    try:
+        with exits():
+            call()
+        return "repaired"
+    except SystemExit as stop:
+        err = capsys.readouterr().err
+        assert stop.code == 2 and "Traceback" not in err and err.strip().splitlines()[-1].startswith("error:"), err
+        return "refused"
+
+
+def test_an_evaluation_folder_repairs_or_refuses_each_damaged_file_and_loses_nothing(tmp_path, capsys):
+    """Each file of a finished evaluation folder in turn deleted, truncated, overwritten or swapped for another
+    evaluation's: the rerun repairs it (the folder's results then equal the undamaged ones) or refuses in one line;
+    either way every other file is still there as it was, and no loader mixes the two evaluations."""
+    clean, other = _evaluate(tmp_path / "clean"), _evaluate(tmp_path / "other", "seed=1")
+    want = load(clean)
+    files = sorted(p.relative_to(clean) for p in clean.rglob("*") if p.is_file() and ".locks" not in p.parts)
+    outcomes = {}
+    for rel in files:
+        for name, damage in DAMAGES.items():
+            folder = tmp_path / "damaged" / f"{rel.name}_{name}"
+            shutil.copytree(clean, folder)
+            damage(folder / rel, other / rel)
+            kept = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file() and p != folder / rel}
+            outcome = outcomes[f"{rel.name} {name}"] = _rerun(capsys, lambda f=folder: _evaluate(f))
+            assert all(p.read_bytes() == content for p, content in kept.items() if ".locks" not in p.parts)
+            if outcome == "repaired":
+                pd.testing.assert_frame_equal(load(folder), want)
+    cells = [rel.name for rel in files if rel.suffix == ".parquet"]
+    assert outcomes == {
+        **{f"evaluation.yaml {name}": "repaired" for name in ("deleted", "truncated", "garbage")},
+        "evaluation.yaml swapped": "refused",  # seed 1's record over seed 7000000's cells: which is right is unsaid
+        **{f"{cell} {name}": "repaired" for cell in cells for name in ("deleted", "truncated", "garbage")},
+        **{f"{cell} swapped": "refused" for cell in cells},  # another evaluation's cell: never mixed in
+    }
+
+
+@pytest.mark.slow  # 28 resumes, about two minutes; the checkpoint cases are also tests of their own above
+def test_a_training_run_repairs_or_refuses_each_damaged_file_and_loses_nothing(tmp_path, tiny_run, capsys):
+    """Each file of a finished tiny run in turn deleted, truncated, overwritten or swapped for another run's (seed
+    1), then resumed one rollout further: the resume repairs it (a run that continues: its model at the new budget,
+    each step logged once, beside a segment's final validation) or refuses in one line, and a refused resume leaves
+    every file as it was."""
+    other = tmp_path / "other"
+    train(_compose("train", [*TINY, "seed=1"]), other, [*TINY, "seed=1"])
+    files = sorted(p.relative_to(tiny_run) for p in tiny_run.rglob("*") if p.is_file() and p.name != ".lock"
+                   and p.parent.name != "tensorboard")  # fmt: skip
+    outcomes = {}
+    for rel in files:
+        for name, damage in DAMAGES.items():
+            run = tmp_path / "damaged" / f"{rel.name}_{name}"
+            shutil.copytree(tiny_run, run)
+            damage(run / rel, other / rel)
+            before = _files(run)
+            overrides = [f"resume={run}", "total_timesteps=2304"]
+            outcome = outcomes[f"{rel.name} {name}"] = _rerun(
+                capsys, lambda o=overrides, r=run: train(_compose("train", o), r / "r", o)
+            )
+            if outcome == "refused":
+                assert _files(run) == before
+            else:
+                steps = pd.read_csv(run / "progress.csv")["time/total_timesteps"]
+                assert load_checkpoint(run / "model.zip").num_timesteps == 2304 and steps.iloc[-1] == 2304
+                assert steps.is_monotonic_increasing and steps.value_counts().max() <= 2  # + a final validation
+    refused = sorted(k for k, v in outcomes.items() if v == "refused")
+    print(outcomes)
+    assert refused == sorted([*(f"config.yaml {n}" for n in DAMAGES), "progress.csv garbage", "progress.csv swapped",
+                              "progress.csv truncated", "step_2048.zip swapped"]), outcomes  # fmt: skip
+
+
 # 2. A run folder has one owner.
 def test_a_run_folder_in_use_is_refused(tmp_path, tiny_run, capsys):
     run = _copy(tiny_run, tmp_path / "run")
@@ -348,8 +430,9 @@ def _files(run: Path) -> dict[str, bytes]:
 
 
 def test_resume_refuses_a_checkpoint_of_another_run_or_step_and_changes_nothing(tmp_path, tiny_run, capsys):
-    """A checkpoint copied in under another step's name, one saved by a run of another model, and a config.yaml
-    edited since (another LSTM width) are each refused in one line naming both sides; no file changes."""
+    """A checkpoint copied in under another step's name, one saved by a run of another model, a config.yaml edited
+    since (another LSTM width) and a log that is not the checkpoint's are each refused in one line naming both
+    sides; no file changes."""
     run = _copy(tiny_run, tmp_path / "run")
     overrides = [f"resume={run}", "total_timesteps=4096"]
     resume = lambda: train(_compose("train", overrides), run / "r", overrides)  # noqa: E731
@@ -371,6 +454,15 @@ def test_resume_refuses_a_checkpoint_of_another_run_or_step_and_changes_nothing(
     (run / "config.yaml").write_text(OmegaConf.to_yaml(config))
     before = _files(run)
     _refused(capsys, resume, "network.lstm_hidden_size=128", "config.yaml says network.lstm_hidden_size=256")
+    assert _files(run) == before
+
+    shutil.rmtree(run)  # a log edited (or another run's put in its place): its rows are not the checkpoint's
+    run = _copy(tiny_run, tmp_path / "run")
+    log = pd.read_csv(run / "progress.csv")
+    log.loc[1, "time/fps"] += 1
+    log.to_csv(run / "progress.csv", index=False)
+    before = _files(run)
+    _refused(capsys, resume, "progress.csv is not the log checkpoints/step_2048.zip was saved with")
     assert _files(run) == before
 
 

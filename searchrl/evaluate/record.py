@@ -119,8 +119,10 @@ def setting_differences(theirs: dict[str, Any], ours: dict[str, Any], defaults: 
             for key in keys if theirs.get(key, absent[key]) != ours.get(key, absent[key])]  # fmt: skip
 
 
-def _read_record(out_dir: Path) -> dict[str, Any]:
-    """The folder's record, retired settings dropped; ConfigError if it cannot say what the cells hold."""
+def _read_record(out_dir: Path, cells: dict[Path, dict[str, Any] | None]) -> dict[str, Any] | None:
+    """The folder's record, retired settings dropped; ConfigError if it cannot say what the cells hold. A damaged
+    record (empty, not YAML, not a mapping) of a folder whose cells record their settings is set aside as
+    `<record>.unreadable` and None returned: it is rebuilt from them."""
     try:
         record = OmegaConf.to_container(OmegaConf.load(out_dir / RECORD))
         if not isinstance(record, dict) or "controller" not in record:
@@ -129,6 +131,12 @@ def _read_record(out_dir: Path) -> dict[str, Any]:
     except ConfigError as err:
         raise ConfigError(f"out_dir={str(out_dir)!r} holds results of a removed setting: {err}") from None
     except Exception as err:  # empty, not YAML, not a mapping: the record cannot say what the cells hold
+        if any(settings is not None for settings in cells.values()):
+            aside = out_dir / f"{RECORD}.unreadable"
+            (out_dir / RECORD).rename(aside)
+            print(f"warning: {out_dir / RECORD} cannot be read ({type(err).__name__}); set aside as {aside.name}",
+                  file=sys.stderr)  # fmt: skip
+            return None
         raise ConfigError(
             f"out_dir={str(out_dir)!r}: its {RECORD} cannot be read ({type(err).__name__}); restore it, or "
             "remove that folder to start it afresh"
@@ -163,9 +171,8 @@ def claim_folder(out_dir: str | Path, settings: dict[str, Any], defaults: dict[s
     defaults, out_dir = defaults or {}, Path(out_dir)
     mine = OmegaConf.to_container(OmegaConf.create(settings))  # the types a YAML round trip gives
     cells = _cells_settings(out_dir)
-    if (out_dir / RECORD).exists():
-        record = _read_record(out_dir)
-    else:
+    record = _read_record(out_dir, cells) if (out_dir / RECORD).exists() else None
+    if record is None:
         recorded = [s for s in cells.values() if s is not None]
         record = recorded[0] if recorded else mine
         if cells and not recorded:

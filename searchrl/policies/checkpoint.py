@@ -153,13 +153,15 @@ def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
 IDENTITY = "searchrl.json"
 
 
-def save_model(model: BaseAlgorithm, path: str | Path, run: dict[str, Any]) -> Path:
-    """Save `model` at `path` atomically, with IDENTITY: its step and `run` (plain JSON values)."""
+def save_model(model: BaseAlgorithm, path: str | Path, run: dict[str, Any], log: str | None = None) -> Path:
+    """Save `model` at `path` atomically, with IDENTITY: its step, `run` (plain JSON values) and `log`, the digest
+    of the run's log before that step (searchrl/train/csv_log.py's `log_digest`)."""
+    identity = {"step": int(model.num_timesteps), "run": run, "log": log}
 
     def write(tmp: Path) -> None:
         model.save(tmp)
         with zipfile.ZipFile(tmp, "a") as archive:
-            archive.writestr(IDENTITY, json.dumps({"step": int(model.num_timesteps), "run": run}, sort_keys=True))
+            archive.writestr(IDENTITY, json.dumps(identity, sort_keys=True))
 
     return write_atomic(path, write)
 

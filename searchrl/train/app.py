@@ -52,7 +52,14 @@ from searchrl.train.command_line import fail
 from searchrl.train.csv_log import AppendingCSV, ContinuedClock, ResumableTensorBoard, check_log, clock_offsets
 from searchrl.train.imitation import clone, collect
 from searchrl.train.plan import Plan, make_plan
-from searchrl.train.run_record import config_record, is_finished, load_newest_checkpoint, run_identity, set_aside_logs
+from searchrl.train.run_record import (
+    config_record,
+    is_finished,
+    load_newest_checkpoint,
+    other_log,
+    run_identity,
+    set_aside_logs,
+)
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig, register_configs, saved_config
 from searchrl.train.score import read_score, write_score
 from searchrl.train.sweep_job import continued_job
@@ -132,6 +139,9 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
             check_log(run_dir / "progress.csv", start_step, plan.rollout * int(cfg.log_interval))
         except ValueError as err:
             fail(f"resume={cfg.resume!r}: {err}")
+        problem = other_log(run_dir / "checkpoints" / f"step_{start_step}.zip", start_step)
+        if problem:
+            fail(f"resume={cfg.resume!r}: {problem}; nothing was changed")
     record_config(cfg, run_dir)
     if not resuming and plan.clones:
         warm_start(plan, model, run_dir)

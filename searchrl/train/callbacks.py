@@ -15,6 +15,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 
 from searchrl.policies.checkpoint import save_model
+from searchrl.train.csv_log import log_digest
 from searchrl.train.validation import run_episodes
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import Scenario
@@ -122,7 +123,8 @@ class AtomicCheckpointCallback(BaseCallback):
 
     def save(self) -> Path:
         """Write this step's checkpoint, then drop all but the newest `keep` (only once the new one is whole)."""
-        path = save_model(self.model, self.directory / f"step_{self.num_timesteps}.zip", self.run)
+        log = log_digest(self.directory.parent / "progress.csv", self.num_timesteps)  # the run's log so far
+        path = save_model(self.model, self.directory / f"step_{self.num_timesteps}.zip", self.run, log)
         for old in sorted(checkpoints(self.directory))[: -self.keep]:
             old[1].unlink(missing_ok=True)
         return path

@@ -8,6 +8,7 @@ widens the header when a new key appears (team metrics only show up once the fir
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 from pathlib import Path
 from typing import Any
@@ -46,6 +47,22 @@ def check_log(path: Path, resume_step: int, every: int) -> None:
             raise ValueError(f"{where} jumps from step {before:g} to {after:g} (a row every {every} agent-steps "
                              f"up to the checkpoint at {resume_step}): it is damaged; move it aside to resume with "
                              "a new log")  # fmt: skip
+
+
+def log_digest(path: Path, step: int) -> str | None:
+    """sha256 of the log's rows before `step` (each row's non-empty values, by column name: a column added later
+    leaves earlier rows as they were), None without a log. A checkpoint at `step` records it; the resume from it
+    finds the same rows there, or the log is not the one the checkpoint was saved with. Rows at `step` itself are
+    left out: the final validation's row is logged after the last checkpoint."""
+    if not path.exists():
+        return None
+    text = path.read_text(encoding="utf-8", errors="replace")
+    rows = csv.DictReader(io.StringIO(text[: text.rfind("\n") + 1], newline=""))
+    digest = hashlib.sha256()
+    for row in rows:
+        if _step(row) < step:
+            digest.update(repr(sorted((k, v) for k, v in row.items() if k and v)).encode())
+    return digest.hexdigest()[:16]
 
 
 def clock_offsets(path: Path, resume_step: int) -> dict[str, float]:

@@ -24,6 +24,7 @@ from searchrl.policies.checkpoint import saved_identity, saved_step
 from searchrl.train.build import load_algorithm
 from searchrl.train.callbacks import checkpoints
 from searchrl.train.command_line import fail
+from searchrl.train.csv_log import log_digest
 from searchrl.train.plan import Plan
 from searchrl.train.schema import RESUME_OVERRIDES
 from searchrl.world.scenario import Scenario
@@ -61,20 +62,33 @@ def foreign_checkpoint(path: Path, step: int, cfg: DictConfig) -> str | None:
     before models carried an identity is checked by its step alone."""
     saved = saved_step(path)
     if saved != step:
-        return f"holds a model saved at step {saved}, not {step}"
+        return f"holds a model saved at step {saved}, not {step} (move it out of checkpoints/ to resume from the last)"
     identity = saved_identity(path)
     if identity is None:
         return None
     if identity.get("step") != step:
-        return f"records step {identity.get('step')}, not {step}"
+        return f"records step {identity.get('step')}, not {step} (move it out of checkpoints/)"
     theirs, ours = _leaves(identity.get("run", {})), _leaves(run_identity(cfg))
     differ = sorted(k for k in theirs.keys() & ours.keys() if theirs[k] != ours[k])
     if differ:
         key = differ[0]
         more = f" (and {len(differ) - 1} more settings)" if len(differ) > 1 else ""
         return (f"was saved by a run with {key}={theirs[key]!r}, but the run's config.yaml says {key}={ours[key]!r}"
-                f"{more}: another run's checkpoint, or a config.yaml edited since")  # fmt: skip
+                f"{more}: another run's checkpoint (move it out of checkpoints/), or a config.yaml edited since "
+                "(restore it)")  # fmt: skip
     return None
+
+
+def other_log(checkpoint: Path, step: int) -> str | None:
+    """Why the run's progress.csv is not the log `checkpoint` (at `step`) was saved with, or None: its rows before
+    that step differ from those the checkpoint's digest covers (`log_digest`). A log the checkpoint saw none of, or
+    a missing one, is not compared."""
+    identity = saved_identity(checkpoint) or {}
+    log = log_digest(checkpoint.parent.parent / "progress.csv", step)
+    if identity.get("log") is None or log is None or log == identity["log"]:
+        return None
+    return (f"progress.csv is not the log checkpoints/{checkpoint.name} was saved with (its rows before step {step} "
+            "differ: another run's log, or an edited one); move it aside to resume with a new log")  # fmt: skip
 
 
 def is_finished(run_dir: Path, step: int, total: int) -> bool:
@@ -113,8 +127,7 @@ def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[Base
         try:
             problem = foreign_checkpoint(path, step, plan.cfg)  # a whole file of another run is not set aside
             if problem:
-                fail(f"resume={plan.cfg.resume!r}: checkpoints/{path.name} {problem}; nothing was changed (move it "
-                     "out of checkpoints/ to resume from the one before, or restore config.yaml)")  # fmt: skip
+                fail(f"resume={plan.cfg.resume!r}: checkpoints/{path.name} {problem}; nothing was changed")
             return load_algorithm(plan, str(path), env), path
         except OSError as err:  # cannot be read now (permission, I/O): maybe whole, so nothing is set aside
             fail(f"resume={plan.cfg.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
