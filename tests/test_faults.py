@@ -203,6 +203,17 @@ DAMAGES = {
 }
 
 
+def _damaged_copies(clean: Path, other: Path, files: list[Path], to: Path):
+    """(file, damage, folder) for each file of `clean` and each of DAMAGES in turn: `folder` a copy of `clean` with
+    that file so damaged (swapped for `other`'s file of that name)."""
+    for rel in files:
+        for name, damage in DAMAGES.items():
+            folder = to / f"{rel.name}_{name}"
+            shutil.copytree(clean, folder)
+            damage(folder / rel, other / rel)
+            yield rel, name, folder
+
+
 def _rerun(capsys, call) -> str:
     """'repaired' when `call` runs to its end, 'refused' when it exits 2 with one error line and no traceback."""
     capsys.readouterr()
@@ -224,16 +235,12 @@ def test_an_evaluation_folder_repairs_or_refuses_each_damaged_file_and_loses_not
     want = load(clean)
     files = sorted(p.relative_to(clean) for p in clean.rglob("*") if p.is_file() and ".locks" not in p.parts)
     outcomes = {}
-    for rel in files:
-        for name, damage in DAMAGES.items():
-            folder = tmp_path / "damaged" / f"{rel.name}_{name}"
-            shutil.copytree(clean, folder)
-            damage(folder / rel, other / rel)
-            kept = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file() and p != folder / rel}
-            outcome = outcomes[f"{rel.name} {name}"] = _rerun(capsys, lambda f=folder: _evaluate(f))
-            assert all(p.read_bytes() == content for p, content in kept.items() if ".locks" not in p.parts)
-            if outcome == "repaired":
-                pd.testing.assert_frame_equal(load(folder), want)
+    for rel, name, folder in _damaged_copies(clean, other, files, tmp_path / "damaged"):
+        kept = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file() and p != folder / rel}
+        outcome = outcomes[f"{rel.name} {name}"] = _rerun(capsys, lambda f=folder: _evaluate(f))
+        assert all(p.read_bytes() == content for p, content in kept.items() if ".locks" not in p.parts)
+        if outcome == "repaired":
+            pd.testing.assert_frame_equal(load(folder), want)
     cells = [rel.name for rel in files if rel.suffix == ".parquet"]
     assert outcomes == {
         **{f"evaluation.yaml {name}": "repaired" for name in ("deleted", "truncated", "garbage")},
@@ -254,22 +261,18 @@ def test_a_training_run_repairs_or_refuses_each_damaged_file_and_loses_nothing(t
     files = sorted(p.relative_to(tiny_run) for p in tiny_run.rglob("*") if p.is_file() and p.name != ".lock"
                    and p.parent.name != "tensorboard")  # fmt: skip
     outcomes = {}
-    for rel in files:
-        for name, damage in DAMAGES.items():
-            run = tmp_path / "damaged" / f"{rel.name}_{name}"
-            shutil.copytree(tiny_run, run)
-            damage(run / rel, other / rel)
-            before = _files(run)
-            overrides = [f"resume={run}", "total_timesteps=2304"]
-            outcome = outcomes[f"{rel.name} {name}"] = _rerun(
-                capsys, lambda o=overrides, r=run: train(_compose("train", o), r / "r", o)
-            )
-            if outcome == "refused":
-                assert _files(run) == before
-            else:
-                steps = pd.read_csv(run / "progress.csv")["time/total_timesteps"]
-                assert load_checkpoint(run / "model.zip").num_timesteps == 2304 and steps.iloc[-1] == 2304
-                assert steps.is_monotonic_increasing and steps.value_counts().max() <= 2  # + a final validation
+    for rel, name, run in _damaged_copies(tiny_run, other, files, tmp_path / "damaged"):
+        before = _files(run)
+        overrides = [f"resume={run}", "total_timesteps=2304"]
+        outcome = outcomes[f"{rel.name} {name}"] = _rerun(
+            capsys, lambda o=overrides, r=run: train(_compose("train", o), r / "r", o)
+        )
+        if outcome == "refused":
+            assert _files(run) == before
+        else:
+            steps = pd.read_csv(run / "progress.csv")["time/total_timesteps"]
+            assert load_checkpoint(run / "model.zip").num_timesteps == 2304 and steps.iloc[-1] == 2304
+            assert steps.is_monotonic_increasing and steps.value_counts().max() <= 2  # + a final validation
     refused = sorted(k for k, v in outcomes.items() if v == "refused")
     print(outcomes)
     assert refused == sorted([*(f"config.yaml {n}" for n in DAMAGES), "progress.csv garbage", "progress.csv swapped",
