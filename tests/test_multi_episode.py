@@ -7,6 +7,10 @@ world's own end, mid-run, beside worlds still playing. With as many worlds as ep
 a world of its own at step 0: the reference. A memory kept past a world's end, or reset at another world's end,
 changes a later episode. The planted missed resets below (each controller's `reset` applied to the world beside the
 one whose episode ended) are caught by the same comparison.
+
+The VecEnv's own auto-reset is held to the same: every array of a world whose episode ended mid-rollout equals that
+world reset from the same generator in a fresh state (a planted reset that leaves one array as it was is caught,
+for five of them).
 """
 
 from __future__ import annotations
@@ -78,3 +82,60 @@ def test_a_planted_missed_reset_is_caught(name, settings, scenario, monkeypatch)
     cls = registry.HEURISTICS[name].cls
     monkeypatch.setattr(cls, "reset", _reset_beside(cls))
     assert _later_episodes_differ(name, settings, scenario, slots=(3,))  # with one world the roll is no plant
+
+
+# The VecEnv resets a world as soon as its episode ends, mid-rollout, beside worlds still playing.
+AGED = replace(CONFIG, belief_age=0.5, belief_seen=True)  # every per-agent memory of the world kept
+
+
+def _auto_resets(monkeypatch, config: WorldConfig, forget: str | None = None) -> list[tuple]:
+    """Step a SearchVecEnv of 3 worlds with random moves until several episodes have ended; each auto-reset as
+    (mask, the generator before it, the state after it). `forget`: an array the reset is made to leave as it was
+    in the worlds it resets (a planted missed reset)."""
+    import copy
+
+    import searchrl.world.engine as engine
+    from searchrl.envs.vec_env import SearchVecEnv
+
+    resets, original = [], engine.reset_worlds
+
+    def recording(config, state, mask, rng, scenario=PAPER):
+        before, kept = copy.deepcopy(rng), getattr(state, forget).copy() if forget else None
+        original(config, state, mask, rng, scenario)
+        if forget:
+            getattr(state, forget)[mask] = kept[mask]
+        resets.append((mask.copy(), before, state.copy()))
+
+    monkeypatch.setattr(engine, "reset_worlds", recording)
+    env, rng = SearchVecEnv(config, n_worlds=3, seed=5), np.random.default_rng(0)
+    env.reset()
+    for _ in range(3 * config.max_steps):
+        env.step(rng.integers(0, config.n_actions, env.num_envs))
+    return resets[1:]  # the auto-resets (the first is env.reset's, of every world)
+
+
+def _leftovers(resets: list[tuple], config: WorldConfig) -> list[str]:
+    """The arrays of reset worlds that differ from the same worlds reset from the same generator in a fresh state."""
+    from dataclasses import fields
+
+    from searchrl.world.reset import reset_worlds
+    from searchrl.world.state import allocate
+
+    found = set()
+    for mask, rng, after in resets:
+        fresh = allocate(config, 3)
+        reset_worlds(config, fresh, mask, rng)
+        found |= {f.name for f in fields(after) if isinstance(getattr(after, f.name), np.ndarray)
+                  and not np.array_equal(getattr(after, f.name)[mask], getattr(fresh, f.name)[mask])}  # fmt: skip
+    return sorted(found)
+
+
+def test_the_vec_env_resets_every_array_of_a_world_whose_episode_ended(monkeypatch):
+    resets = _auto_resets(monkeypatch, AGED)
+    assert sum(not m.all() for m, _, _ in resets) >= 2  # worlds ended apart from the others, mid-rollout
+    assert _leftovers(resets, AGED) == []
+
+
+@pytest.mark.parametrize("array", ["swept", "belief_time", "belief_seen", "ep_stale", "target_found"])
+def test_a_planted_missed_reset_of_the_world_is_caught(monkeypatch, array):
+    assert _leftovers(_auto_resets(monkeypatch, AGED, forget=array), AGED) == [array]
