@@ -22,6 +22,9 @@ import pytest
 
 from searchrl.controllers import registry
 from searchrl.controllers.episodes import play_episodes
+from searchrl.envs.team_mix import TeamMixVecEnv
+from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.train.teacher_labels import TeacherLabels
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import PAPER, IidObstacles, Scenario
 
@@ -95,7 +98,6 @@ def _auto_resets(monkeypatch, config: WorldConfig, forget: str | None = None) ->
     import copy
 
     import searchrl.world.engine as engine
-    from searchrl.envs.vec_env import SearchVecEnv
 
     resets, original = [], engine.reset_worlds
 
@@ -139,3 +141,56 @@ def test_the_vec_env_resets_every_array_of_a_world_whose_episode_ended(monkeypat
 @pytest.mark.parametrize("array", ["swept", "belief_time", "belief_seen", "ep_stale", "target_found"])
 def test_a_planted_missed_reset_of_the_world_is_caught(monkeypatch, array):
     assert _leftovers(_auto_resets(monkeypatch, AGED, forget=array), AGED) == [array]
+
+
+def _labels_without_teacher_resets(self):
+    """TeacherLabels.step_wait with its teachers' resets left out: a planted missed reset."""
+    obs, rewards, dones, infos = self.venv.step_wait()
+    self._current = self._label(obs)
+    return obs, rewards, dones, infos
+
+
+@pytest.mark.parametrize("planted", [False, True])
+def test_the_teachers_memory_is_reset_exactly_in_the_worlds_whose_episode_ended(planted, monkeypatch):
+    """TeacherLabels over a team mix (two groups of worlds, slots of 3 and 2 agents): after every step each group's
+    teacher is reset in the worlds of that group the VecEnv restarted, and only there; every array the teacher
+    keeps per world then equals a fresh teacher's reset on the same state and acting once (the label)."""
+    if planted:
+        monkeypatch.setattr(TeacherLabels, "step_wait", _labels_without_teacher_resets)
+        with pytest.raises(AssertionError):
+            _check_teacher_resets()
+    else:
+        _check_teacher_resets()
+
+
+def _check_teacher_resets() -> None:
+    groups = [SearchVecEnv(AGED, n_worlds=3, seed=1), SearchVecEnv(replace(AGED, n_agents=2), n_worlds=2, seed=2)]
+    env = TeacherLabels(TeamMixVecEnv(groups), "greedy", {"seen": True, "age": 0.5}, seed=0)
+    calls: list[list] = [[] for _ in groups]
+    for j, teacher in enumerate(env.teachers):
+        original = teacher.reset
+        teacher.reset = lambda state, mask, j=j, original=original: (calls[j].append(mask.copy()),
+                                                                     original(state, mask))  # fmt: skip
+    env.reset()
+    rng, restarted = np.random.default_rng(0), 0
+    for _ in range(2 * AGED.max_steps):
+        obs, _, dones, _ = env.step(rng.integers(0, AGED.n_actions, env.num_envs))
+        for j, group in enumerate(groups):
+            lo = int(env._bounds[j])
+            ended = np.array([bool(dones[lo + k * group.n_agents]) for k in range(group.world.n_worlds)])
+            assert np.array_equal(calls[j][-1], ended) if ended.any() else len(calls[j]) >= 1
+            if ended.any() and not ended.all():
+                restarted += 1
+                fresh = registry.make_teacher("greedy", group.config, 0, {"seen": True, "age": 0.5})
+                k, n, state = group.world.n_worlds, group.n_agents, group.world.state
+                fresh.reset(state, np.ones(k, bool))
+                part = slice(lo, lo + k * n)  # its labels' act: what the wrapper's teacher did since its reset
+                fresh.act(
+                    state, obs["map"][part].reshape(k, n, *obs["map"].shape[1:]), obs["vector"][part].reshape(k, n, -1)
+                )
+                mine = env.teachers[j]
+                for name, value in vars(mine).items():
+                    if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == group.world.n_worlds:
+                        assert np.array_equal(value[ended], getattr(fresh, name)[ended]), name
+            calls[j] = calls[j][-1:]
+    assert restarted >= 2  # some worlds restarted while others played on
