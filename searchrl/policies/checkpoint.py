@@ -99,11 +99,10 @@ def policy_kwargs(network: Mapping[str, Any], algo: str) -> dict[str, Any]:
 # a pickle runs whatever code its author chose. The episode-info buffers, the rollout in progress and the rollout
 # buffer's class are left empty: SB3 makes them anew (a resumed training resets its envs, as SB3's `load` with an env
 # always does; `_setup_model` picks the buffer class of the observation space).
-REBUILT = (
-    *("policy_class", "policy_kwargs", "observation_space", "action_space", "clip_range", "lr_schedule"),
-    *("ep_info_buffer", "ep_success_buffer", "_last_obs", "_last_original_obs", "_last_episode_starts"),
-    "rollout_buffer_class",
-)
+FROM_CONFIG = ("policy_class", "policy_kwargs", "observation_space", "action_space", "clip_range", "lr_schedule")
+LEFT_EMPTY = ("ep_info_buffer", "ep_success_buffer", "_last_obs", "_last_original_obs", "_last_episode_starts",
+              "rollout_buffer_class")  # fmt: skip
+REBUILT = FROM_CONFIG + LEFT_EMPTY
 
 
 def _data(path: str | Path) -> dict[str, Any]:
@@ -137,8 +136,7 @@ def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
     algo, world = str(cfg.algo.name), WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
     cls, policy = ALGORITHMS[algo]
     clip_range = cfg.algo.get("clip_range")
-    empty = dict.fromkeys(REBUILT[6:])
-    return empty | {
+    return dict.fromkeys(LEFT_EMPTY) | {
         "policy_class": cls.policy_aliases[policy] if isinstance(policy, str) else policy,
         "policy_kwargs": policy_kwargs(cfg.network, algo),
         "observation_space": observation_space(world),
@@ -148,8 +146,9 @@ def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
     }
 
 
-# The member of a model.zip that searchrl writes beside SB3's: {"step": agent-steps, "run": the run's settings}
-# (searchrl/train/run_record.py). SB3 ignores members it does not know, so plain SB3 still opens the file.
+# The member of a model.zip that searchrl writes beside SB3's: {"step": agent-steps, "run": the run's settings,
+# "log": a digest of its log before that step} (searchrl/train/run_record.py). SB3 ignores members it does not
+# know, so plain SB3 still opens the file.
 IDENTITY = "searchrl.json"
 
 
