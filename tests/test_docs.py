@@ -196,6 +196,10 @@ def test_the_docs_name_only_group_options_that_exist():
         ):
             if name not in options[group] and name not in ("null", "none"):
                 stale.append(f"{page.relative_to(ROOT)}: {group}={name}")
+        # and the lists "`algo` (`recurrent_ppo`, `a2c`)" that say which options a group has
+        for group, listed in re.findall(rf"`({'|'.join(GROUPS)})` \(((?:`[a-z0-9_]+`(?:, )?)+)\)", text):
+            names = re.findall(r"`([a-z0-9_]+)`", listed)
+            stale += [f"{page.relative_to(ROOT)}: {group} lists {name}" for name in names if name not in options[group]]
     assert not stale, stale
 
 
