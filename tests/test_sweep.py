@@ -47,7 +47,7 @@ def optuna_sweep(tmp_path_factory):
 def test_optuna_sweeps_the_search_space_and_reports_the_best_trial(optuna_sweep):
     sweep = optuna_sweep / "sweep"
     jobs = load_jobs(sweep)
-    assert len(jobs) == 2 and jobs.finished.all() and (jobs.validations == 3).all()
+    assert len(jobs) == 2 and jobs.finished.all() and (jobs.validations == 2).all()  # at 1024 and the final 2048
     # Each trial draws every parameter of conf/hydra/sweeper/optuna_searchrl.yaml, inside its range.
     assert jobs["algo.learning_rate"].between(3e-5, 3e-3).all() and jobs["algo.ent_coef"].between(0, 0.05).all()
     assert set(jobs["algo.gamma"]) <= {0.95, 0.98, 0.99, 0.995}

@@ -136,10 +136,10 @@ def checkpoints(directory: Path) -> list[tuple[int, Path]]:
 
 
 class ValidationCallback(BaseCallback):
-    """Every `every` agent-steps (never if 0), and once more for the final model when training ends, runs the
-    policy on fixed validation worlds and logs `val/<metric>` (with `at_start`, also before the first rollout); the
-    random-walk level on the same worlds is logged with each as `val/random_<metric>` for reference. The final
-    validation's row also holds the last update's losses, which SB3 records after its last log row."""
+    """Every `every` agent-steps (never if 0, nor in the last rollout) and once for the final model when training
+    ends, runs the policy on fixed validation worlds and logs `val/<metric>` (with `at_start`, also before the first
+    rollout); the random-walk level on the same worlds is logged with each as `val/random_<metric>` for reference.
+    The final validation's row also holds the last update's losses, which SB3 records after its last log row."""
 
     def __init__(self, world_config: WorldConfig, scenario: Scenario, every: int, n_worlds: int, seed: int,
                  deterministic: bool, at_start: bool = False,
@@ -149,7 +149,7 @@ class ValidationCallback(BaseCallback):
         self.world_config, self.scenario = world_config, scenario
         self.every, self.n_worlds, self.seed = every, n_worlds, seed
         self.deterministic, self.at_start = deterministic, at_start
-        self._next = 0
+        self._next = self._rollout_end = 0
         self.random_level: dict[str, float] = {}
 
     def _init_callback(self) -> None:
@@ -164,10 +164,16 @@ class ValidationCallback(BaseCallback):
             self.logger.record("time/total_timesteps", 0)
             self.logger.dump(0)
 
+    def _on_rollout_start(self) -> None:
+        self._rollout_end = self.num_timesteps + self.model.n_steps * self.model.n_envs
+
     def _on_step(self) -> bool:
         if self.every > 0 and self.num_timesteps >= self._next:
             self._next = (self.num_timesteps // self.every + 1) * self.every
-            self.validate()
+            # logged at this rollout's end: in the last rollout that is the final validation's step, whose row
+            # holds the final weights' validation; a second row there would count twice in the score
+            if self._rollout_end < self.model._total_timesteps:
+                self.validate()
         return True
 
     def _on_training_end(self) -> None:
