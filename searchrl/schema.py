@@ -86,7 +86,7 @@ def check_group_choices(argv: list[str]) -> None:
         key, eq, value = arg.lstrip("+").partition("=")
         if not eq or not key or key.split("/")[0] == "hydra" or not (CONF_DIR / key).is_dir() or "(" in value:
             continue
-        options = group_options(key)
+        options = group_options(key) + stored_options(key)
         for option in value.split(","):
             option = option.strip().strip("'\"")
             if option in options or option == "null":
@@ -97,6 +97,18 @@ def check_group_choices(argv: list[str]) -> None:
                        f"`python -m searchrl.evaluate controller={option}`; models: {listed}")  # fmt: skip
             hint = nearest(option, options, f"{key}=")
             refuse(f"{arg} is not allowed: conf/{key}/ has no {option!r}{hint}; options: {listed}")
+
+
+def stored_options(group: str) -> list[str]:
+    """The options of `group` a module stored in Hydra's ConfigStore (an extension's scenario, say), less the
+    schemas."""
+    from hydra.core.config_store import ConfigStore
+
+    try:
+        names = ConfigStore.instance().list(group)
+    except OSError:  # no such group stored
+        return []
+    return [n.removesuffix(".yaml") for n in names if not n.removesuffix(".yaml").endswith("_schema")]
 
 
 def nearest(word: str, options: list[str], prefix: str = "") -> str:

@@ -164,11 +164,14 @@ def test_the_docs_name_only_registered_controllers_and_controllers_md_names_ever
     from searchrl.controllers.registry import HEURISTICS
 
     pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml"))]
+    # a user's package registers its own (docs/extending.md's example)
+    users = {m for p in (ROOT / "tests" / "extension_example").glob("*.py")
+             for m in re.findall(r'register\("([a-z_]+)"', p.read_text())}  # fmt: skip
     for page in pages:
         if page.name == "log.md":  # history: commands as they were run then
             continue
         for name in re.findall(r"(?:controller|imitation\.teacher)=([a-z_]+)\b", page.read_text()):
-            assert name in HEURISTICS or name in ("name", "null", "oracle_switch"), (page.name, name)
+            assert name in HEURISTICS or name in ("name", "null", "oracle_switch", *users), (page.name, name)
     text = (ROOT / "docs" / "controllers.md").read_text()
     assert [name for name in HEURISTICS if f"`{name}`" not in text and f"controller={name}" not in text] == []
 
@@ -182,6 +185,9 @@ def test_the_docs_name_only_group_options_that_exist():
     from searchrl.paths import group_options
 
     options = {group: set(group_options(group)) for group in GROUPS}
+    for path in (ROOT / "tests" / "extension_example").glob("*.py"):  # what a user's package stores (extending.md)
+        for group, name in re.findall(r'group="([a-z]+)",\s*name="([a-z_]+)"', path.read_text()):
+            options[group].add(name)
     pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml")),
              *sorted((ROOT / "analysis").glob("*.py")), *sorted((ROOT / "analysis").glob("*.sh"))]  # fmt: skip
     stale = []

@@ -56,8 +56,13 @@ ADDED_LATER = {
     "imitation.lr_schedule": "constant: the only imitation rate before the field",
     "imitation.rl_weight": "0: plain PPO after the clone, the only RL before the field",
     "imitation.rl_schedule": "constant: unused with rl_weight 0",
+    "imitation.rl_anneal_steps": "unused by the constant and linear schedules, the only ones before the field",
     "imitation.critic_warmup": "0: PPO updates the policy from the first rollout, as before the field",
     "init": "null: fresh weights, the only start before the field",
+    "network.extractor": "search_cnn: the paper's network, the only one before the field",
+    "network.grid": "16: read only by an extractor with a whole-map view, none before the field",
+    "extensions": "[]: no user's modules, only searchrl's parts, as before the field",
+    "critic": "shared: the value head on the actor's features, the only critic before the field",
     "scenario": "the paper's: no obstacle, targets placed from the prior, every world drawn before scenarios",
 }
 # Shipped start weights that moved after a run recorded their path: {recorded `init`: (where the same weights are

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
@@ -107,3 +108,34 @@ def test_a_bad_family_is_named_before_any_folder(tmp_path, capsys):
         _run(tmp_path, "controller=coverage", suite=bad)
     assert "scenario.targets.kind='psychic' is not allowed" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+def test_a_suite_folder_repairs_or_refuses_each_damaged_file_and_loses_nothing(tmp_path, capsys):
+    """Each file of a finished suite folder (its suite.yaml, each scenario's record and cells) in turn deleted,
+    truncated, overwritten or swapped for another suite run's (seed 6): the rerun repairs it (the folder then loads
+    as the undamaged one) or refuses in one line, leaving every other file as it was; nothing mixes the two."""
+    import shutil
+
+    from tests.test_faults import DAMAGES, _damaged_copies, _rerun
+
+    one = {**TINY, "families": {"off_prior": TINY["families"]["off_prior"]}}  # two scenarios: enough of each file
+    clean_folders = _run(tmp_path / "clean", "controller=coverage", suite=one)
+    _run(tmp_path / "other", "controller=coverage", suite={**one, "seed": 6})
+    clean, other = tmp_path / "clean", tmp_path / "other"
+    want = load(*clean_folders)
+    files = sorted(p.relative_to(clean) for p in clean.rglob("*") if p.is_file() and ".locks" not in p.parts)
+    outcomes = {}
+    for rel, name, folder in _damaged_copies(clean, other, files, tmp_path / "damaged"):
+        kept = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file() and p != folder / rel}
+        outcome = _rerun(capsys, lambda f=folder: _run(f, "controller=coverage", suite=one))
+        outcomes[f"{rel} {name}"] = outcome
+        changed = [p for p, content in kept.items() if ".locks" not in p.parts and p.read_bytes() != content]
+        assert changed in ([], [folder / "suite.yaml"]) if outcome == "repaired" else not changed, (rel, name)
+        if outcome == "repaired":
+            got = load(*(folder / f.name for f in clean_folders))
+            pd.testing.assert_frame_equal(got, want)
+        shutil.rmtree(folder)
+    swapped_cells = [k for k in outcomes if k.endswith(".parquet swapped")]
+    assert swapped_cells and all(outcomes[k] == "refused" for k in swapped_cells)  # another suite's maps: never mixed
+    assert all(outcomes[f"suite.yaml {n}"] == "repaired" for n in DAMAGES)  # the record is the suite's definition
+    assert all(v == "repaired" for k, v in outcomes.items() if not k.endswith("swapped")), outcomes

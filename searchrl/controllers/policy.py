@@ -29,6 +29,7 @@ class PolicyController:
         self.rng = None if deterministic else random_source(seed)
         self._state: torch.Tensor | None = None  # (2, layers, K·N, hidden) on the actor's device
         self._start = np.zeros(0, bool)  # (K·N,) slots whose next step begins an episode
+        self._parts: dict[str, np.ndarray] = {}  # the actor's observation parts, (K, N, ...) each
 
     @classmethod
     def load(
@@ -50,18 +51,26 @@ class PolicyController:
         k, n = state.n_worlds, state.n_agents
         maps, vector = maps.reshape(k * n, *maps.shape[2:]), vector.reshape(k * n, -1)
         actions = np.zeros(k * n, np.int64)
+        worlds = np.arange(k) if active is None else np.flatnonzero(active)
+        parts = {}
+        for part in self.actor.parts:  # observed here: the episode runners observe the window and vector only
+            if part.key not in self._parts or self._parts[part.key].shape[0] != k:
+                self._parts[part.key] = np.zeros((k, *part.shape(n)), np.float32)
+            part.fill(state, self.config.max_steps, self._parts[part.key], worlds)
+            parts[part.key] = self._parts[part.key].reshape(k * n, *self._parts[part.key].shape[2:])
         if active is None or active.all():
             rows = slice(None)
         else:
             rows = np.flatnonzero(np.repeat(active, n))
             maps, vector = maps[rows], vector[rows]
+            parts = {key: values[rows] for key, values in parts.items()}
         lstm = None
         if self._state is not None:  # indexed on the device: the state never travels
             device = self._state.device
             slots = rows if isinstance(rows, slice) else torch.from_numpy(rows).to(device)
             keep = torch.from_numpy(~self._start[rows]).to(device)  # zero where an episode starts
             lstm = self._state[:, :, slots] * keep[None, None, :, None]
-        logits, lstm = self.actor.logits(maps, vector, lstm)
+        logits, lstm = self.actor.logits(maps, vector, lstm, parts)
         if lstm is not None:
             self._state[:, :, slots] = lstm
         uniforms = None if self.rng is None else self.rng.random((k, n)).reshape(-1)[rows]

@@ -6,6 +6,7 @@ agents act at once and the episode ends for all of them together; then `agents` 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -13,6 +14,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from searchrl.envs.spaces import action_space, observation_space
+from searchrl.world.coarse import ObservationPart
 from searchrl.world.config import WorldConfig, check_seed, is_int
 from searchrl.world.engine import SearchWorld
 from searchrl.world.render import world_frame
@@ -23,22 +25,23 @@ AgentID = str
 
 
 class SearchParallelEnv(ParallelEnv):
-    """PettingZoo parallel API over one world. `config` fixes the model (Φ, communication, actions)."""
+    """PettingZoo parallel API over one world. `config` fixes the model (Φ, communication, actions); `parts`
+    (searchrl/envs/parts.py, e.g. `make_parts([("own_map", {})])`) are observed beside the window and the vector."""
 
     metadata = {"name": "searchrl_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}  # noqa: RUF012
 
-    def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None, scenario: Scenario = PAPER
-                 ) -> None:  # fmt: skip
+    def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None, scenario: Scenario = PAPER,
+                 parts: Sequence[ObservationPart] = ()) -> None:  # fmt: skip
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
         if config is not None and not isinstance(config, WorldConfig):
             raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
         self.config = config if config is not None else WorldConfig()
-        self.world = SearchWorld(self.config, 1, scenario=scenario, auto_reset=False)
+        self.world = SearchWorld(self.config, 1, scenario=scenario, auto_reset=False, parts=parts)
         self.render_mode = render_mode
         self.possible_agents: list[AgentID] = [f"agent_{i}" for i in range(self.config.n_agents)]
         self.agents: list[AgentID] = []
-        self._observation_space = observation_space(self.config)
+        self._observation_space = observation_space(self.config, parts)
         self._action_space = action_space(self.config)
 
     @property
@@ -99,7 +102,8 @@ class SearchParallelEnv(ParallelEnv):
         return obs, rewards, terminations, truncations, infos
 
     def _observations(self, maps: np.ndarray, vector: np.ndarray) -> dict[AgentID, dict[str, np.ndarray]]:
-        return {agent: {"map": maps[0, i].copy(), "vector": vector[0, i].copy()}
+        return {agent: {"map": maps[0, i].copy(), "vector": vector[0, i].copy(),
+                        **{key: values[0, i].copy() for key, values in self.world.parts.items()}}
                 for i, agent in enumerate(self.possible_agents)}  # fmt: skip
 
     def render(self) -> np.ndarray | None:

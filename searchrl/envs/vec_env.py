@@ -19,6 +19,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from searchrl.envs.spaces import action_space, observation_space
+from searchrl.world.coarse import ObservationPart
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.render import world_frames
@@ -32,18 +33,18 @@ class SearchVecEnv(VecEnv):
     metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012 (gymnasium convention)
 
     def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None, render_mode: str | None = None,
-                 scenario: Scenario = PAPER) -> None:  # fmt: skip
+                 scenario: Scenario = PAPER, parts: Sequence[ObservationPart] = ()) -> None:  # fmt: skip
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
         if not isinstance(config, WorldConfig):
             raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig")
         self.config = config
         self.render_mode = render_mode
-        self.world = SearchWorld(config, n_worlds, seed=seed, scenario=scenario)
+        self.world = SearchWorld(config, n_worlds, seed=seed, scenario=scenario, parts=parts)
         self.n_agents = config.n_agents
         self._actions: np.ndarray | None = None
         self._t_start = time.time()
-        super().__init__(n_worlds * config.n_agents, observation_space(config), action_space(config))
+        super().__init__(n_worlds * config.n_agents, observation_space(config, parts), action_space(config))
 
     # --- core contract -------------------------------------------------------------------------------------
     def reset(self) -> VecEnvObs:
@@ -79,6 +80,7 @@ class SearchVecEnv(VecEnv):
                 infos[base + i]["terminal_observation"] = {
                     "map": tr.final_maps[k, i].copy(),
                     "vector": tr.final_vector[k, i].copy(),
+                    **{key: values[k, i].copy() for key, values in tr.final_parts.items()},
                 }
                 infos[base + i]["TimeLimit.truncated"] = bootstrap
             metrics = {name: float(values[k]) for name, values in tr.metrics.items()}
@@ -96,6 +98,7 @@ class SearchVecEnv(VecEnv):
         return {
             "map": maps.reshape(self.num_envs, *maps.shape[2:]).copy(),
             "vector": vector.reshape(self.num_envs, -1).copy(),
+            **{key: a.reshape(self.num_envs, *a.shape[2:]).copy() for key, a in self.world.parts.items()},
         }
 
     def close(self) -> None:

@@ -23,6 +23,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from tqdm import tqdm
 
+from searchrl import extensions
 from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, storage_message, write_atomic
 from searchrl.controllers.factory import heuristic_factory, policy_factory
 from searchrl.controllers.registry import heuristic
@@ -172,6 +173,7 @@ class Evaluation:
 
 def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | None = None) -> Evaluation:
     """Every check of an evaluation, before any work or file (ConfigError naming the bad value)."""
+    extensions.import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
     cells, out_dir, scenario = check_evaluation(cfg, overrides)
     world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
     for index, cell in cells:  # a cell impossible for its n or N fails now, not when reached

@@ -32,6 +32,7 @@ class EvaluateConfig:
     model: ModelConfig | None = None
     controller: Any = MISSING
     checkpoint: str | None = None  # a trained model.zip: evaluated instead of the controller, with its own settings
+    extensions: list[str] = field(default_factory=list)  # modules that register parts (searchrl/extensions.py)
     suite: Any = None  # a frozen scenario suite (conf/suite/): its cells, maps, seed and scenarios, one folder each
     deterministic: bool = False  # policies: argmax instead of sampled actions
     # What a reset draws besides the sizes and the prior (conf/scenario/); any scenario applies to a checkpoint too.

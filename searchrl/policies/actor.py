@@ -27,6 +27,8 @@ from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
 
+from searchrl.envs.parts import make_parts
+
 
 def _optimized(extractor: nn.Module, example: dict[str, torch.Tensor]) -> nn.Module:
     """The extractor traced, frozen and optimised for inference; the eager module where tracing fails or the result
@@ -84,10 +86,14 @@ class Actor:
         self._head = policy.action_net
         self._lstm: nn.LSTM | None = policy.lstm_actor if self.recurrent else None
         space = policy.observation_space
-        self.keys = tuple(space.spaces)  # "map", "vector"
+        extractor = policy.pi_features_extractor
+        # The keys the actor's extractor reads: "map", "vector" and its observation parts, never a critic's own
+        # input (searchrl/policies/networks.py), so an actor runs where no true state exists.
+        self.keys = tuple(getattr(extractor, "keys", space.spaces))
+        # The parts to observe for it, each on the grid its space says (a part's one setting).
+        self.parts = make_parts((name, {"grid": space[name].shape[-1]}) for name in getattr(extractor, "parts", ()))
         example = {k: torch.as_tensor(np.stack([space[k].sample() for _ in range(4)]), device=self.device)
                    for k in self.keys}  # fmt: skip
-        extractor = policy.pi_features_extractor
         self._extract = _optimized(extractor, example) if optimize else extractor
 
     def initial_state(self, batch: int) -> torch.Tensor | None:
@@ -99,12 +105,13 @@ class Actor:
 
     @torch.inference_mode()
     def logits(
-        self, maps: np.ndarray, vector: np.ndarray, state: torch.Tensor | None = None
-    ) -> tuple[np.ndarray, torch.Tensor | None]:
-        """maps (B, C, F, F), vector (B, V), state (2, layers, B, hidden) on the actor's device or None ->
-        (logits (B, n_actions) float32, next state on the device). A slot whose episode starts now gets a zero
-        state (`initial_state`)."""
-        parts = {"map": maps, "vector": vector}
+        self, maps: np.ndarray, vector: np.ndarray, state: torch.Tensor | None = None,
+        parts: dict[str, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, torch.Tensor | None]:  # fmt: skip
+        """maps (B, C, F, F), vector (B, V), state (2, layers, B, hidden) on the actor's device or None, and the
+        actor's observation parts {key: (B, ...)} (`self.parts`) -> (logits (B, n_actions) float32, next state on
+        the device). A slot whose episode starts now gets a zero state (`initial_state`)."""
+        parts = {"map": maps, "vector": vector, **(parts or {})}
         # `.to` and `.cpu` return the very tensor on the CPU: no copy, the same arithmetic as before devices
         obs = {k: torch.from_numpy(np.ascontiguousarray(parts[k], np.float32)).to(self.device) for k in self.keys}
         features = self._extract(obs)

@@ -25,7 +25,8 @@ from searchrl.atomic import write_atomic
 from searchrl.envs.spaces import action_space, observation_space
 from searchrl.policies.actor import Actor
 from searchrl.policies.algorithms import ALGORITHMS
-from searchrl.policies.extractor import SearchCNN
+from searchrl.policies.networks import chosen, observation_parts, policy_kwargs
+from searchrl.policies.recurrent import OwnCriticLstmPolicy
 from searchrl.world.config import WorldConfig
 
 
@@ -78,20 +79,15 @@ def checkpoint_label(path: str | Path) -> str:
     return name if path.name == "model.zip" else f"{name}@{path.stem}"
 
 
-def policy_kwargs(network: Mapping[str, Any], algo: str) -> dict[str, Any]:
-    """SB3 policy_kwargs of a run's `network` settings (its config's `network` node) for algorithm `algo`."""
-    kwargs: dict[str, Any] = {
-        "features_extractor_class": SearchCNN,
-        "features_extractor_kwargs": {
-            "conv_channels": [int(c) for c in network["conv_channels"]],
-            "vector_size": int(network["vector_size"]),
-            "fc_sizes": [int(c) for c in network["fc_sizes"]],
-        },
-        "net_arch": [],  # policy and value heads are linear on the features (or the LSTM output), as in PRIMAL
-    }
-    if algo == "recurrent_ppo":
-        kwargs["lstm_hidden_size"] = int(network["lstm_hidden_size"])
-    return kwargs
+def policy_class(algo: str, critic: Mapping[str, Any] | None = None) -> type:
+    """The SB3 policy class a run of `algo` is built with: the algorithm's, or, with a critic of its own
+    (`critic.name` other than shared), `OwnCriticLstmPolicy` (RecurrentPPO only)."""
+    cls, policy = ALGORITHMS[algo]
+    if critic is not None and chosen({}, critic)[1] is not None:
+        if algo != "recurrent_ppo":
+            raise ValueError(f"critic.name={critic['name']!r} needs algo=recurrent_ppo (its critic LSTM), not {algo}")
+        return OwnCriticLstmPolicy
+    return cls.policy_aliases[policy] if isinstance(policy, str) else policy
 
 
 # The entries of a model.zip's `data` that SB3 pickles (cloudpickle). Each is rebuilt from the run's config and
@@ -134,12 +130,18 @@ def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
             f"{', '.join(REBUILT)})"
         )
     algo, world = str(cfg.algo.name), WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
-    cls, policy = ALGORITHMS[algo]
     clip_range = cfg.algo.get("clip_range")
+    critic = cfg.get("critic")
+    try:
+        kwargs, parts = policy_kwargs(cfg.network, algo, critic), observation_parts(cfg.network, critic)
+    except ValueError as err:  # a part registered by a module this process has not imported
+        named = list(cfg.get("extensions") or [])
+        hint = f"; its run had extensions={named}: pass them here too" if named else ""
+        raise ValueError(f"checkpoint={str(path)!r}: its run's {err}{hint}") from None
     return dict.fromkeys(LEFT_EMPTY) | {
-        "policy_class": cls.policy_aliases[policy] if isinstance(policy, str) else policy,
-        "policy_kwargs": policy_kwargs(cfg.network, algo),
-        "observation_space": observation_space(world),
+        "policy_class": policy_class(algo, critic),
+        "policy_kwargs": kwargs,
+        "observation_space": observation_space(world, parts),
         "action_space": action_space(world),
         "clip_range": None if clip_range is None else float(clip_range),  # SB3 makes it a schedule again
         "lr_schedule": FloatSchedule(float(cfg.algo.learning_rate)),  # made again from learning_rate too

@@ -37,6 +37,9 @@ class SearchCNN(BaseFeaturesExtractor):
     fc_sizes: widths of the FC layers after concatenation (the paper has two).
     """
 
+    keys: tuple[str, ...] = ("map", "vector")  # the observation keys it reads
+    parts: tuple[str, ...] = ()  # the observation parts (searchrl/envs/parts.py) the env must add for it
+
     def __init__(
         self,
         observation_space: spaces.Dict,

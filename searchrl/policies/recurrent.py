@@ -70,3 +70,26 @@ class SequenceLstmPolicy(RecurrentMultiInputActorCriticPolicy):
             return super()._get_action_dist_from_latent(latent_pi)
         finally:
             self.action_dist = shared
+
+
+class OwnCriticLstmPolicy(SequenceLstmPolicy):
+    """`SequenceLstmPolicy` whose critic has a features extractor of its own class, `critic_extractor_class`
+    (searchrl/policies/networks.py), built with the actor's `features_extractor_kwargs` and feeding the critic's
+    LSTM; the actor's extractor, LSTM and head are the ones a shared policy has, under the same names."""
+
+    def __init__(self, *args: Any, critic_extractor_class: type[nn.Module], **kwargs: Any) -> None:
+        self.critic_extractor_class = critic_extractor_class
+        super().__init__(*args, **{**kwargs, "share_features_extractor": False})
+
+    def make_features_extractor(self) -> nn.Module:
+        # SB3's ActorCriticPolicy.__init__ calls this for the actor's extractor, then (not shared) for the critic's.
+        if not isinstance(getattr(self, "features_extractor", None), nn.Module):
+            return super().make_features_extractor()
+        critic = self.critic_extractor_class(self.observation_space, **self.features_extractor_kwargs)
+        if critic.features_dim != self.features_extractor.features_dim:  # the critic's LSTM takes the actor's width
+            raise ValueError(f"the critic's features ({critic.features_dim}) must be as wide as the actor's "
+                             f"({self.features_extractor.features_dim})")  # fmt: skip
+        return critic
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        return {**super()._get_constructor_parameters(), "critic_extractor_class": self.critic_extractor_class}

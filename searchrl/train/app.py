@@ -213,10 +213,10 @@ def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple
     model = make_algorithm(plan, env)
     if cfg.init is not None:
         try:
-            init_weights(model, str(cfg.init), cfg)
+            fresh = init_weights(model, str(cfg.init), cfg)
         except ValueError as err:
             fail(str(err))
-        print(f"policy weights from {cfg.init}", file=sys.stderr)
+        print(f"policy weights from {cfg.init}" + (f"; fresh: {', '.join(fresh)}" if fresh else ""), file=sys.stderr)
     return model, False
 
 

@@ -8,8 +8,8 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
-from searchrl.policies.algorithms import ALGORITHMS
-from searchrl.policies.checkpoint import load_checkpoint, policy_kwargs
+from searchrl.policies.checkpoint import load_checkpoint, policy_class, run_config
+from searchrl.policies.networks import observation_parts, policy_kwargs
 from searchrl.train.plan import Plan
 from searchrl.train.teacher_labels import TeacherLabels
 from searchrl.train.teacher_term import TeacherTerm
@@ -18,8 +18,9 @@ from searchrl.train.teacher_term import TeacherTerm
 def make_vec_env(plan: Plan, seed: int | None = None) -> VecEnv:
     """One SearchVecEnv, or a TeamMixVecEnv when env.extra_teams adds groups (group j seeded with seed + j); with
     the teacher term, wrapped to label every step with the teacher's action (`TeacherLabels`)."""
-    envs = [SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=plan.scenario)
-            for j, (world, k) in enumerate(plan.groups)]  # fmt: skip
+    parts = observation_parts(plan.cfg.network, plan.cfg.get("critic"))
+    envs = [SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=plan.scenario,
+                         parts=parts) for j, (world, k) in enumerate(plan.groups)]  # fmt: skip
     env = envs[0] if len(envs) == 1 else TeamMixVecEnv(envs)
     if plan.teacher_term and plan.teacher is not None:
         return TeacherLabels(env, str(plan.teacher), plan.teacher_args, int(plan.cfg.seed))
@@ -31,8 +32,10 @@ def make_algorithm(plan: Plan, env: VecEnv) -> BaseAlgorithm:
     cfg = plan.cfg
     settings = OmegaConf.to_container(cfg.algo, resolve=True)
     settings.pop("name")
-    model = plan.algorithm(ALGORITHMS[cfg.algo.name][1], env, seed=int(cfg.seed), device=cfg.device,
-                           policy_kwargs=policy_kwargs(cfg.network, cfg.algo.name), verbose=0, **settings)  # fmt: skip
+    critic = cfg.get("critic")
+    model = plan.algorithm(policy_class(cfg.algo.name, critic), env, seed=int(cfg.seed), device=cfg.device,
+                           policy_kwargs=policy_kwargs(cfg.network, cfg.algo.name, critic), verbose=0,
+                           **settings)  # fmt: skip
     attach_teacher(plan, model, env)
     return model
 
@@ -45,18 +48,33 @@ def load_algorithm(plan: Plan, path: str, env: VecEnv) -> BaseAlgorithm:
     return model
 
 
-def init_weights(model: BaseAlgorithm, path: str, cfg: DictConfig) -> None:
-    """Copy the policy weights of checkpoint `path` into the fresh `model` of a run configured by `cfg` (its optimiser
-    state is not taken), read as `load_checkpoint` reads any file: built from `cfg`, so weights of another network
-    do not fit; ValueError with the reason if they do not fit."""
+def init_weights(model: BaseAlgorithm, path: str, cfg: DictConfig) -> list[str]:
+    """Copy the policy weights of checkpoint `path` (read as `load_checkpoint` reads any file, by its own run's
+    config, or by `cfg` for a file without one beside it) into the fresh `model` of a run configured by `cfg`; its
+    optimiser state is not taken. Every tensor the
+    two policies both have is copied and must have the same shape, and the actor's head must be among them, so a
+    policy of another size or action set is refused (ValueError with the reason); the parts only `model` has (a
+    whole-map branch, a critic of its own) keep their fresh weights. Returns the names of those parts."""
     try:
-        params = load_checkpoint(path, cfg, device="cpu").get_parameters()
-        model.set_parameters({"policy": params["policy"]}, exact_match=False, device=model.device)
-    except Exception as err:  # a zip of another algorithm, a corrupt file, other shapes: all end here
-        lines = str(err).strip().splitlines() or [type(err).__name__]
-        more = f" (+{len(lines) - 1} more lines)" if len(lines) > 1 else ""
+        try:
+            own = run_config(path)
+        except FileNotFoundError:  # a zip copied out of its run: read as this run's network
+            own = cfg
+        theirs = load_checkpoint(path, own, device="cpu").policy.state_dict()
+    except ValueError as err:  # a zip of no run, a corrupt file: all end here
+        raise ValueError(f"init={path!r} does not fit this run's policy: {err}") from None
+    ours = model.policy.state_dict()
+    shared = [name for name in ours if name in theirs]
+    wrong = [name for name in shared if ours[name].shape != theirs[name].shape]
+    if wrong or "action_net.weight" not in shared:
+        why = (f"{wrong[0]} is {tuple(theirs[wrong[0]].shape)} there, {tuple(ours[wrong[0]].shape)} here" if wrong
+               else "it has no actor head of this policy")  # fmt: skip
         raise ValueError(f"init={path!r} does not fit this run's policy (algo, network, observation and action "
-                         f"spaces must match): {lines[0]}{more}") from None  # fmt: skip
+                         f"spaces must match): {why}")  # fmt: skip
+    model.policy.load_state_dict({**ours, **{name: theirs[name] for name in shared}})
+    # named_parameters names a module shared under two names (the actor's extractor) once
+    fresh = [name for name, _ in model.policy.named_parameters() if name not in theirs]
+    return sorted({".".join(name.split(".")[:2]) for name in fresh})
 
 
 def attach_teacher(plan: Plan, model: BaseAlgorithm, env: VecEnv) -> None:
@@ -64,4 +82,5 @@ def attach_teacher(plan: Plan, model: BaseAlgorithm, env: VecEnv) -> None:
     if isinstance(model, TeacherTerm):
         im = plan.cfg.imitation
         source = env if isinstance(env, TeacherLabels) else None
-        model.configure_teacher(float(im.rl_weight), str(im.rl_schedule), int(im.critic_warmup), source)
+        model.configure_teacher(float(im.rl_weight), str(im.rl_schedule), int(im.critic_warmup), source,
+                                int(im.rl_anneal_steps))  # fmt: skip

@@ -20,10 +20,13 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 
+from searchrl import extensions
 from searchrl.controllers.registry import make_teacher
 from searchrl.policies.algorithms import ALGORITHMS
+from searchrl.policies.checkpoint import policy_class
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
+from searchrl.policies.networks import observation_parts
 from searchrl.schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, override_keys
 from searchrl.train.imitation import lr_factor
 from searchrl.train.schema import A2CConfig, RecurrentPPOConfig
@@ -63,6 +66,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     ConfigError naming the first bad value. `overrides` (the command line's) only choose the notes on settings the
     run will not use."""
     cfg = copy.deepcopy(cfg)  # rounded to whole rollouts below; the caller's stays as composed
+    extensions.import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
     check_known_keys(cfg)  # `+total_timestep=...` composes: refused here, not trained past
     check_model(cfg)
     algorithm = check_algo(cfg)
@@ -90,6 +94,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     check_teacher_term(cfg, teacher_term)
     SearchCNN.check_sizes(list(cfg.network.conv_channels), int(cfg.network.vector_size), list(cfg.network.fc_sizes),
                           groups[0][0].fov)  # fmt: skip
+    check_network_choices(cfg)
     notes = unused_settings(cfg, list(overrides), groups) + round_to_rollouts(cfg, rollout)
     algorithm = TEACHER_ALGORITHMS.get(cfg.algo.name, algorithm)  # the term off (w = 0) where a recipe has none
     return Plan(cfg, groups, scenario, im.teacher, teacher_args, algorithm, teacher_term, rollout, tuple(notes))
@@ -193,6 +198,23 @@ def check_numbers(cfg: DictConfig) -> None:
         need(int(cfg.validation[key]) >= 1, f"validation.{key}", cfg.validation[key], ">= 1")
 
 
+def check_network_choices(cfg: DictConfig) -> None:
+    """network.extractor and critic.name registered, their grids large enough, and a run that can feed them."""
+    try:
+        observation_parts(cfg.network, cfg.critic)  # unregistered names, with the nearest
+        policy_class(str(cfg.algo.name), cfg.critic)  # a critic of its own needs RecurrentPPO
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
+    for name in ("network.grid", "critic.grid"):
+        value = OmegaConf.select(cfg, name)
+        need(isinstance(value, int) and value >= 4, name, value, "an integer >= 4 (two stride-2 convolutions)")
+    parts = observation_parts(cfg.network, cfg.critic)
+    if parts and cfg.imitation.teacher is not None and int(cfg.imitation.epochs) > 0:
+        need(False, "imitation.epochs", cfg.imitation.epochs, f"0 with network.extractor={cfg.network.extractor} or "
+             f"critic.name={cfg.critic.name} (cloning records the window and 3-vector only): start from a clone "
+             "with init=")  # fmt: skip
+
+
 def check_init(cfg: DictConfig) -> None:
     """init= names a model zip (a resumed run continues from its checkpoint and no longer needs it)."""
     if cfg.get("init") is not None and cfg.get("resume") is None:
@@ -216,6 +238,7 @@ def check_teacher_term(cfg: DictConfig, teacher_term: bool) -> None:
     im = cfg.imitation
     weight = float(im.rl_weight)
     check_settings(weight, str(im.rl_schedule), int(im.critic_warmup))
+    need(int(im.rl_anneal_steps) >= 1, "imitation.rl_anneal_steps", im.rl_anneal_steps, "an integer >= 1 (agent-steps)")
     if weight > 0 and im.teacher is None:
         need(False, "imitation.rl_weight", weight, "0 without imitation.teacher (the term imitates the teacher)")
     if teacher_term and cfg.algo.name not in TEACHER_ALGORITHMS:

@@ -4,6 +4,7 @@
 conf/env, conf/model, conf/scenario -> searchrl/schema.py (shared with evaluation)
 conf/algo      -> RecurrentPPOConfig | A2CConfig
 conf/network   -> NetworkConfig
+conf/critic    -> CriticConfig
 conf/train.yaml-> TrainConfig
 """
 
@@ -22,10 +23,18 @@ from searchrl.world.config import ANY, RETIRED_FIELDS, drop_retired
 
 @dataclass
 class NetworkConfig:
+    extractor: str = "search_cnn"  # the actor's features extractor by name (searchrl/policies/networks.py)
     conv_channels: list[int] = field(default_factory=lambda: [32, 64, 128])  # three conv pairs
     vector_size: int = 32  # FC on the 3-vector
     fc_sizes: list[int] = field(default_factory=lambda: [256, 256])  # FC after concatenation
     lstm_hidden_size: int = 256  # recurrent algorithms only
+    grid: int = 16  # side of the coarse whole-map view an extractor such as own_map_cnn reads
+
+
+@dataclass
+class CriticConfig:
+    name: str = "shared"  # shared: the value head on the actor's features; or a critic's own extractor by name
+    grid: int = 16  # side of the coarse true-state view a critic such as true_state reads
 
 
 @dataclass
@@ -86,6 +95,7 @@ class ImitationConfig:
     # of the run. epochs=0 skips the clone (say with init= a clone made before).
     rl_weight: float = 0.0
     rl_schedule: str = "constant"
+    rl_anneal_steps: int = 3_000_000  # agent-steps over which rl_schedule=anneal brings rl_weight to 0
     # The first critic_warmup rollouts of RL fit only the value-only parameters on the learner's own returns; the
     # policy does not move until the critic knows the learner's states. Needs no teacher.
     critic_warmup: int = 0
@@ -97,6 +107,7 @@ class TrainConfig:
     model: ModelConfig | None = None  # chosen with +model=<name>
     algo: Any = MISSING
     network: NetworkConfig = field(default_factory=NetworkConfig)
+    critic: CriticConfig = field(default_factory=CriticConfig)
     validation: ValidationConfig = field(default_factory=ValidationConfig)
     imitation: ImitationConfig = field(default_factory=ImitationConfig)
     # What a reset draws besides the sizes and the prior: obstacles, where the targets lie (conf/scenario/,
@@ -114,6 +125,7 @@ class TrainConfig:
     device: str = "cpu"
     progress_bar: bool = True
     log_interval: int = 1  # rollouts between log rows
+    extensions: list[str] = field(default_factory=list)  # modules that register parts (searchrl/extensions.py)
 
 
 # Settings removed from training, each with the one value a saved run may hold (ANY: inert at every value): a run
@@ -175,5 +187,6 @@ def register_configs() -> None:
     cs = register_shared_configs()
     cs.store(name="train_schema", node=TrainConfig)
     cs.store(group="network", name="network_schema", node=NetworkConfig)
+    cs.store(group="critic", name="critic_schema", node=CriticConfig)
     cs.store(group="algo", name="recurrent_ppo_schema", node=RecurrentPPOConfig)
     cs.store(group="algo", name="a2c_schema", node=A2CConfig)

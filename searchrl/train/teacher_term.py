@@ -7,9 +7,10 @@ kickstarting (Schmitt et al. 2018), which distils toward the teacher with a weig
 
 - **the teacher term**: every minibatch's loss gains `w · CE(π(·|s), a_teacher(s))` on the states the learner itself
   visited (DAgger's labels, Ross et al. 2011). The teacher reads only the world state, so a VecEnv wrapper labels
-  every rollout step online (`searchrl/train/teacher_labels.py`). `w` is constant or falls linearly to 0 over the
-  run. It is added to the loss rather than taken as a step of its own because Adam is blind to a loss's scale: only
-  in one loss does `w` weigh imitation against the PPO terms.
+  every rollout step online (`searchrl/train/teacher_labels.py`). `w` is constant, falls linearly to 0 over the
+  run, or (`anneal`) falls linearly to 0 over its first `anneal_steps` agent-steps, whatever the run's budget. It
+  is added to the loss rather than taken as a step of its own because Adam is blind to a loss's scale: only in one
+  loss does `w` weigh imitation against the PPO terms.
 - **critic warm-up**: the first `critic_warmup` rollouts fit only the value-only parameters (value head, critic LSTM)
   on the learner's own returns, and the policy does not move, so the first policy update's advantages come from a
   critic that knows the learner.
@@ -32,7 +33,7 @@ from stable_baselines3.common.utils import explained_variance
 
 from searchrl.train.slot_buffer import SlotRolloutBuffer
 
-SCHEDULES = ("constant", "linear")
+SCHEDULES = ("constant", "linear", "anneal")
 
 
 class LabelSource(Protocol):
@@ -53,8 +54,10 @@ def check_settings(weight: float, schedule: str, critic_warmup: int) -> None:
 
 
 def value_parameters(policy: ActorCriticPolicy) -> list[torch.nn.Parameter]:
-    """The parameters only the value estimate uses: value head, its MLP and (RecurrentPPO) the critic's LSTM."""
-    modules = [policy.value_net, policy.mlp_extractor.value_net, getattr(policy, "lstm_critic", None)]
+    """The parameters only the value estimate uses: value head, its MLP, (RecurrentPPO) the critic's LSTM and a
+    features extractor of the critic's own (searchrl/policies/networks.py)."""
+    own = None if policy.share_features_extractor else policy.vf_features_extractor
+    modules = [policy.value_net, policy.mlp_extractor.value_net, getattr(policy, "lstm_critic", None), own]
     return [p for m in modules if m is not None for p in m.parameters()]
 
 
@@ -65,13 +68,16 @@ class TeacherTerm:
 
     teacher_weight: float = 0.0
     teacher_schedule: str = "constant"
+    teacher_anneal_steps: int = 0
     critic_warmup: int = 0
     rollouts_trained: int = 0
     label_source: LabelSource | None = None
 
-    def configure_teacher(self, weight: float, schedule: str, critic_warmup: int, source: LabelSource | None) -> None:
+    def configure_teacher(self, weight: float, schedule: str, critic_warmup: int, source: LabelSource | None,
+                          anneal_steps: int = 0) -> None:  # fmt: skip
         check_settings(weight, schedule, critic_warmup)
         self.teacher_weight, self.teacher_schedule, self.critic_warmup = float(weight), schedule, int(critic_warmup)
+        self.teacher_anneal_steps = int(anneal_steps)
         self.label_source = source
 
     def _setup_model(self) -> None:
@@ -92,9 +98,12 @@ class TeacherTerm:
         return [*super()._excluded_save_params(), "label_source"]
 
     def current_weight(self) -> float:
-        """w now: constant, or falling linearly from `teacher_weight` to 0 at the end of the run."""
+        """w now: constant, or falling linearly from `teacher_weight` to 0 at the end of the run (`linear`) or at
+        agent-step `teacher_anneal_steps` (`anneal`)."""
         if self.teacher_schedule == "linear":
             return self.teacher_weight * max(float(self._current_progress_remaining), 0.0)
+        if self.teacher_schedule == "anneal":
+            return self.teacher_weight * max(1.0 - self.num_timesteps / max(self.teacher_anneal_steps, 1), 0.0)
         return self.teacher_weight
 
     def train(self) -> None:

@@ -4,10 +4,11 @@ the finished worlds) that every env layer and episode runner wraps."""
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from searchrl.world.coarse import ObservationPart
 from searchrl.world.config import WorldConfig, check_seed, is_int, need
 from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe, observe_worlds
@@ -30,6 +31,8 @@ class Transition:
     final_maps: np.ndarray | None  # (K, N, C, fov, fov) float32, valid where result.done
     final_vector: np.ndarray | None  # (K, N, 3) float32, valid where result.done
     metrics: dict[str, np.ndarray]  # (K,) each, episode metrics, valid where result.done
+    parts: dict[str, np.ndarray] = field(default_factory=dict)  # key -> (K, *part.shape(N)), after auto-reset
+    final_parts: dict[str, np.ndarray] = field(default_factory=dict)  # the same before it, valid where done
 
 
 class SearchWorld:
@@ -40,11 +43,13 @@ class SearchWorld:
     ended it. Randomness: one `np.random.Generator` seeded at construction or by `reset(seed)`, or one stream per
     world (`from_maps`). What a reset draws besides the §4.1 sizes and prior (obstacles, where the targets are) is
     the injected `scenario`'s (searchrl/world/scenario.py; the paper's by default). `observe=False` skips the
-    observations for controllers that read the state only.
+    observations for controllers that read the state only. `parts` (searchrl/world/coarse.py) are observed beside
+    the window and the 3-vector, in `parts` after every reset and step.
     """
 
     def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None, scenario: Scenario = PAPER,
-                 auto_reset: bool = True, observe: bool = True) -> None:  # fmt: skip
+                 auto_reset: bool = True, observe: bool = True,
+                 parts: Sequence[ObservationPart] = ()) -> None:  # fmt: skip
         need(is_int(n_worlds) and n_worlds >= 1, "n_worlds", n_worlds, "an integer >= 1")
         check_seed(seed)
         scenario.check(config)
@@ -54,6 +59,9 @@ class SearchWorld:
         self._obs = observation_buffers(config, n_worlds) if observe else None
         self._final = tuple(np.zeros_like(a) for a in self._obs) if observe else (None, None)
         self.observation: tuple[np.ndarray, np.ndarray] | tuple[None, None] = (None, None)  # of the last reset/step
+        self.part_fns = tuple(parts) if observe else ()
+        self.parts = {p.key: np.zeros((n_worlds, *p.shape(config.n_agents)), np.float32) for p in self.part_fns}
+        self._final_parts = {key: np.zeros_like(a) for key, a in self.parts.items()}
         self._last_map: tuple[int, DrawnWorld] | None = None  # the map seed `_draw_maps` wrote last, and its draw
         self.started = False  # a world is stepped only once reset (`reset`, `from_maps`) has drawn it
 
@@ -81,6 +89,7 @@ class SearchWorld:
         self._draw_maps(worlds, map_seeds)
         if self.observes:
             self.observation = observe_worlds(self.config, self.state, self._obs, np.asarray(worlds, np.int64))
+            self._observe_parts(np.asarray(worlds, np.int64))
 
     def _draw_maps(self, worlds: Sequence[int], map_seeds: Sequence[int]) -> None:
         """Reset world worlds[i] from `default_rng(map_seeds[i])`. The map seed written last is written again, not
@@ -97,7 +106,12 @@ class SearchWorld:
         return self.state.n_worlds
 
     def _observe(self) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+        self._observe_parts(np.arange(self.n_worlds))
         return observe(self.config, self.state, self._obs) if self.observes else (None, None)
+
+    def _observe_parts(self, worlds: np.ndarray) -> None:
+        for part in self.part_fns:
+            part.fill(self.state, self.config.max_steps, self.parts[part.key], worlds)
 
     def reset(self, seed: int | None = None, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Reset the worlds in `mask` (all by default); `seed` reseeds the generator first."""
@@ -123,9 +137,13 @@ class SearchWorld:
                 if self.observes:
                     self._final[0][done] = maps[done]
                     self._final[1][done] = vector[done]
+                    for key, values in self.parts.items():
+                        self._final_parts[key][done] = values[done]
                 reset_worlds(self.config, self.state, done, self.rng, self.scenario)
                 if self.observes:  # only the reset worlds changed since the step's observation
                     maps, vector = observe_worlds(self.config, self.state, self._obs, np.flatnonzero(done))
+                    self._observe_parts(np.flatnonzero(done))
         self.observation = (maps, vector)
         final = self._final if self.auto_reset else (maps, vector)
-        return Transition(maps, vector, result, final[0], final[1], metrics)
+        final_parts = self._final_parts if self.auto_reset else self.parts
+        return Transition(maps, vector, result, final[0], final[1], metrics, self.parts, final_parts)

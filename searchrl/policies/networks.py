@@ -1,0 +1,164 @@
+"""Networks and critics by name: the features extractors a run's `network.extractor` and `critic.name` choose.
+
+A network is an SB3 features extractor whose class says which observation keys it reads (`keys`) and which
+observation parts the env must add for it (`parts`, searchrl/envs/parts.py). It registers itself here
+(`register_network`, `register_critic`), and a recipe picks it by name:
+
+- `search_cnn`: the paper's network (searchrl/policies/extractor.py), reading the window and the 3-vector.
+- `own_map_cnn`: the paper's network plus a branch over the agent's whole belief map, coarse (`own_map`), added
+  to its features through a gate that starts at 0 (ReZero): initialised from a clone of the paper's network, it
+  acts as the clone until training opens the gate.
+- critic `shared` (the default): the value head reads the actor's features, as in the paper.
+- critic `true_state`: the critic has its own extractor, the paper's network plus a branch over the world's true
+  state (`true_state`: the team's merged belief, the targets left, every agent, the time left), added to its
+  features. Centralised training, decentralised execution: only the critic reads it, and only during training
+  (an actor built from the policy never asks for it, searchrl/policies/actor.py).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from difflib import get_close_matches
+from typing import Any, ClassVar
+
+import torch
+from gymnasium import spaces
+from torch import nn
+
+from searchrl.envs.parts import make_parts
+from searchrl.policies.extractor import SearchCNN
+from searchrl.world.coarse import ObservationPart
+
+NETWORKS: dict[str, type[SearchCNN]] = {}
+CRITICS: dict[str, type[SearchCNN] | None] = {"shared": None}
+
+
+def register_network(name: str) -> Callable[[type[SearchCNN]], type[SearchCNN]]:
+    """Decorator: register an actor's features extractor as `network.extractor=<name>`."""
+    return _register(NETWORKS, name, "network")
+
+
+def register_critic(name: str) -> Callable[[type[SearchCNN]], type[SearchCNN]]:
+    """Decorator: register a critic's own features extractor as `critic.name=<name>`."""
+    return _register(CRITICS, name, "critic")
+
+
+def _register(table: dict, name: str, kind: str) -> Callable:
+    def add(cls: type) -> type:
+        if table.get(name, cls) is not cls:
+            raise ValueError(f"{kind} {name!r} is registered already ({table[name]!r})")
+        table[name] = cls
+        return cls
+
+    return add
+
+
+def lookup(table: dict, name: str, setting: str) -> type[SearchCNN] | None:
+    """table[name]; ValueError naming the setting and the nearest registered name."""
+    if name not in table:
+        near = get_close_matches(name, table, n=1)
+        hint = f" (did you mean {near[0]!r}?)" if near else ""
+        raise ValueError(f"{setting}={name!r} is not registered{hint}: one of {sorted(table)}")
+    return table[name]
+
+
+register_network("search_cnn")(SearchCNN)
+
+
+def grid_encoder(channels: int, grid: int, width: int) -> nn.Sequential:
+    """(B, channels, grid, grid) -> (B, width): three 3×3 convolutions (the last two of stride 2), a linear layer."""
+    layers = nn.Sequential(
+        nn.Conv2d(channels, 16, 3, padding=1),
+        nn.ReLU(),
+        nn.Conv2d(16, 32, 3, stride=2, padding=1),
+        nn.ReLU(),
+        nn.Conv2d(32, 32, 3, stride=2, padding=1),
+        nn.ReLU(),
+        nn.Flatten(),
+    )
+    with torch.no_grad():
+        n_out = layers(torch.zeros(1, channels, grid, grid)).shape[1]
+    return nn.Sequential(*layers, nn.Linear(n_out, width), nn.ReLU())
+
+
+class WithGrid(SearchCNN):
+    """The paper's network plus an encoder of one coarse observation part (`part`), added to its features."""
+
+    part: ClassVar[str]
+    gated: ClassVar[bool]
+
+    def __init__(self, observation_space: spaces.Dict, conv_channels: Sequence[int] = (32, 64, 128),
+                 vector_size: int = 32, fc_sizes: Sequence[int] = (256, 256)) -> None:  # fmt: skip
+        super().__init__(observation_space, conv_channels, vector_size, fc_sizes)
+        if self.part not in observation_space.spaces:
+            raise ValueError(f"the {type(self).__name__} network reads {self.part!r}, which the env does not observe")
+        channels, grid, _ = observation_space[self.part].shape
+        self.grid = grid_encoder(channels, grid, self.features_dim)
+        # A gate, not a zero-initialised layer: SB3's orthogonal initialisation rewrites every linear layer.
+        self.gate = nn.Parameter(torch.zeros(())) if self.gated else None
+
+    def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
+        """observations: {"map", "vector", part: (B, C, G, G)} -> (B, features_dim)."""
+        extra = self.grid(observations[self.part])
+        return super().forward(observations) + (extra if self.gate is None else self.gate * extra)
+
+
+@register_network("own_map_cnn")
+class OwnMapCNN(WithGrid):
+    """The paper's network plus the agent's own whole belief map, coarse, through a gate that starts at 0."""
+
+    keys = ("map", "vector", "own_map")
+    parts = ("own_map",)
+    part = "own_map"
+    gated = True
+
+
+@register_critic("true_state")
+class TrueStateCritic(WithGrid):
+    """A critic's extractor: the paper's network plus the world's true state, coarse."""
+
+    keys = ("map", "vector", "true_state")
+    parts = ("true_state",)
+    part = "true_state"
+    gated = False
+
+
+# A run config's choices, read where a config may predate them (a run saved before they existed chose these).
+DEFAULT_EXTRACTOR, DEFAULT_CRITIC, DEFAULT_GRID = "search_cnn", "shared", 16
+
+
+def chosen(network: Mapping[str, Any], critic: Mapping[str, Any] | None) -> tuple[type[SearchCNN], type | None]:
+    """(the actor's extractor class, the critic's or None for the shared one) of a run's `network` and `critic`
+    settings; ValueError naming an unregistered choice."""
+    actor = lookup(NETWORKS, str(network.get("extractor", DEFAULT_EXTRACTOR)), "network.extractor")
+    name = DEFAULT_CRITIC if critic is None else str(critic.get("name", DEFAULT_CRITIC))
+    return actor, lookup(CRITICS, name, "critic.name")
+
+
+def observation_parts(network: Mapping[str, Any], critic: Mapping[str, Any] | None) -> tuple[ObservationPart, ...]:
+    """The observation parts the env must add for the actor's and the critic's extractors, each on its grid
+    (`network.grid`, `critic.grid`)."""
+    actor, critic_cls = chosen(network, critic)
+    requests = [(name, {"grid": int(network.get("grid", DEFAULT_GRID))}) for name in actor.parts]
+    if critic_cls is not None:
+        requests += [(name, {"grid": int(critic.get("grid", DEFAULT_GRID))}) for name in critic_cls.parts]
+    return make_parts(requests)
+
+
+def policy_kwargs(network: Mapping[str, Any], algo: str, critic: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """SB3 policy_kwargs of a run's `network` and `critic` settings (its config's nodes) for algorithm `algo`."""
+    actor, critic_cls = chosen(network, critic)
+    kwargs: dict[str, Any] = {
+        "features_extractor_class": actor,
+        "features_extractor_kwargs": {
+            "conv_channels": [int(c) for c in network["conv_channels"]],
+            "vector_size": int(network["vector_size"]),
+            "fc_sizes": [int(c) for c in network["fc_sizes"]],
+        },
+        "net_arch": [],  # policy and value heads are linear on the features (or the LSTM output), as in PRIMAL
+    }
+    if algo == "recurrent_ppo":
+        kwargs["lstm_hidden_size"] = int(network["lstm_hidden_size"])
+    if critic_cls is not None:
+        kwargs["critic_extractor_class"] = critic_cls
+    return kwargs

@@ -1,0 +1,164 @@
+"""Coarse views of a whole world: an agent's belief map, or the world's true state, pooled onto a G×G grid.
+
+The paper's agents see an 11×11 window and a 3-vector (searchrl/world/observe.py). These views cover the whole
+n×n map at any n: cell (row, col) of a world of side n falls in coarse cell (row·G // n, col·G // n), and a coarse
+cell holds the mean of its cells (a count, for targets and agents). Two views, each (K, N, C, G, G) float32:
+
+- `own_map` (what an agent knows; an actor may read it): the agent's belief p and u scaled as in the window
+  (1 / the prior's peak), and a one-hot of its own coarse cell. C = OWN_MAP_CHANNELS = 3.
+- `true_state` (what no agent knows; only a critic during training may read it): the team's merged belief (the
+  elementwise min of every agent's p and u, scaled), the targets not yet found (count per coarse cell), every
+  agent (count per coarse cell / N), the agent's own coarse cell, and the time left (1 − t / max_steps, the same in
+  every cell). C = TRUE_STATE_CHANNELS = 6.
+
+Sums run in a fixed order in compiled code without fastmath, so the views are the same bits on every CPU.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar, Protocol
+
+import numpy as np
+from numba import njit
+
+from searchrl.world.kernels import CACHE
+from searchrl.world.state import WorldState
+
+OWN_MAP_CHANNELS = 3
+TRUE_STATE_CHANNELS = 6
+
+
+def own_map(state: WorldState, grid: int, out: np.ndarray, worlds: np.ndarray) -> np.ndarray:
+    """Fill out[k] (N, OWN_MAP_CHANNELS, grid, grid) for each world k of `worlds` (int64) and return `out`."""
+    _own_map(state.arrays(), np.int64(grid), out, np.asarray(worlds, np.int64))
+    return out
+
+
+def true_state(state: WorldState, grid: int, max_steps: int, out: np.ndarray, worlds: np.ndarray) -> np.ndarray:
+    """Fill out[k] (N, TRUE_STATE_CHANNELS, grid, grid) for each world k of `worlds` (int64) and return `out`."""
+    _true_state(state.arrays(), np.int64(grid), np.int64(max_steps), out, np.asarray(worlds, np.int64))
+    return out
+
+
+@njit(cache=CACHE)
+def _cell_counts(n, grid):
+    """(grid,) int64: how many of a side's n cells fall in each coarse row (or column)."""
+    counts = np.zeros(grid, np.int64)
+    for r in range(n):
+        counts[r * grid // n] += 1
+    return counts
+
+
+@njit(cache=CACHE)
+def _own_map(w, grid, out, worlds):
+    h = w.halo
+    n_agents = w.pos.shape[1]
+    acc = np.zeros((2, grid, grid), np.float64)
+    for k in worlds:
+        n = w.size[k]
+        counts = _cell_counts(n, grid)
+        sp, su = w.obs_scale[k, 0], w.obs_scale[k, 1]
+        for i in range(n_agents):
+            acc[:] = 0.0
+            for r in range(n):
+                gr = r * grid // n
+                for c in range(n):
+                    gc = c * grid // n
+                    acc[0, gr, gc] += w.belief[k, i, 0, r + h, c + h]
+                    acc[1, gr, gc] += w.belief[k, i, 1, r + h, c + h]
+            out[k, i, 2] = 0.0
+            for gr in range(grid):
+                for gc in range(grid):
+                    cells = counts[gr] * counts[gc]
+                    out[k, i, 0, gr, gc] = acc[0, gr, gc] / cells * sp if cells else 0.0
+                    out[k, i, 1, gr, gc] = acc[1, gr, gc] / cells * su if cells else 0.0
+            out[k, i, 2, w.pos[k, i, 0] * grid // n, w.pos[k, i, 1] * grid // n] = 1.0
+
+
+@njit(cache=CACHE)
+def _true_state(w, grid, max_steps, out, worlds):
+    h = w.halo
+    n_agents = w.pos.shape[1]
+    shared = np.zeros((5, grid, grid), np.float64)
+    for k in worlds:
+        n = w.size[k]
+        counts = _cell_counts(n, grid)
+        sp, su = w.obs_scale[k, 0], w.obs_scale[k, 1]
+        shared[:] = 0.0
+        for r in range(n):
+            gr = r * grid // n
+            for c in range(n):
+                gc = c * grid // n
+                p = w.belief[k, 0, 0, r + h, c + h]
+                u = w.belief[k, 0, 1, r + h, c + h]
+                for i in range(1, n_agents):
+                    p = min(p, w.belief[k, i, 0, r + h, c + h])
+                    u = min(u, w.belief[k, i, 1, r + h, c + h])
+                shared[0, gr, gc] += p
+                shared[1, gr, gc] += u
+        for j in range(w.target_pos.shape[1]):
+            if w.target_valid[k, j] and not w.target_found[k, j]:
+                shared[2, w.target_pos[k, j, 0] * grid // n, w.target_pos[k, j, 1] * grid // n] += 1.0
+        for i in range(n_agents):
+            shared[3, w.pos[k, i, 0] * grid // n, w.pos[k, i, 1] * grid // n] += 1.0 / n_agents
+        left = max(0.0, 1.0 - w.t[k] / max_steps)
+        for gr in range(grid):
+            for gc in range(grid):
+                cells = counts[gr] * counts[gc]
+                shared[0, gr, gc] = shared[0, gr, gc] / cells * sp if cells else 0.0
+                shared[1, gr, gc] = shared[1, gr, gc] / cells * su if cells else 0.0
+        for i in range(n_agents):
+            for gr in range(grid):
+                for gc in range(grid):
+                    for ch in range(4):
+                        out[k, i, ch, gr, gc] = shared[ch, gr, gc]
+                    out[k, i, 4, gr, gc] = 0.0
+                    out[k, i, 5, gr, gc] = left
+            out[k, i, 4, w.pos[k, i, 0] * grid // n, w.pos[k, i, 1] * grid // n] = 1.0
+
+
+class ObservationPart(Protocol):
+    """An observation beside the window and the 3-vector, injected into `SearchWorld(parts=...)`: under `key`, an
+    array of `shape(N)` per world, in [0, high], filled for the worlds listed after every reset and step."""
+
+    key: ClassVar[str]
+    privileged: ClassVar[bool]  # the true state: for a critic during training, never for an actor
+    high: ClassVar[float]
+
+    def shape(self, n_agents: int) -> tuple[int, ...]: ...
+
+    def fill(self, state: WorldState, max_steps: int, out: np.ndarray, worlds: np.ndarray) -> None: ...
+
+
+class OwnMap:
+    """The observation part `own_map` (module docstring): an agent's own belief map, coarse; an actor may read it."""
+
+    key = "own_map"
+    privileged = False
+    high = 1.0
+
+    def __init__(self, grid: int = 16) -> None:
+        self.grid = grid
+
+    def shape(self, n_agents: int) -> tuple[int, ...]:
+        return (n_agents, OWN_MAP_CHANNELS, self.grid, self.grid)
+
+    def fill(self, state: WorldState, max_steps: int, out: np.ndarray, worlds: np.ndarray) -> None:
+        own_map(state, self.grid, out, worlds)
+
+
+class TrueState:
+    """The observation part `true_state` (module docstring): the world's true state, coarse; a critic's only."""
+
+    key = "true_state"
+    privileged = True
+    high = float("inf")  # target counts
+
+    def __init__(self, grid: int = 16) -> None:
+        self.grid = grid
+
+    def shape(self, n_agents: int) -> tuple[int, ...]:
+        return (n_agents, TRUE_STATE_CHANNELS, self.grid, self.grid)
+
+    def fill(self, state: WorldState, max_steps: int, out: np.ndarray, worlds: np.ndarray) -> None:
+        true_state(state, self.grid, max_steps, out, worlds)

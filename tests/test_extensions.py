@@ -1,0 +1,73 @@
+"""`extensions=`: a package outside searchrl (tests/extension_example/) registers an observation part and a network
+that reads it, a heuristic and an obstacle law with a scenario, and the apps train, evaluate and sweep with them
+from the command line, as a user would; nothing in searchrl names them."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from searchrl.extensions import from_command_line
+
+pytestmark = pytest.mark.app  # runs the apps as commands
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = "tests.extension_example"
+TINY = ["+model=b", "total_timesteps=512", "env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,20]",
+        "env.world.n_targets=[2,4]", "env.world.n_distributions=[4,8]", "network=small", "algo.batch_size=128",
+        "checkpoint_every=512", "validation.every=0", "validation.n_worlds=2", "progress_bar=false",
+        "threads=1"]  # fmt: skip
+SLICE = ["grid.world_sizes=[20]", "grid.n_targets=[4]", "grid.n_distributions=[8]", "grid.max_agents=[2]",
+         "grid.maps_per_cell=2", "grid.repeats=1", "progress_bar=false", "threads=1", "bound_draws=100",
+         "bound_cache=null"]  # fmt: skip
+
+
+def _app(app: str, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", f"searchrl.{app}", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=300)  # fmt: skip
+
+
+def test_the_command_line_names_the_modules():
+    assert from_command_line(["x=1", "extensions=[a.b, 'c']", "+extensions=d"]) == ["a.b", "c", "d"]
+    assert from_command_line(["extensions=[]", "extensions=null"]) == []
+
+
+def test_train_evaluate_and_sweep_with_a_users_parts(tmp_path):
+    parts = f"extensions=[{PACKAGE}.swept,{PACKAGE}.pillars]"
+    run = tmp_path / "run"
+    out = _app("train", *TINY, parts, "network.extractor=swept_cnn", "scenario=pillars", f"hydra.run.dir={run}")
+    assert out.returncode == 0, out.stderr[-2000:]
+    # its checkpoint needs the same extensions: the folder's word is not enough to import code
+    out = _app("evaluate", f"checkpoint={run / 'model.zip'}", *SLICE, f"out_dir={tmp_path / 'bare'}")
+    assert out.returncode == 2 and out.stderr.count("\n") == 1
+    assert "network.extractor='swept_cnn' is not registered" in out.stderr and f"{PACKAGE}.swept" in out.stderr
+    assert not (tmp_path / "bare").exists()
+    out = _app("evaluate", f"checkpoint={run / 'model.zip'}", *SLICE, parts, "scenario=pillars",
+               f"out_dir={tmp_path / 'policy'}")  # fmt: skip
+    assert out.returncode == 0, out.stderr[-2000:]
+    rule = _app("evaluate", "controller=eastward", "+model=b", *SLICE, "scenario=pillars",
+                f"extensions=[{PACKAGE}.eastward,{PACKAGE}.pillars]", f"out_dir={tmp_path / 'rule'}")  # fmt: skip
+    assert rule.returncode == 0, rule.stderr[-2000:]
+    for folder, controller in (("policy", "policy:run"), ("rule", "eastward")):
+        rows = pd.concat(pd.read_parquet(p) for p in (tmp_path / folder / "cells").glob("*.parquet"))
+        assert set(rows.controller) == {controller} and set(rows.scenario) == {"pillars4"} and len(rows) == 4
+
+
+@pytest.mark.slow  # two more trainings
+def test_a_sweep_registers_the_parts_in_every_job(tmp_path):
+    parts = f"extensions=[{PACKAGE}.swept,{PACKAGE}.pillars]"
+    sweep = _app("train", "-m", *TINY, parts, "network.extractor=swept_cnn", "scenario=pillars", "seed=0,1",
+                 "hydra/launcher=joblib", f"hydra.sweep.dir={tmp_path / 'sweep'}")  # fmt: skip
+    assert sweep.returncode == 0, sweep.stderr[-2000:]
+    assert len(list((tmp_path / "sweep").glob("*/model.zip"))) == 2
+
+
+def test_a_module_that_cannot_be_imported_is_refused_in_one_line(tmp_path):
+    out = _app("train", *TINY, f"extensions=[{PACKAGE}.nothing]", f"hydra.run.dir={tmp_path / 'x'}")
+    assert out.returncode == 2 and out.stderr.count("\n") == 1
+    assert f"'{PACKAGE}.nothing' cannot be imported" in out.stderr
+    assert not (tmp_path / "x").exists()
