@@ -93,6 +93,8 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
             for name, source in folders.items():
                 (out_dir / "probe" / scenario / name).symlink_to(source)
         args = ["mine", "--probe", str(out_dir / "probe"), "--out", str(out_dir)]
+    if notebook == "beyond.py":  # the teacher's folder first, then the policies'
+        args = [str(eval_dirs[0]), str(eval_dirs[2]), str(eval_dirs[1]), "--out", str(out_dir)]
     if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
         args = [str(eval_dirs[0].parent.parent), str(out_dir)]
     env = {
@@ -148,6 +150,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "guided_summary.py": {"summary.md": ("Mean found fraction per scenario; beside each baseline: mine", 5),
                               "best_rule.md": ("mine against the best rule of each scenario", 5),
                               "tail.md": ("Worst-10 % tail: per scenario and cell", 5)},
+        "beyond.py": {"beyond.csv": (2, 9), "beyond.png": (600, 384),
+                      "beyond.md": ("Each policy minus surfing over surfing: scenario paper", 4)},
         "shipped.py": {"shipped.md": ("| policy | RL agent-steps | RL hours (1 core) | policy found | paper |", 6)},
         "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
                      "sweep_curves.png": (780, 480)},

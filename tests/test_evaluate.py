@@ -53,7 +53,12 @@ def test_slice_rows_and_rerun_skips_done_cells(tmp_path, controller, capsys):
     # Repeats of a map share its seed and are numbered 0, 1; maps differ.
     assert (frame.groupby(["n", "N", "map_seed"]).repeat.agg(lambda r: sorted(r) == [0, 1])).all()
     files = {p: p.stat().st_mtime_ns for p in (tmp_path / "cells").iterdir()}
-    capsys.readouterr()
+    printed = capsys.readouterr().out.splitlines()  # the app's table: coverage, then a row per cell with its CI
+    assert printed[0].startswith(f"{frame.controller.iloc[0]}: scenario paper, seed 7000000, 3 maps x 2 repeats")
+    assert printed[1].split() == ["n", "N", "maps", "found", "95%", "CI", "bound"] and len(printed) == 5
+    n, agents, maps, found = printed[2].split()[:4]
+    cell = frame[(frame.n == int(n)) & (frame.N == int(agents))]
+    assert int(maps) == 3 and float(found) == round(cell.groupby("map_seed").found_fraction.mean().mean(), 3)
     _evaluate(tmp_path, f"controller={controller}")
     assert "0 of 3 cells to run" in capsys.readouterr().err
     assert {p: p.stat().st_mtime_ns for p in (tmp_path / "cells").iterdir()} == files

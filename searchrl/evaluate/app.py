@@ -30,6 +30,7 @@ from searchrl.controllers.registry import heuristic
 from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds, map_prior
 from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import CELL_SETTINGS, claim_folder, evaluation_settings, option_defaults
+from searchrl.evaluate.results import cell_table
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.multirun import Stopped, refuse
@@ -281,6 +282,7 @@ def run_evaluation(plan: Evaluation) -> Path:
     if todo:
         print(f"done in {elapsed:.1f} s; {done_steps / max(elapsed, 1e-9):,.0f} agent-steps/s "
               f"(steps up to each episode's end)", file=sys.stderr)  # fmt: skip
+    print(cell_table(out_dir))  # what the folder holds: a number and its CI per cell
     return out_dir
 
 

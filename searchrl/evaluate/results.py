@@ -122,3 +122,23 @@ def coverage_line(out_dir: str | Path) -> str:
     missing = f"; missing {', '.join(c['missing'])}" if c["missing"] else ""
     return (f"{c['controller']}: scenario {c['scenario']}, seed {c['seed']}, {c['maps']} maps x {c['repeats']} "
             f"repeats per cell, {len(c['cells'])} of {len(c['cells']) + len(c['missing'])} cells{missing}")  # fmt: skip
+
+
+def cell_table(out_dir: str | Path) -> str:
+    """What an evaluation folder measured, as the app prints it at its end: its `coverage_line`, then per cell
+    (n, N) the maps, the mean found fraction with its 95 % CI over maps (the per-map means' normal approximation,
+    1.96 standard errors; NaN with one map) and the mean search bound of the same maps where recorded."""
+    frame = load(out_dir)
+    if frame.empty:
+        return coverage_line(out_dir)
+    bound = "bound_fraction" in frame and frame["bound_fraction"].notna().any()
+    column = "bound_fraction" if bound else "found_fraction"
+    per_map = frame.groupby(["n", "N", "map_seed"]).agg(found=("found_fraction", "mean"), bound=(column, "mean"))
+    rows = []
+    for (n, agents), maps in per_map.groupby(level=["n", "N"]):
+        half = 1.96 * maps["found"].std(ddof=1) / len(maps) ** 0.5 if len(maps) > 1 else float("nan")
+        mean = maps["found"].mean()
+        rows.append({"n": n, "N": agents, "maps": len(maps), "found": round(mean, 3),
+                     "95% CI": f"[{mean - half:.3f}, {mean + half:.3f}]",
+                     **({"bound": round(maps["bound"].mean(), 3)} if bound else {})})  # fmt: skip
+    return f"{coverage_line(out_dir)}\n{pd.DataFrame(rows).to_string(index=False)}"
