@@ -50,57 +50,67 @@ def _cell_counts(n, grid):
 
 
 @njit(cache=CACHE)
+def _coarse_index(n, grid):
+    """(n,) int64: the coarse row (or column) of each of a side's n cells (no division in the inner loops)."""
+    index = np.empty(n, np.int64)
+    for r in range(n):
+        index[r] = r * grid // n
+    return index
+
+
+@njit(cache=CACHE)
 def _own_map(w, grid, out, worlds):
-    h = w.halo
-    n_agents = w.pos.shape[1]
+    h, belief, pos, size, scale = w.halo, w.belief, w.pos, w.size, w.obs_scale  # each field read once (kernels.py)
+    n_agents = pos.shape[1]
     acc = np.zeros((2, grid, grid), np.float64)
     for k in worlds:
-        n = w.size[k]
-        counts = _cell_counts(n, grid)
-        sp, su = w.obs_scale[k, 0], w.obs_scale[k, 1]
+        n = size[k]
+        counts, index = _cell_counts(n, grid), _coarse_index(n, grid)
+        sp, su = scale[k, 0], scale[k, 1]
         for i in range(n_agents):
             acc[:] = 0.0
             for r in range(n):
-                gr = r * grid // n
+                gr = index[r]
                 for c in range(n):
-                    gc = c * grid // n
-                    acc[0, gr, gc] += w.belief[k, i, 0, r + h, c + h]
-                    acc[1, gr, gc] += w.belief[k, i, 1, r + h, c + h]
+                    gc = index[c]
+                    acc[0, gr, gc] += belief[k, i, 0, r + h, c + h]
+                    acc[1, gr, gc] += belief[k, i, 1, r + h, c + h]
             out[k, i, 2] = 0.0
             for gr in range(grid):
                 for gc in range(grid):
                     cells = counts[gr] * counts[gc]
                     out[k, i, 0, gr, gc] = acc[0, gr, gc] / cells * sp if cells else 0.0
                     out[k, i, 1, gr, gc] = acc[1, gr, gc] / cells * su if cells else 0.0
-            out[k, i, 2, w.pos[k, i, 0] * grid // n, w.pos[k, i, 1] * grid // n] = 1.0
+            out[k, i, 2, pos[k, i, 0] * grid // n, pos[k, i, 1] * grid // n] = 1.0
 
 
 @njit(cache=CACHE)
 def _true_state(w, grid, max_steps, out, worlds):
-    h = w.halo
-    n_agents = w.pos.shape[1]
+    h, belief, pos, size, scale = w.halo, w.belief, w.pos, w.size, w.obs_scale  # each field read once (kernels.py)
+    n_agents = pos.shape[1]
     shared = np.zeros((5, grid, grid), np.float64)
     for k in worlds:
-        n = w.size[k]
-        counts = _cell_counts(n, grid)
-        sp, su = w.obs_scale[k, 0], w.obs_scale[k, 1]
+        n = size[k]
+        counts, index = _cell_counts(n, grid), _coarse_index(n, grid)
+        sp, su = scale[k, 0], scale[k, 1]
         shared[:] = 0.0
+        team = belief[k, 0, :, h : h + n, h : h + n].copy()  # (2, n, n): the min over agents, agent by agent
+        for i in range(1, n_agents):  # agent-major: each agent's map read in memory order
+            for layer in range(2):
+                for r in range(n):
+                    for c in range(n):
+                        team[layer, r, c] = min(team[layer, r, c], belief[k, i, layer, r + h, c + h])
         for r in range(n):
-            gr = r * grid // n
+            gr = index[r]
             for c in range(n):
-                gc = c * grid // n
-                p = w.belief[k, 0, 0, r + h, c + h]
-                u = w.belief[k, 0, 1, r + h, c + h]
-                for i in range(1, n_agents):
-                    p = min(p, w.belief[k, i, 0, r + h, c + h])
-                    u = min(u, w.belief[k, i, 1, r + h, c + h])
-                shared[0, gr, gc] += p
-                shared[1, gr, gc] += u
+                gc = index[c]
+                shared[0, gr, gc] += team[0, r, c]
+                shared[1, gr, gc] += team[1, r, c]
         for j in range(w.target_pos.shape[1]):
             if w.target_valid[k, j] and not w.target_found[k, j]:
                 shared[2, w.target_pos[k, j, 0] * grid // n, w.target_pos[k, j, 1] * grid // n] += 1.0
         for i in range(n_agents):
-            shared[3, w.pos[k, i, 0] * grid // n, w.pos[k, i, 1] * grid // n] += 1.0 / n_agents
+            shared[3, pos[k, i, 0] * grid // n, pos[k, i, 1] * grid // n] += 1.0 / n_agents
         left = max(0.0, 1.0 - w.t[k] / max_steps)
         for gr in range(grid):
             for gc in range(grid):
@@ -114,7 +124,7 @@ def _true_state(w, grid, max_steps, out, worlds):
                         out[k, i, ch, gr, gc] = shared[ch, gr, gc]
                     out[k, i, 4, gr, gc] = 0.0
                     out[k, i, 5, gr, gc] = left
-            out[k, i, 4, w.pos[k, i, 0] * grid // n, w.pos[k, i, 1] * grid // n] = 1.0
+            out[k, i, 4, pos[k, i, 0] * grid // n, pos[k, i, 1] * grid // n] = 1.0
 
 
 class ObservationPart(Protocol):
