@@ -61,6 +61,7 @@ ADDED_LATER = {
     "init": "null: fresh weights, the only start before the field",
     "network.extractor": "search_cnn: the paper's network, the only one before the field",
     "network.grid": "16: read only by an extractor with a whole-map view, none before the field",
+    "reward": "paper: the world's own reward, the only one before the field",
     "extensions": "[]: no user's modules, only searchrl's parts, as before the field",
     "critic": "shared: the value head on the actor's features, the only critic before the field",
     "scenario": "the paper's: no obstacle, targets placed from the prior, every world drawn before scenarios",

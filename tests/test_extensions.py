@@ -37,9 +37,10 @@ def test_the_command_line_names_the_modules():
 
 
 def test_train_evaluate_and_sweep_with_a_users_parts(tmp_path):
-    parts = f"extensions=[{PACKAGE}.swept,{PACKAGE}.pillars]"
+    parts = f"extensions=[{PACKAGE}.swept,{PACKAGE}.pillars,{PACKAGE}.found_only]"
     run = tmp_path / "run"
-    out = _app("train", *TINY, parts, "network.extractor=swept_cnn", "scenario=pillars", f"hydra.run.dir={run}")
+    out = _app("train", *TINY, parts, "network.extractor=swept_cnn", "scenario=pillars", "reward=found_only",
+               f"hydra.run.dir={run}")  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     # its checkpoint needs the same extensions: the folder's word is not enough to import code
     out = _app("evaluate", f"checkpoint={run / 'model.zip'}", *SLICE, f"out_dir={tmp_path / 'bare'}")
@@ -64,6 +65,32 @@ def test_a_sweep_registers_the_parts_in_every_job(tmp_path):
                  "hydra/launcher=joblib", f"hydra.sweep.dir={tmp_path / 'sweep'}")  # fmt: skip
     assert sweep.returncode == 0, sweep.stderr[-2000:]
     assert len(list((tmp_path / "sweep").glob("*/model.zip"))) == 2
+
+
+def test_a_registered_reward_is_what_the_env_pays():
+    """The env pays the reward object's value of each step's result; the world and its metrics are unchanged."""
+    import numpy as np
+
+    from searchrl.envs.rewards import make_reward
+    from searchrl.envs.vec_env import SearchVecEnv
+    from searchrl.world.config import WorldConfig
+    from searchrl.world.engine import SearchWorld
+    from tests.extension_example.found_only import FoundOnly
+
+    world = WorldConfig(n_agents=3, world_size=(12, 12), n_targets=(4, 4), n_distributions=(4, 4), max_steps=20)
+    env, twin = SearchVecEnv(world, 2, seed=0, reward=FoundOnly()), SearchWorld(world, 2, seed=0)
+    env.reset(), twin.reset()
+    rng = np.random.default_rng(0)
+    found = 0
+    for _ in range(50):  # episodes end at 20 steps or sooner: resets included
+        actions = rng.integers(0, 5, 6)
+        paid = env.step(actions)[1]
+        result = twin.step(actions.reshape(2, 3)).result
+        np.testing.assert_array_equal(paid, FoundOnly()(world, result).reshape(-1))
+        found += int(result.targets_found.sum())
+    assert found > 0  # the test saw the reward's target term
+    with pytest.raises(ValueError, match=r"reward='papr' is not registered .did you mean 'paper'"):
+        make_reward("papr")
 
 
 def test_a_module_that_cannot_be_imported_is_refused_in_one_line(tmp_path):

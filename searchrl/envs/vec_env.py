@@ -18,6 +18,7 @@ from gymnasium.error import ResetNeeded
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
+from searchrl.envs.rewards import RewardFn
 from searchrl.envs.spaces import action_space, observation_space
 from searchrl.world.coarse import ObservationPart
 from searchrl.world.config import WorldConfig
@@ -33,7 +34,8 @@ class SearchVecEnv(VecEnv):
     metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012 (gymnasium convention)
 
     def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None, render_mode: str | None = None,
-                 scenario: Scenario = PAPER, parts: Sequence[ObservationPart] = ()) -> None:  # fmt: skip
+                 scenario: Scenario = PAPER, parts: Sequence[ObservationPart] = (),
+                 reward: RewardFn | None = None) -> None:  # fmt: skip
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
         if not isinstance(config, WorldConfig):
@@ -41,6 +43,7 @@ class SearchVecEnv(VecEnv):
         self.config = config
         self.render_mode = render_mode
         self.world = SearchWorld(config, n_worlds, seed=seed, scenario=scenario, parts=parts)
+        self.reward = reward  # searchrl/envs/rewards.py; None: the world's own
         self.n_agents = config.n_agents
         self._actions: np.ndarray | None = None
         self._t_start = time.time()
@@ -91,7 +94,10 @@ class SearchVecEnv(VecEnv):
                 "t": now,
             }
         obs = self._flat_obs(tr.maps, tr.vector)
-        return obs, result.reward.reshape(-1).copy(), dones, infos
+        rewards = result.reward if self.reward is None else np.asarray(self.reward(self.config, result), np.float32)
+        if rewards.shape != result.reward.shape:
+            raise ValueError(f"the reward returned shape {rewards.shape}: one per agent, {result.reward.shape}")
+        return obs, rewards.reshape(-1).copy(), dones, infos
 
     def _flat_obs(self, maps: np.ndarray, vector: np.ndarray) -> dict[str, np.ndarray]:
         # Copies: the world reuses its buffers, and SB3 keeps the previous observation while stepping.

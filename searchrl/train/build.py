@@ -6,6 +6,7 @@ from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 
+from searchrl.envs.rewards import make_reward
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.checkpoint import load_checkpoint, policy_class, run_config
@@ -19,8 +20,9 @@ def make_vec_env(plan: Plan, seed: int | None = None) -> VecEnv:
     """One SearchVecEnv, or a TeamMixVecEnv when env.extra_teams adds groups (group j seeded with seed + j); with
     the teacher term, wrapped to label every step with the teacher's action (`TeacherLabels`)."""
     parts = observation_parts(plan.cfg.network, plan.cfg.get("critic"))
+    reward = make_reward(str(plan.cfg.get("reward", "paper")))
     envs = [SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=plan.scenario,
-                         parts=parts) for j, (world, k) in enumerate(plan.groups)]  # fmt: skip
+                         parts=parts, reward=reward) for j, (world, k) in enumerate(plan.groups)]  # fmt: skip
     env = envs[0] if len(envs) == 1 else TeamMixVecEnv(envs)
     if plan.teacher_term and plan.teacher is not None:
         return TeacherLabels(env, str(plan.teacher), plan.teacher_args, int(plan.cfg.seed))

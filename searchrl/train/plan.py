@@ -22,6 +22,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 
 from searchrl import extensions
 from searchrl.controllers.registry import make_teacher
+from searchrl.envs.rewards import make_reward
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.checkpoint import policy_class
 from searchrl.policies.device import check_device
@@ -199,8 +200,9 @@ def check_numbers(cfg: DictConfig) -> None:
 
 
 def check_network_choices(cfg: DictConfig) -> None:
-    """network.extractor and critic.name registered, their grids large enough, and a run that can feed them."""
+    """reward, network.extractor and critic.name registered, their grids large enough, and a run that can feed them."""
     try:
+        make_reward(str(cfg.reward))
         observation_parts(cfg.network, cfg.critic)  # unregistered names, with the nearest
         policy_class(str(cfg.algo.name), cfg.critic)  # a critic of its own needs RecurrentPPO
     except ValueError as err:

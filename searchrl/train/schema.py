@@ -126,6 +126,7 @@ class TrainConfig:
     progress_bar: bool = True
     log_interval: int = 1  # rollouts between log rows
     extensions: list[str] = field(default_factory=list)  # modules that register parts (searchrl/extensions.py)
+    reward: str = "paper"  # what the env pays per step, by name (searchrl/envs/rewards.py); paper: the world's
 
 
 # Settings removed from training, each with the one value a saved run may hold (ANY: inert at every value): a run
