@@ -128,9 +128,9 @@ def cell_table(out_dir: str | Path) -> str:
     """What an evaluation folder measured, as the app prints it at its end: its `coverage_line`, then per cell
     (n, N) the maps, the mean found fraction with its 95 % CI over maps (the per-map means' normal approximation,
     1.96 standard errors; NaN with one map) and the mean search bound of the same maps where recorded."""
-    frame = load(out_dir)
-    if frame.empty:
+    if not cell_files(out_dir):  # a shard with no cell of this folder: nothing measured yet
         return coverage_line(out_dir)
+    frame = load(out_dir)
     bound = "bound_fraction" in frame and frame["bound_fraction"].notna().any()
     column = "bound_fraction" if bound else "found_fraction"
     per_map = frame.groupby(["n", "N", "map_seed"]).agg(found=("found_fraction", "mean"), bound=(column, "mean"))
