@@ -194,3 +194,57 @@ def _check_teacher_resets() -> None:
                         assert np.array_equal(value[ended], getattr(fresh, name)[ended]), name
             calls[j] = calls[j][-1:]
     assert restarted >= 2  # some worlds restarted while others played on
+
+
+# Imitation's demonstrations: a round plays max_steps steps in every world, and a world whose episode ends restarts
+# at once. Its teacher must be reset in exactly that world at exactly that step, and the next step marked as an
+# episode start for the world's slots (the LSTM is zeroed there when cloning). Planted in `collect` by hand, each
+# fails the first test below: the start marked at the ending step instead of the next, the teacher's reset dropped.
+def _collect(monkeypatch, skip_partial: bool = False) -> tuple[list[np.ndarray], list[np.ndarray], object]:
+    """(the teacher's reset masks, the worlds' done masks per step, the demonstrations) of a two-round collect by
+    coverage (a rule with a plan per world); with `skip_partial` the teacher ignores resets of some worlds only."""
+    from searchrl.train import imitation
+
+    cls, resets, dones = registry.HEURISTICS["coverage"].cls, [], []
+    original = cls.reset
+
+    def reset(self, state, mask):
+        resets.append(np.asarray(mask, bool).copy())
+        if not (skip_partial and not np.all(mask)):  # the plant: a world's end leaves the teacher's memory
+            original(self, state, mask)
+
+    class Recorded(imitation.SearchWorld):
+        def step(self, actions):
+            tr = super().step(actions)
+            dones.append(tr.result.done.copy())
+            return tr
+
+    monkeypatch.setattr(cls, "reset", reset)
+    monkeypatch.setattr(imitation, "SearchWorld", Recorded)
+    demos = imitation.collect([(CONFIG, 3)], "coverage", episodes=2, gamma=0.99, seed=0)
+    return resets, dones, demos
+
+
+def test_demonstrations_reset_the_teacher_where_each_world_ends_and_mark_the_next_step(monkeypatch):
+    resets, dones, demos = _collect(monkeypatch)
+    steps = CONFIG.max_steps
+    expected = []
+    for round_dones in (dones[:steps], dones[steps:]):
+        expected.append(np.ones(3, bool))  # the round's start
+        expected += [d for d in round_dones if d.any()]  # each step where some world ended, exactly those worlds
+    assert len(resets) == len(expected) and all(np.array_equal(a, b) for a, b in zip(resets, expected, strict=True))
+    assert sum(int(d.sum()) for d in dones) >= 4  # worlds ended inside rounds, at different steps
+    starts = demos.starts.reshape(2, 3, CONFIG.n_agents, steps)  # (round, world, agent, step): group-major order
+    for r in range(2):
+        ended = np.stack(dones[r * steps : (r + 1) * steps])  # (steps, worlds)
+        for k in range(3):
+            after = np.broadcast_to(ended[:-1, k], (CONFIG.n_agents, steps - 1))  # an end at t: a start at t + 1
+            np.testing.assert_array_equal(starts[r, k, :, 1:], after)
+            assert not starts[r, k, :, 0].any()  # the round's first step: the LSTM starts from zeros anyway
+
+
+def test_a_planted_missed_teacher_reset_changes_the_demonstrations(monkeypatch):
+    _, _, clean = _collect(monkeypatch)
+    monkeypatch.undo()
+    _, _, planted = _collect(monkeypatch, skip_partial=True)
+    assert not np.array_equal(clean.actions, planted.actions)  # the plant is seen in what the clone would learn
