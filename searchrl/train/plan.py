@@ -203,14 +203,13 @@ def check_network_choices(cfg: DictConfig) -> None:
     """reward, network.extractor and critic.name registered, their grids large enough, and a run that can feed them."""
     try:
         make_reward(str(cfg.reward))
-        observation_parts(cfg.network, cfg.critic)  # unregistered names, with the nearest
+        parts = observation_parts(cfg.network, cfg.critic)  # unregistered names, with the nearest
         policy_class(str(cfg.algo.name), cfg.critic)  # a critic of its own needs RecurrentPPO
     except ValueError as err:
         raise ConfigError(str(err)) from None
     for name in ("network.grid", "critic.grid"):
         value = OmegaConf.select(cfg, name)
         need(isinstance(value, int) and value >= 4, name, value, "an integer >= 4 (two stride-2 convolutions)")
-    parts = observation_parts(cfg.network, cfg.critic)
     if parts and cfg.imitation.teacher is not None and int(cfg.imitation.epochs) > 0:
         need(False, "imitation.epochs", cfg.imitation.epochs, f"0 with network.extractor={cfg.network.extractor} or "
              f"critic.name={cfg.critic.name} (cloning records the window and 3-vector only): start from a clone "

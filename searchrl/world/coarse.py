@@ -41,21 +41,14 @@ def true_state(state: WorldState, grid: int, max_steps: int, out: np.ndarray, wo
 
 
 @njit(cache=CACHE)
-def _cell_counts(n, grid):
-    """(grid,) int64: how many of a side's n cells fall in each coarse row (or column)."""
-    counts = np.zeros(grid, np.int64)
-    for r in range(n):
-        counts[r * grid // n] += 1
-    return counts
-
-
-@njit(cache=CACHE)
 def _coarse_index(n, grid):
-    """(n,) int64: the coarse row (or column) of each of a side's n cells (no division in the inner loops)."""
-    index = np.empty(n, np.int64)
+    """((n,) the coarse row (or column) of each of a side's n cells, (grid,) how many cells each coarse row holds),
+    int64: no division in the inner loops."""
+    index, counts = np.empty(n, np.int64), np.zeros(grid, np.int64)
     for r in range(n):
         index[r] = r * grid // n
-    return index
+        counts[index[r]] += 1
+    return index, counts
 
 
 @njit(cache=CACHE)
@@ -65,7 +58,7 @@ def _own_map(w, grid, out, worlds):
     acc = np.zeros((2, grid, grid), np.float64)
     for k in worlds:
         n = size[k]
-        counts, index = _cell_counts(n, grid), _coarse_index(n, grid)
+        index, counts = _coarse_index(n, grid)
         sp, su = scale[k, 0], scale[k, 1]
         for i in range(n_agents):
             acc[:] = 0.0
@@ -91,7 +84,7 @@ def _true_state(w, grid, max_steps, out, worlds):
     shared = np.zeros((5, grid, grid), np.float64)
     for k in worlds:
         n = size[k]
-        counts, index = _cell_counts(n, grid), _coarse_index(n, grid)
+        index, counts = _coarse_index(n, grid)
         sp, su = scale[k, 0], scale[k, 1]
         shared[:] = 0.0
         team = belief[k, 0, :, h : h + n, h : h + n].copy()  # (2, n, n): the min over agents, agent by agent
