@@ -11,11 +11,11 @@
 # `+model=c` (18.4M agent-steps) takes longer than one call on a lent machine, so it runs in segments: its run
 # folder comes back under $OUT/gpu_c/ (config, progress.csv, the newest checkpoint, and model.zip at the end), and a
 # later call that carries it back to runs/train/gpu/c resumes it there; the segments' times add up to the run's.
-#   bash analysis/device_check.sh            # results under $OUT (the device tool's folder) or runs/device/
-#   BUDGET=560 bash analysis/device_check.sh # seconds the whole script may take (the +model=c run gets the rest)
+#   bash analysis/device_check.sh [seconds]  # the whole script's time (560 by default; +model=c gets the rest);
+#                                            # results under $OUT (the folder the device tool gives) or runs/device/
 set -uo pipefail
 OUT=${OUT:-runs/device}
-BUDGET=${BUDGET:-560}
+BUDGET=${1:-560}
 RUN=runs/train/gpu/c
 mkdir -p "$OUT"
 export PYTHONUNBUFFERED=1

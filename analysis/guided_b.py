@@ -9,54 +9,57 @@
 #
 # `path_greedy` beats every shipped policy among walls because it reads the whole world: it walks shortest paths
 # (BFS over the walls its prior shows) to the best cells within `radius` moves, and when that pocket is cleared,
-# to the nearest worthwhile cell anywhere. The policy sees an 11×11 window. Here each agent's 3-vector gets
-# 2·(A − 1) more numbers computed from what the agent holds (its belief, the walls, its position), with the rule's
-# own machinery (searchrl/controllers/walls.py):
-# - per move a: the best value, along a shortest path whose first move is a, of target-greedy's footprint
-#   information within `radius` moves, discounted per move, divided by the best move's (0 where nothing is in reach);
-# - per move a: 1 where the pocket in reach holds less than the rule's floor and a is the first move of the shortest
-#   path to the nearest worthwhile cell of the whole world (the walk path_greedy would take), else 0.
+# to the nearest worthwhile cell anywhere. The policy sees an 11×11 window. This module registers, through
+# searchrl's extension points, observation parts computed from what an agent holds (its belief, the walls, its
+# position) with the rule's own machinery (searchrl/controllers/walls.py), the networks that read them, and the
+# teachers of the experiments:
+# - part `guidance`, 2·(A − 1) per agent: per move a, the best value, along a shortest path whose first move is a,
+#   of target-greedy's footprint information within `radius` moves, discounted per move, divided by the best
+#   move's (0 where nothing is in reach); and per move a, 1 where the pocket in reach holds less than the rule's
+#   floor and a is the first move of the shortest path to the nearest worthwhile cell of the whole world (the walk
+#   path_greedy would take), else 0.
+# - part `evidence`, 2 per agent: its world's evidence switch statistics (searchrl/controllers/switch.py): the
+#   team's finds against what the prior expected where it swept, (found + 1) / (expected + 1) over 2, and the
+#   expected detections over MIN_EXPECTED, each clipped to [0, 1] (research/guided_b_evidence).
+# - part `coverage_plan`, A − 1 per agent, one-hot: the move coverage's team plan gives the agent (the lane the
+#   switch would walk once it has turned, which an 11×11 window cannot show; all 0 where it stays):
+#   research/guided_b_plan.
+# - networks `guided_cnn` (guidance), `guided_evidence_cnn` (+ evidence), `guided_plan_cnn` (+ coverage_plan): the
+#   paper's network with each part added to the vector layer's input through its own gate that starts at 0, so a
+#   policy started from one that lacks the part (`init=`) acts exactly as it at first.
+# - teachers `walls_or_target`, `walls_or_switch`, `walls_or_oracle` (a privileged one: analysis/oracle_teacher.py's
+#   OracleSwitch in open worlds, learning by cheating: research/guided_b_oracle).
 #
-# With GUIDED_EVIDENCE=1 (in training and evaluation alike) each agent also gets its world's evidence switch
-# statistics (searchrl/controllers/switch.py: the team's finds against what the prior expected where it swept), and
-# `walls_or_switch` is a teacher that follows the switch in open worlds: research/guided_b_evidence.
-# With GUIDED_PLAN=1 (the evidence statistics too) each agent also gets the move coverage's team plan gives it, one-hot:
-# the lane the switch would walk once it has turned, which an 11×11 window cannot show: research/guided_b_plan.
-# `walls_or_oracle` is a privileged teacher for the same inputs: coverage from the start in an open world whose prior
-# misleads (analysis/oracle_teacher.py), so the student learns how soon its evidence can tell: research/guided_b_oracle.
+# Each part remembers its episode (the rule's sightings, the switch's sweep, the coverage plan) and forgets it
+# where a world starts one: the env and every policy controller hold their own copy. The research recipes name
+# this module in their `extensions`, so the apps need nothing more:
 #
-# The policy starts from a shipped one with the new inputs' weights at zero (so it acts exactly as that policy at
-# first) and trains with the training app's recipe; validation and evaluation act through the same guided
-# controller. Nothing here is in the library: the wrapper and the controller are patched into the apps.
-#
-#     python analysis/guided_b.py train +experiment=research/guided_walls_b threads=1      # then guided_walls_b_ppo
-#     python analysis/guided_b.py evaluate suite=obstacles checkpoint=runs/train/guided/walls_b/model.zip \
-#         out_dir=runs/suite/obstacles/policy/guided/walls_b
+#     python -m searchrl.train +experiment=research/guided_walls_b threads=1      # then guided_walls_b_ppo
+#     python -m searchrl.evaluate extensions=[analysis.guided_b] suite=obstacles \
+#         checkpoint=runs/train/guided/walls_b/model.zip out_dir=runs/suite/obstacles/policy/guided/walls_b
 
 # %%
 from __future__ import annotations
 
-import os
-import sys
 from dataclasses import dataclass
+from typing import ClassVar
 
-import gymnasium as gym
 import numpy as np
 import torch
+from gymnasium import spaces
 from numba import njit, prange
-from stable_baselines3.common.vec_env import VecEnvWrapper
+from torch import nn
 
+from analysis.oracle_teacher import OracleSwitch
 from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.coverage import GeometricCoverage
 from searchrl.controllers.greedy_kernels import cell_information, view_scratch
-from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import make_controller, register
 from searchrl.controllers.switch import MIN_EXPECTED, EvidenceSwitch, sweep_footprints
 from searchrl.controllers.walls import PathGreedy, bfs, pocket_values
-from searchrl.envs.team_mix import TeamMixVecEnv
-from searchrl.envs.vec_env import SearchVecEnv
-from searchrl.policies.checkpoint import load_checkpoint
-from searchrl.train.teacher_labels import TeacherLabels
+from searchrl.envs.parts import register_part
+from searchrl.policies.extractor import SearchCNN
+from searchrl.policies.networks import register_network
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import SUPPORT_DC, SUPPORT_DR, SUPPORT_G
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
@@ -104,100 +107,137 @@ def _guidance_span(w, params, memory, radius, floor, out, start, stop, side):
                 dist[queue[q, 0], queue[q, 1]] = -1
 
 
-PLAN = os.environ.get("GUIDED_PLAN") == "1"  # the fifth stage's coverage move (module text); with the evidence
-EVIDENCE = PLAN or os.environ.get("GUIDED_EVIDENCE") == "1"  # the fourth stage's two more inputs (module text)
+# %%
+def _mask(state: WorldState, worlds: np.ndarray) -> np.ndarray:
+    mask = np.zeros(state.n_worlds, bool)
+    mask[worlds] = True
+    return mask
 
 
-class Guide:
-    """path_greedy's memory for a batch of worlds and the guidance it gives: `reset` where worlds restart,
-    `values(state)` (K·N, 2·(A − 1)) float32; with EVIDENCE two more per agent, its world's evidence switch
-    statistics (searchrl/controllers/switch.py): (found + 1) / (expected + 1) over 2, clipped to [0, 1], and the
-    expected detections where the team swept over MIN_EXPECTED, clipped to [0, 1]; with PLAN, A − 1 more, one-hot,
-    the move coverage's team plan gives the agent (its lane of the whole world; all 0 where it stays)."""
+class _RulePart:
+    """A part computed by a rule with memory (`_make(config)`), built for the world config it is first filled for."""
 
-    def __init__(self, config: WorldConfig) -> None:
-        self.rule = PathGreedy(config)
-        self.plan = GeometricCoverage(config) if PLAN else None
-        self.width = 2 * (config.n_actions - 1) + (2 if EVIDENCE else 0) + (config.n_actions - 1 if PLAN else 0)
-        self.evidence = EvidenceSwitch(config) if EVIDENCE else None
+    privileged: ClassVar[bool] = False
+    high: ClassVar[float] = 1.0
 
-    def reset(self, state: WorldState, mask: np.ndarray) -> None:
-        self.rule.reset(state, mask)
-        if self.evidence is not None:
-            self.evidence.reset(state, mask)
-        if self.plan is not None:
-            self.plan.reset(state, mask)
+    def __init__(self) -> None:
+        self.config: WorldConfig | None = None
+        self.rule = None
 
-    def values(self, state: WorldState) -> np.ndarray:
-        out = np.zeros((state.n_worlds, state.n_agents, self.width), np.float32)
-        rule = self.rule
-        guidance_values(state.arrays(), rule._params, rule.remember(state), rule.radius, rule._floor, out,
+    def _for(self, state: WorldState, config: WorldConfig):
+        if self.config != config:
+            self.config, self.rule = config, self._make(config)
+            self.rule.reset(state, np.ones(state.n_worlds, bool))
+        return self.rule
+
+    def reset(self, state: WorldState, config: WorldConfig, worlds: np.ndarray) -> None:
+        self._for(state, config).reset(state, _mask(state, worlds))
+
+
+@register_part
+class Guidance(_RulePart):
+    """`guidance` (module text): (N, 2·(A − 1)) per world, from path_greedy's memory of the episode."""
+
+    key = "guidance"
+
+    def _make(self, config: WorldConfig) -> PathGreedy:
+        return PathGreedy(config)
+
+    def shape(self, config: WorldConfig) -> tuple[int, ...]:
+        return (config.n_agents, 2 * (config.n_actions - 1))
+
+    def fill(self, state: WorldState, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None:
+        rule = self._for(state, config)
+        values = np.zeros(out.shape, np.float32)
+        guidance_values(state.arrays(), rule._params, rule.remember(state), rule.radius, rule._floor, values,
                         world_threads())  # fmt: skip
-        if self.evidence is not None:  # once per step: the team's footprints of this step, as the switch sweeps
-            tracker = self.evidence
-            if tracker.left.shape != state.p.shape:
-                tracker.reset(state, np.ones(state.n_worlds, bool))
-            sweep_footprints(state.pos, state.halo, tracker.left, SUPPORT_DR, SUPPORT_DC, SUPPORT_G)
-            expected = state.n_targets * tracker.expected()
-            first = 2 * (self.rule.config.n_actions - 1)
-            out[:, :, first] = np.clip((state.n_found + 1.0) / (expected + 1.0) / 2.0, 0.0, 1.0)[:, None]
-            out[:, :, first + 1] = np.clip(expected / MIN_EXPECTED, 0.0, 1.0)[:, None]
-        if self.plan is not None:  # coverage's move, the stay (0) left out
-            if self.plan.waypoints.shape[:2] != (state.n_worlds, state.n_agents):
-                self.plan.reset(state, np.ones(state.n_worlds, bool))
-            move = self.plan.act(state, None, None)
-            first = self.width - (self.rule.config.n_actions - 1)
-            for a in range(1, self.rule.config.n_actions):
-                out[:, :, first + a - 1] = move == a
-        return out.reshape(state.n_worlds * state.n_agents, self.width)
+        out[worlds] = values[worlds]
 
 
-class Guidance(VecEnvWrapper):
-    """A SearchVecEnv whose observation's vector carries the guidance after its 3 entries (zeros in a terminal
-    observation: its world has restarted already)."""
+@register_part
+class Evidence(_RulePart):
+    """`evidence` (module text): (N, 2) per world, from the switch's sweep of the episode (every agent the same)."""
 
-    def __init__(self, venv: SearchVecEnv) -> None:
-        self.guide = Guide(venv.config)
-        space = venv.observation_space
-        width = space["vector"].shape[0] + self.guide.width
-        vector = gym.spaces.Box(-np.inf, np.inf, (width,), np.float32)
-        super().__init__(venv, observation_space=gym.spaces.Dict({"map": space["map"], "vector": vector}))
+    key = "evidence"
 
-    def reset(self):
-        obs = self.venv.reset()
-        self.guide.reset(self.venv.world.state, np.ones(self.venv.world.n_worlds, bool))
-        return self._with(obs)
+    def _make(self, config: WorldConfig) -> EvidenceSwitch:
+        return EvidenceSwitch(config)
 
-    def step_wait(self):
-        obs, rewards, dones, infos = self.venv.step_wait()
-        ended = dones.reshape(self.venv.world.n_worlds, -1)[:, 0]
-        if ended.any():
-            self.guide.reset(self.venv.world.state, ended)
-        for info in infos:
-            if "terminal_observation" in info:
-                final = info["terminal_observation"]
-                final["vector"] = np.concatenate([final["vector"], np.zeros(self.guide.width, np.float32)])
-        return self._with(obs), rewards, dones, infos
+    def shape(self, config: WorldConfig) -> tuple[int, ...]:
+        return (config.n_agents, 2)
 
-    def _with(self, obs):
-        return {"map": obs["map"], "vector": np.concatenate([obs["vector"], self.guide.values(self.venv.world.state)],
-                                                            axis=1)}  # fmt: skip
+    def fill(self, state: WorldState, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None:
+        tracker = self._for(state, config)
+        if tracker.left.shape != state.p.shape:
+            tracker.reset(state, np.ones(state.n_worlds, bool))
+        sweep_footprints(state.pos, state.halo, tracker.left, SUPPORT_DR, SUPPORT_DC, SUPPORT_G)  # marks: idempotent
+        expected = state.n_targets * tracker.expected()
+        out[worlds, :, 0] = np.clip((state.n_found + 1.0) / (expected + 1.0) / 2.0, 0.0, 1.0)[worlds, None]
+        out[worlds, :, 1] = np.clip(expected / MIN_EXPECTED, 0.0, 1.0)[worlds, None]
 
 
-class GuidedPolicyController(PolicyController):
-    """PolicyController whose vector gets the guidance (validation and evaluation act through it)."""
+@register_part
+class CoveragePlan(_RulePart):
+    """`coverage_plan` (module text): (N, A − 1) per world, one-hot, coverage's move for each agent."""
 
-    def __init__(self, actor, config: WorldConfig, deterministic: bool = False, seed=0) -> None:
-        super().__init__(actor, config, deterministic, seed)
-        self.guide = Guide(config)
+    key = "coverage_plan"
 
-    def reset(self, state: WorldState, mask: np.ndarray) -> None:
-        super().reset(state, mask)
-        self.guide.reset(state, mask)
+    def _make(self, config: WorldConfig) -> GeometricCoverage:
+        return GeometricCoverage(config)
 
-    def act(self, state, maps, vector, active=None):
-        guidance = self.guide.values(state).reshape(state.n_worlds, state.n_agents, -1)
-        return super().act(state, maps, np.concatenate([vector, guidance], axis=2), active)
+    def shape(self, config: WorldConfig) -> tuple[int, ...]:
+        return (config.n_agents, config.n_actions - 1)
+
+    def fill(self, state: WorldState, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None:
+        plan = self._for(state, config)
+        if plan.waypoints.shape[:2] != (state.n_worlds, state.n_agents):
+            plan.reset(state, np.ones(state.n_worlds, bool))
+        move = plan.act(state, None, None)  # advances a waypoint once reached: a second call at once is the same
+        out[worlds] = (move[:, :, None] == np.arange(1, config.n_actions))[worlds]
+
+
+class VectorParts(SearchCNN):
+    """The paper's network with parts of one vector per agent (`parts`) added to its vector layer's input, each
+    through its own linear map and a gate that starts at 0 (a zero-initialised layer would not stay zero: SB3's
+    orthogonal initialisation rewrites every linear layer). Weights copied from a network without a part act as
+    that network until training opens the part's gate."""
+
+    def __init__(self, observation_space: spaces.Dict, conv_channels=(32, 64, 128), vector_size: int = 32,
+                 fc_sizes=(256, 256)) -> None:  # fmt: skip
+        super().__init__(observation_space, conv_channels, vector_size, fc_sizes)
+        missing = [key for key in self.parts if key not in observation_space.spaces]
+        if missing:
+            raise ValueError(f"the {type(self).__name__} network reads {missing[0]!r}, which the env does not observe")
+        self.extra = nn.ModuleDict({key: nn.Linear(observation_space[key].shape[0], vector_size, bias=False)
+                                    for key in self.parts})  # fmt: skip
+        self.gates = nn.ParameterDict({key: nn.Parameter(torch.zeros(())) for key in self.parts})
+
+    def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
+        """observations: {"map": (B, C, F, F), "vector": (B, 3), each part: (B, width)} -> (B, features_dim)."""
+        maps = observations["map"].contiguous(memory_format=torch.channels_last)
+        linear, relu = self.vector
+        vector = linear(observations["vector"])
+        for key in self.parts:
+            vector = vector + self.gates[key] * self.extra[key](observations[key])
+        return self.head(torch.cat([self.conv(maps), relu(vector)], dim=1))
+
+
+@register_network("guided_cnn")
+class GuidedCNN(VectorParts):
+    keys = ("map", "vector", "guidance")
+    parts = ("guidance",)
+
+
+@register_network("guided_evidence_cnn")
+class GuidedEvidenceCNN(VectorParts):
+    keys = ("map", "vector", "guidance", "evidence")
+    parts = ("guidance", "evidence")
+
+
+@register_network("guided_plan_cnn")
+class GuidedPlanCNN(VectorParts):
+    keys = ("map", "vector", "guidance", "evidence", "coverage_plan")
+    parts = ("guidance", "evidence", "coverage_plan")
 
 
 # %%
@@ -245,8 +285,6 @@ class WallsOrOracle(WallsOrTarget):
     does not. The student sees only its evidence and coverage's move: it learns when its evidence says to turn."""
 
     def __init__(self, config: WorldConfig, seed=0) -> None:
-        from oracle_teacher import OracleSwitch  # analysis/ is the script's folder: sys.path[0]
-
         self.walls = make_controller("path_greedy", config, seed=seed)
         self.open = OracleSwitch(config, threshold=0.25, seed=seed)
 
@@ -256,53 +294,6 @@ class WallsOrOracleConfig(ControllerConfig):
     name: str = "walls_or_oracle"
 
 
-def make_guided_vec_env(plan, seed=None):
-    """searchrl.train.build.make_vec_env with each group's worlds wrapped in `Guidance`."""
-    envs = [Guidance(SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=plan.scenario))
-            for j, (world, k) in enumerate(plan.groups)]  # fmt: skip
-    env = envs[0] if len(envs) == 1 else TeamMixVecEnv(envs)
-    if plan.teacher_term and plan.teacher is not None:
-        return TeacherLabels(env, str(plan.teacher), plan.teacher_args, int(plan.cfg.seed))
-    return env
-
-
-def widened_init(model, path: str, cfg=None) -> None:
-    """init= from a policy without guidance: every weight copied, the vector layer's new input columns zero, so the
-    policy first acts exactly as the one it starts from (read under its own run's config, as searchrl reads any)."""
-    source = load_checkpoint(path, device="cpu").policy.state_dict()
-    target = model.policy.state_dict()
-    for key, value in source.items():
-        if target[key].shape != value.shape:  # the vector's first layer: (out, 3) -> (out, 3 + guidance)
-            widened = torch.zeros_like(target[key])
-            widened[:, : value.shape[1]] = value
-            value = widened
-        target[key] = value
-    model.policy.load_state_dict(target)
-
-
-def patch_apps() -> None:
-    import searchrl.controllers.factory as factory
-
-    register("walls_or_target", WallsOrTarget, WallsOrTargetConfig)  # a teacher: imitation.teacher=walls_or_target
-    register("walls_or_switch", WallsOrSwitch, WallsOrSwitchConfig)
-    register("walls_or_oracle", WallsOrOracle, WallsOrOracleConfig)
-    import searchrl.train.app as train_app
-
-    train_app.make_vec_env = make_guided_vec_env
-    train_app.init_weights = widened_init
-    factory.POLICY_CONTROLLER = GuidedPolicyController  # validation, evaluation and render act through it
-
-
-# %%
-if __name__ == "__main__" and len(sys.argv) > 1 and sys.argv[1] in ("train", "evaluate"):
-    import hydra
-
-    from searchrl.paths import CONF_DIR
-
-    app = sys.argv.pop(1)
-    patch_apps()
-    if app == "train":
-        from searchrl.train.app import main
-    else:
-        from searchrl.evaluate.__main__ import main
-    hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name=app)(main.__wrapped__)()
+register("walls_or_target", WallsOrTarget, WallsOrTargetConfig)  # a teacher: imitation.teacher=walls_or_target
+register("walls_or_switch", WallsOrSwitch, WallsOrSwitchConfig)
+register("walls_or_oracle", WallsOrOracle, WallsOrOracleConfig)

@@ -5,11 +5,13 @@
 # (target-greedy, reach 2), coverage and robust/b (and the evidence switch where coverage wins); the open grid also
 # against term/b. Paired comparisons into
 # analysis/out/guided_probe/<tag>/<scenario>/vs_<baseline>/; a folder already evaluated is kept (evaluations resume).
+# The policy acts through its run's own network (analysis/guided_b.py, imported as an extension).
 #   bash analysis/guided_probe.sh [model.zip] [tag]     # defaults: runs/train/guided/walls_b/model.zip, walls_b
-#   BASELINES_ONLY=1 bash analysis/guided_probe.sh      # the rules and shipped policies alone, while one trains
-#   GUIDED_EVIDENCE=1 bash analysis/guided_probe.sh runs/train/guided/b_evidence/model.zip b_evidence
-#   GUIDED_PLAN=1 bash analysis/guided_probe.sh runs/train/guided/b_plan/model.zip b_plan
+#   bash analysis/guided_probe.sh --baselines-only      # the rules and shipped policies alone, while one trains
+#   bash analysis/guided_probe.sh runs/train/guided/b_plan/model.zip b_plan
 set -euo pipefail
+BASELINES_ONLY=
+if [ "${1:-}" = --baselines-only ]; then BASELINES_ONLY=1; shift; fi
 GUIDED=${1:-runs/train/guided/walls_b/model.zip}
 TAG=${2:-walls_b}
 P="grid.world_sizes=[40,80] grid.n_targets=[8,16] grid.n_distributions=[16,32] grid.max_agents=[64,128]
@@ -19,7 +21,8 @@ policy() { python -m searchrl.evaluate checkpoint=runs/reference/$1/model.zip $2
 probe() {  # probe <scenario name> "<overrides>" <baseline>...
   local s=$1 S=$2 O=runs/eval/guided_probe/$1
   shift 2
-  [ -n "${BASELINES_ONLY:-}" ] || python analysis/guided_b.py evaluate checkpoint="$GUIDED" $S $P out_dir=$O/$TAG
+  [ -n "$BASELINES_ONLY" ] || python -m searchrl.evaluate extensions=[analysis.guided_b] checkpoint="$GUIDED" $S $P \
+      out_dir=$O/$TAG
   for base in "$@"; do
     case $base in
       greedy_target) rule greedy_target "$S" $O/$base controller.reach=2;;
@@ -27,7 +30,7 @@ probe() {  # probe <scenario name> "<overrides>" <baseline>...
       switch) rule switch "$S" $O/$base controller.threshold=0.25;;
       *) policy ${base/_//} "$S" $O/$base;;  # walls_b -> walls/b, term_b -> term/b, robust_b -> robust/b
     esac
-    [ -n "${BASELINES_ONLY:-}" ] || python analysis/compare.py $O/$TAG $O/$base --out analysis/out/guided_probe/$TAG/$s/vs_$base
+    [ -n "$BASELINES_ONLY" ] || python analysis/compare.py $O/$TAG $O/$base --out analysis/out/guided_probe/$TAG/$s/vs_$base
   done
 }
 probe paper "scenario=paper" path_greedy walls_b term_b greedy_target

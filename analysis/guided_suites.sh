@@ -1,22 +1,22 @@
 #!/usr/bin/env bash
-# The guided policy of research/guided_b_plan (analysis/guided_b.py, GUIDED_PLAN=1) on the frozen suites' own maps
+# The guided policy of research/guided_b_plan (analysis/guided_b.py, an extension) on the frozen suites' own maps
 # (their grid and seed: n = 40, 80, 160 x N = 1, 4, 16, 64, 50 maps per cell), beside the rules that lead each
 # scenario, then the paired tables (analysis/guided_summary.py). A plain evaluation with a suite's grid, seed and
 # scenario plays exactly that scenario's maps, so one scenario can be run alone. Every obstacle scenario; of the
 # prior-error suite's 22, the prior right and each family at severity 1. Also the paper's 12 hard cells (100 maps
 # each) against term/b. One core; hours; each evaluation resumes where it stopped.
-#   bash analysis/guided_suites.sh                 # everything, then the tables
-#   PART=guided bash analysis/guided_suites.sh     # only the guided policy's evaluations (PART=baselines: the rest)
+#   bash analysis/guided_suites.sh [all|guided|baselines] [model.zip]   # all (the default): everything, then the
+#       tables; guided: only the guided policy's evaluations; baselines: the rest
 set -euo pipefail
-GUIDED=${GUIDED:-runs/train/guided/b_plan/model.zip}
-PART=${PART:-all}
+PART=${1:-all}
+GUIDED=${2:-runs/train/guided/b_plan/model.zip}
 OUT=runs/eval/guided_suite
 SUITE="grid.world_sizes=[40,80,160] grid.n_targets=[8,16,32] grid.n_distributions=[16,32,64] grid.max_agents=[64,128,256]
        grid.agents=[1,4,16,64] grid.maps_per_cell=50 grid.repeats=1 seed=7000000 threads=1 progress_bar=false"
 HARD="grid.world_sizes=[40,80,160] grid.n_targets=[8,16,32] grid.n_distributions=[16,32,64] grid.max_agents=[2,8,32]
       grid.maps_per_cell=100 grid.repeats=1 threads=1 progress_bar=false"  # N up to 2, 8, 32: the hard cells
-guided() { [ "$PART" = baselines ] || GUIDED_PLAN=1 python analysis/guided_b.py evaluate checkpoint="$GUIDED" $2 $3 \
-    out_dir=$1/b_plan; }
+guided() { [ "$PART" = baselines ] || python -m searchrl.evaluate extensions=[analysis.guided_b] \
+    checkpoint="$GUIDED" $2 $3 out_dir=$1/b_plan; }
 rule() { [ "$PART" = guided ] || python -m searchrl.evaluate +model=b $3 $4 controller=$2 out_dir=$1/$2 ${5:-}; }
 term_b() { [ "$PART" = guided ] || python -m searchrl.evaluate checkpoint=runs/reference/term/b/model.zip $2 $3 \
     out_dir=$1/term_b; }

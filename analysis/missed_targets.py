@@ -23,7 +23,6 @@
 # Writes `<label>.csv` (one row per cell) into the output folder, then `missed_targets.md` from every CSV there.
 
 # %%
-import os
 import sys
 from pathlib import Path
 
@@ -51,8 +50,8 @@ args, OVERRIDES = cli.parse(parser, rest=True)  # the rest: Hydra overrides of p
 flags = [o for o in OVERRIDES if o.startswith("-")]
 if flags:
     parser.error(f"unrecognized arguments: {' '.join(flags)}")
-CELLS = [c for c in (args.cells or os.environ.get("SEARCHRL_CELLS") or "n40_N8,n80_N64,n160_N256").split(",") if c]
-LABEL = args.label or os.environ.get("SEARCHRL_LABEL", "")
+CELLS = [c for c in cli.setting(args.cells, "SEARCHRL_CELLS", "n40_N8,n80_N64,n160_N256").split(",") if c]
+LABEL = cli.setting(args.label, "SEARCHRL_LABEL")
 OUT = cli.out_dir(args.out, ROOT / "analysis" / "out" / "missed_targets")
 BINS = ["on_edge", "1_in", "2_in", "3+_in"]  # distance to the nearest edge: 0, 1, 2, 3 or more cells
 

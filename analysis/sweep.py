@@ -18,7 +18,6 @@
 # `runs/multirun/`; output folder `--out`, else `SEARCHRL_ANALYSIS_OUT`, else `analysis/out/sweep_<folder name>`.
 
 # %%
-import os
 from pathlib import Path
 
 import matplotlib
@@ -36,7 +35,7 @@ ROOT = Path.cwd()
 p = cli.parser("The score of a sweep by setting", "SWEEP_DIR",
                "a multirun folder (default: $SEARCHRL_SWEEP_DIR, then the newest under runs/multirun/)")  # fmt: skip
 args, _ = cli.parse(p)
-given = args.dirs or [d for d in [os.environ.get("SEARCHRL_SWEEP_DIR")] if d]
+given = args.dirs or [d for d in [cli.setting(None, "SEARCHRL_SWEEP_DIR")] if d]
 newest = sorted((ROOT / "runs" / "multirun").glob("*/"), key=lambda d: d.stat().st_mtime)[-1:]
 if len(given) > 1:
     cli.stop(f"one sweep folder at a time ({len(given)} given)")

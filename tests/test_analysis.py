@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import runpy
 import shutil
 from pathlib import Path
 
@@ -23,12 +22,8 @@ from searchrl.analysis.stats import (
     table3,
     training_curves,
 )
-from searchrl.controllers.walls import PathGreedy
-from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.evaluate.results import load
 from searchrl.render import main as render_main
-from searchrl.world.config import WorldConfig
-from searchrl.world.scenario import Scenario
 from tests.scripts import run_script as _script
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -36,7 +31,7 @@ pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 # Scripts that train or evaluate a policy of their own: context_probe.py is run by tests/test_context.py on one,
-# guided_b.py's guidance by test_the_guidance_points_where_path_greedy_goes; compile_time.py, label_speed.py,
+# guided_b.py (an extension module: parts, networks, teachers) by tests/test_guided.py; compile_time.py, label_speed.py,
 # one_world.py and world_profile.py are benchmarks, timed by hand like `python -m searchrl.bench` (their kernels'
 # results are the golden slice's and tests/test_threads.py's; compile_time.py's one signature a function is
 # tests/test_structure.py's)
@@ -557,31 +552,3 @@ def test_hedging_refuses_a_bad_switch_policy_before_any_work(given, tmp_path):
     out = _script("hedging.py", "--policies-only", "--switch-policy", given, "--out", str(tmp_path / "out"))
     assert out.returncode == 2 and f"--switch-policy={given!r} is not allowed: label=path/model.zip@θ" in out.stderr
     assert not (tmp_path / "out").exists()
-
-
-def test_the_guidance_points_where_path_greedy_goes():
-    """analysis/guided_b.py's guidance, from path_greedy's own machinery: on walled worlds, where path_greedy moves,
-    the move is the best of the guidance's values (1.0) or its walk; a move blocked by an agent sends path_greedy
-    to its second best, so nearly all, not all, agree. Terminal observations carry zeros."""
-    guided = runpy.run_path(str(ROOT / "analysis" / "guided_b.py"))
-    config = WorldConfig(world_size=(20, 30), n_agents=4, max_steps=12)
-    env = guided["Guidance"](SearchVecEnv(config, n_worlds=6, seed=3, scenario=Scenario.from_dict(
-        {"obstacles": {"kind": "iid", "density": 0.3, "connected": True}})))  # fmt: skip
-    rule, agree, moved = PathGreedy(config, seed=1), 0, 0
-    obs = env.reset()
-    rule.reset(env.venv.world.state, np.ones(6, bool))
-    for _ in range(20):
-        assert obs["vector"].shape == (24, 3 + 8)
-        moves = rule.act(env.venv.world.state, None, None).reshape(-1)
-        values, walk = obs["vector"][:, 3:7], obs["vector"][:, 7:]
-        for slot, a in enumerate(moves):
-            if values[slot].max() > 0 or walk[slot].any():
-                moved += 1
-                agree += bool(values[slot, a - 1] == 1.0 or walk[slot, a - 1] == 1.0)
-        obs, _, dones, infos = env.step(moves)
-        ended = dones.reshape(6, 4)[:, 0]
-        rule.reset(env.venv.world.state, ended)
-        for info in infos:
-            if "terminal_observation" in info:
-                assert not info["terminal_observation"]["vector"][3:].any()
-    assert moved > 200 and agree >= 0.9 * moved, (agree, moved)

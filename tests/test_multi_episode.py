@@ -248,3 +248,70 @@ def test_a_planted_missed_teacher_reset_changes_the_demonstrations(monkeypatch):
     monkeypatch.undo()
     _, _, planted = _collect(monkeypatch, skip_partial=True)
     assert not np.array_equal(clean.actions, planted.actions)  # the plant is seen in what the clone would learn
+
+
+class StepsSinceReset:
+    """A probe observation part with memory: per world, the fills since its last `reset` (its episode's steps + 1
+    when the world calls `reset` exactly at each episode start and `fill` once after it and after each step)."""
+
+    key, privileged, high = "since_reset", False, float("inf")
+
+    def __init__(self) -> None:
+        self.fills = np.zeros(0, np.int64)
+
+    def shape(self, config: WorldConfig) -> tuple[int, ...]:
+        return (config.n_agents, 1)
+
+    def reset(self, state, config: WorldConfig, worlds: np.ndarray) -> None:
+        if self.fills.shape != (state.n_worlds,):
+            self.fills = np.zeros(state.n_worlds, np.int64)
+        self.fills[worlds] = 0
+
+    def fill(self, state, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None:
+        self.fills[worlds] += 1
+        out[worlds] = self.fills[worlds, None, None]
+
+
+def _part_memory_errors(steps: int = 3 * CONFIG.max_steps) -> list[str]:
+    """Step two SearchVecEnvs given one probe part with random moves: each must hold its own copy, and in every
+    observation (terminal ones too) a world's probe must read its episode's step + 1."""
+    part, rng, errors = StepsSinceReset(), np.random.default_rng(1), []
+    envs = [SearchVecEnv(CONFIG, n_worlds=3, seed=s, parts=(part,)) for s in (4, 5)]
+    if envs[0].world.part_fns[0] is envs[1].world.part_fns[0] or envs[0].world.part_fns[0] is part:
+        errors.append("the envs share the part they were given")
+    for env in envs:
+        obs = env.reset()
+        for step in range(steps):
+            t = np.repeat(env.world.state.t, CONFIG.n_agents)
+            if not np.array_equal(obs["since_reset"][:, 0], t + 1):
+                errors.append(f"step {step}: {obs['since_reset'][:, 0].tolist()} against t + 1 {(t + 1).tolist()}")
+            obs, _, _, infos = env.step(rng.integers(0, CONFIG.n_actions, env.num_envs))
+            for slot, info in enumerate(infos):  # the episode ended at t + 1: its last observation reads t + 2
+                if "terminal_observation" in info and info["terminal_observation"]["since_reset"][0] != t[slot] + 2:
+                    errors.append(f"step {step}: slot {slot}'s terminal observation reads its episode's start")
+    return errors
+
+
+def test_a_part_with_memory_is_reset_exactly_where_each_world_starts_an_episode():
+    assert not _part_memory_errors()
+
+
+@pytest.mark.parametrize("planted", ["auto_reset_skipped", "shared"])
+def test_a_planted_missed_reset_of_a_part_is_caught(planted, monkeypatch):
+    """Planted: the worlds' auto-resets skip the parts' reset (env.reset's of every world kept), or every world
+    holds the one part it was given."""
+    import copy
+
+    import searchrl.world.engine as engine
+
+    if planted == "shared":
+        monkeypatch.setattr(copy, "deepcopy", lambda x, memo=None: x)
+    else:
+        original = engine.reset_parts
+
+        def all_worlds_only(parts, state, config, worlds):
+            if len(worlds) == state.n_worlds:
+                original(parts, state, config, worlds)
+
+        monkeypatch.setattr(engine, "reset_parts", all_worlds_only)
+    assert _part_memory_errors()

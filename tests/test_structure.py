@@ -4,6 +4,7 @@ ends the process, one function for the repository's root."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -178,3 +179,97 @@ def top(n):
     assert sorted(f.split(" ", 1)[1] for f in found) == [
         "leaf(... -1 ...)", "leaf(... 0 ...)", "leaf(... k ...)", "leaf: not every argument given by position",
     ], found  # fmt: skip
+
+
+# Research code and user packages plug in through the registries and `extensions=` (docs/extending.md): nothing
+# replaces a searchrl module's or class's attribute at run time, and no behaviour is switched by the environment.
+# The one reader of the environment is the notebooks' command line (a notebook kernel takes no arguments, so its
+# inputs may come from SEARCHRL_* variables, searchrl/analysis/cli.py `setting`).
+ENVIRONMENT_READERS = {"searchrl/analysis/cli.py"}
+SOURCES = sorted([*PACKAGE.rglob("*.py"), *(ROOT / "analysis").rglob("*.py"), *(ROOT / "conf").rglob("*.py"),
+                  *(ROOT / "tests" / "extension_example").rglob("*.py")])  # fmt: skip
+
+
+def _searchrl_names(tree: ast.AST) -> set[str]:
+    """The names a module binds to searchrl's modules or objects by import."""
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names |= {(a.asname or a.name).split(".")[0] for a in node.names if a.name.split(".")[0] == "searchrl"}
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "searchrl":
+            names |= {a.asname or a.name for a in node.names}
+    return names
+
+
+def _root(node: ast.AST) -> str | None:
+    while isinstance(node, ast.Attribute | ast.Subscript):
+        node = node.value
+    return node.id if isinstance(node, ast.Name) else None
+
+
+def _patches_and_environment_reads(source: str) -> tuple[list[int], list[int]]:
+    """(lines that assign or delete an attribute of something imported from searchrl, or setattr it; lines that
+    read os.environ or os.getenv, except to hand the whole environment to a child process: `{**os.environ, ...}`)."""
+    tree = ast.parse(source)
+    imported, patches, reads = _searchrl_names(tree), [], []
+    handed_on = {
+        id(v)
+        for d in ast.walk(tree)
+        if isinstance(d, ast.Dict)
+        for k, v in zip(d.keys, d.values, strict=True)
+        if k is None
+    }
+    for node in ast.walk(tree):
+        targets = (node.targets if isinstance(node, ast.Assign | ast.Delete)
+                   else [node.target] if isinstance(node, ast.AugAssign | ast.AnnAssign) else [])  # fmt: skip
+        if any(isinstance(t, ast.Attribute) and _root(t) in imported for t in targets):
+            patches.append(node.lineno)
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("setattr", "delattr"):
+            if node.args and _root(node.args[0]) in imported:
+                patches.append(node.lineno)
+        if (
+            isinstance(node, ast.Attribute)
+            and node.attr in ("environ", "getenv")
+            and _root(node) == "os"
+            and id(node) not in handed_on
+        ):
+            reads.append(node.lineno)
+    return patches, reads
+
+
+def test_nothing_patches_searchrl_at_run_time_or_switches_on_the_environment():
+    patched, read = [], []
+    for path in SOURCES:
+        rel = path.relative_to(ROOT).as_posix()
+        patches, reads = _patches_and_environment_reads(path.read_text())
+        patched += [f"{rel}:{line}" for line in patches]
+        if rel not in ENVIRONMENT_READERS and rel != "searchrl/omp_wait.py":  # sets a default, switches nothing
+            read += [f"{rel}:{line}" for line in reads]
+    # Shell scripts take their settings as arguments; the one variable read is the folder the device tool gives
+    for path in sorted([*(ROOT / "analysis").glob("*.sh"), ROOT / ".ci" / "run"]):
+        for number, line in enumerate(path.read_text().splitlines(), 1):
+            names = set(re.findall(r"\$\{([A-Z_][A-Z0-9_]*):?-", line)) - {"OUT"}
+            read += [f"{path.relative_to(ROOT).as_posix()}:{number} ({name})" for name in sorted(names)]
+    assert not patched, f"run-time patches of searchrl: {patched}"
+    assert not read, f"reads of the environment outside {sorted(ENVIRONMENT_READERS)}: {read}"
+
+
+def test_the_patch_finder_finds_each_kind():
+    source = """
+import os
+import searchrl.train.app as app
+from searchrl.controllers import factory
+from searchrl.controllers.policy import PolicyController
+import searchrl
+app.make_vec_env = None
+factory.POLICY_CONTROLLER: type = object
+PolicyController.act = print
+searchrl.world.engine.step = None
+setattr(factory, "x", 1)
+local = {}
+local.x = 1
+flag = os.environ.get("X") or os.getenv("Y")
+child = {**os.environ, "A": "1"}
+"""
+    patches, reads = _patches_and_environment_reads(source)
+    assert patches == [7, 8, 9, 10, 11] and reads == [14, 14]

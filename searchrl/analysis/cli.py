@@ -51,13 +51,19 @@ def folders(given: Sequence[str], variable: str, default: Callable[[], list[Path
     """The positional folders, else those of `variable` (comma-separated), else `default()`."""
     if given:
         return [Path(d) for d in given]
-    from_env = [Path(d) for d in os.environ.get(variable, "").split(",") if d]
+    from_env = [Path(d) for d in setting(None, variable).split(",") if d]
     return from_env or default()
+
+
+def setting(given: str | None, variable: str, default: str = "") -> str:
+    """A notebook's option: the command line's, else the environment variable `variable` (what a notebook kernel
+    reads: it takes no arguments), else `default`. The one place a script reads the environment."""
+    return given or os.environ.get(variable) or default
 
 
 def out_dir(given: str | None, default: Path) -> Path:
     """`--out`, else SEARCHRL_ANALYSIS_OUT, else `default`."""
-    return Path(given or os.environ.get("SEARCHRL_ANALYSIS_OUT") or default)
+    return Path(setting(given, "SEARCHRL_ANALYSIS_OUT") or default)
 
 
 def stop(message: str) -> None:

@@ -3,8 +3,9 @@ the controllers their episodes are played with (searchrl/controllers/episodes.py
 from the registry the same way everywhere and a trained policy acts through the same `PolicyController`.
 
 A factory is `factory(config, seed) -> Controller`: `config` a cell's world settings, `seed` an int or the
-episodes' `WorldStreams` (one random stream per world). An experiment that acts through another controller class
-for trained policies (say one with more inputs) replaces `POLICY_CONTROLLER` in this module, and every app uses it.
+episodes' `WorldStreams` (one random stream per world). A policy with more inputs than the window and the 3-vector
+needs no other controller: its network names the observation parts it reads (searchrl/policies/networks.py), and
+`PolicyController` observes them.
 """
 
 from __future__ import annotations
@@ -18,8 +19,6 @@ from searchrl.controllers.registry import make_controller
 from searchrl.policies.actor import Actor
 from searchrl.world.config import WorldConfig
 from searchrl.world.streams import WorldStreams
-
-POLICY_CONTROLLER: type[PolicyController] = PolicyController
 
 
 def heuristic_factory(
@@ -38,9 +37,9 @@ def heuristic_factory(
 
 
 def policy_factory(actor: Actor, deterministic: bool = False) -> ControllerFactory:
-    """A trained policy's actor (loaded once, it serves every cell) acting through `POLICY_CONTROLLER`."""
+    """A trained policy's actor (loaded once, it serves every cell) acting through `PolicyController`."""
 
     def factory(config: WorldConfig, seed: int | WorldStreams = 0) -> Controller:
-        return POLICY_CONTROLLER(actor, config, deterministic=deterministic, seed=seed)
+        return PolicyController(actor, config, deterministic=deterministic, seed=seed)
 
     return factory

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 import numpy as np
@@ -9,6 +10,7 @@ import torch
 
 from searchrl.policies.actor import Actor, sample_actions
 from searchrl.policies.checkpoint import load_actor
+from searchrl.world.coarse import reset_parts
 from searchrl.world.config import WorldConfig
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams, random_source
@@ -30,6 +32,7 @@ class PolicyController:
         self._state: torch.Tensor | None = None  # (2, layers, K·N, hidden) on the actor's device
         self._start = np.zeros(0, bool)  # (K·N,) slots whose next step begins an episode
         self._parts: dict[str, np.ndarray] = {}  # the actor's observation parts, (K, N, ...) each
+        self._part_fns = tuple(copy.deepcopy(p) for p in actor.parts)  # its own: a part may remember an episode
 
     @classmethod
     def load(
@@ -44,6 +47,7 @@ class PolicyController:
             self._start = np.ones(slots, bool)
             self._state = self.actor.initial_state(slots)
         self._start |= np.repeat(np.asarray(mask, bool), state.n_agents)
+        reset_parts(self._part_fns, state, self.config, np.flatnonzero(mask))
 
     def act(
         self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
@@ -53,10 +57,10 @@ class PolicyController:
         actions = np.zeros(k * n, np.int64)
         worlds = np.arange(k) if active is None else np.flatnonzero(active)
         parts = {}
-        for part in self.actor.parts:  # observed here: the episode runners observe the window and vector only
+        for part in self._part_fns:  # observed here: the episode runners observe the window and vector only
             if part.key not in self._parts or self._parts[part.key].shape[0] != k:
-                self._parts[part.key] = np.zeros((k, *part.shape(n)), np.float32)
-            part.fill(state, self.config.max_steps, self._parts[part.key], worlds)
+                self._parts[part.key] = np.zeros((k, *part.shape(self.config)), np.float32)
+            part.fill(state, self.config, self._parts[part.key], worlds)
             parts[part.key] = self._parts[part.key].reshape(k * n, *self._parts[part.key].shape[2:])
         if active is None or active.all():
             rows = slice(None)

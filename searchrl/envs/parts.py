@@ -2,11 +2,13 @@
 
 A part is an object of searchrl/world/coarse.py's `ObservationPart` protocol; it registers its class here under its
 `key` (`register_part`, as a decorator or one call), and a network or critic asks for it by that name
-(searchrl/policies/networks.py). The env then holds it in every observation as `obs[key]`, (C, G, G) per slot.
+(searchrl/policies/networks.py). The env then holds it in every observation as `obs[key]`, `shape(config)[1:]`
+per slot.
 """
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Iterable
 from difflib import get_close_matches
 from typing import Any
@@ -30,12 +32,14 @@ register_part(TrueState)
 
 
 def make_part(name: str, **settings: Any) -> ObservationPart:
-    """The part registered as `name`, built with `settings`; ValueError naming the nearest registered name."""
+    """The part registered as `name`, built with those of `settings` its class takes (a coarse part takes `grid`,
+    a part of one vector per agent none); ValueError naming the nearest registered name."""
     if name not in PARTS:
         near = get_close_matches(name, PARTS, n=1)
         hint = f" (did you mean {near[0]!r}?)" if near else ""
         raise ValueError(f"observation part {name!r} is not registered{hint}: one of {sorted(PARTS)}")
-    return PARTS[name](**settings)
+    takes = inspect.signature(PARTS[name]).parameters
+    return PARTS[name](**{key: value for key, value in settings.items() if key in takes})
 
 
 def make_parts(requests: Iterable[tuple[str, dict[str, Any]]]) -> tuple[ObservationPart, ...]:

@@ -20,7 +20,7 @@ def observation_space(config: WorldConfig, parts: Sequence[ObservationPart] = ()
         {
             "map": spaces.Box(0.0, 1.0, (n_channels(config), config.fov, config.fov), np.float32),
             "vector": spaces.Box(0.0, 1.0, (VECTOR_SIZE,), np.float32),
-            **{p.key: spaces.Box(0.0, p.high, p.shape(config.n_agents)[1:], np.float32) for p in parts},
+            **{p.key: spaces.Box(0.0, p.high, p.shape(config)[1:], np.float32) for p in parts},
         }
     )
 

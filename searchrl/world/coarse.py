@@ -16,11 +16,13 @@ Sums run in a fixed order in compiled code without fastmath, so the views are th
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import ClassVar, Protocol
 
 import numpy as np
 from numba import njit
 
+from searchrl.world.config import WorldConfig
 from searchrl.world.kernels import CACHE
 from searchrl.world.state import WorldState
 
@@ -122,15 +124,26 @@ def _true_state(w, grid, max_steps, out, worlds):
 
 class ObservationPart(Protocol):
     """An observation beside the window and the 3-vector, injected into `SearchWorld(parts=...)`: under `key`, an
-    array of `shape(N)` per world, in [0, high], filled for the worlds listed after every reset and step."""
+    array of `shape(config)` ((N, ...)) per world, in [0, high], filled for the worlds listed after every reset and
+    step. A part that remembers its episode (a rule's memory, a tracker) also has `reset(state, config, worlds)`,
+    called for the listed worlds when they start an episode, before they are filled; every world holds its own
+    copy of each part."""
 
     key: ClassVar[str]
     privileged: ClassVar[bool]  # the true state: for a critic during training, never for an actor
     high: ClassVar[float]
 
-    def shape(self, n_agents: int) -> tuple[int, ...]: ...
+    def shape(self, config: WorldConfig) -> tuple[int, ...]: ...
 
-    def fill(self, state: WorldState, max_steps: int, out: np.ndarray, worlds: np.ndarray) -> None: ...
+    def fill(self, state: WorldState, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None: ...
+
+
+def reset_parts(parts: Iterable[ObservationPart], state: WorldState, config: WorldConfig, worlds: np.ndarray) -> None:
+    """Call `reset` of each part that has one (it remembers its episode) for the listed worlds (int64)."""
+    for part in parts:
+        reset = getattr(part, "reset", None)
+        if reset is not None:
+            reset(state, config, worlds)
 
 
 class OwnMap:
@@ -143,10 +156,10 @@ class OwnMap:
     def __init__(self, grid: int = 16) -> None:
         self.grid = grid
 
-    def shape(self, n_agents: int) -> tuple[int, ...]:
-        return (n_agents, OWN_MAP_CHANNELS, self.grid, self.grid)
+    def shape(self, config: WorldConfig) -> tuple[int, ...]:
+        return (config.n_agents, OWN_MAP_CHANNELS, self.grid, self.grid)
 
-    def fill(self, state: WorldState, max_steps: int, out: np.ndarray, worlds: np.ndarray) -> None:
+    def fill(self, state: WorldState, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None:
         own_map(state, self.grid, out, worlds)
 
 
@@ -160,8 +173,8 @@ class TrueState:
     def __init__(self, grid: int = 16) -> None:
         self.grid = grid
 
-    def shape(self, n_agents: int) -> tuple[int, ...]:
-        return (n_agents, TRUE_STATE_CHANNELS, self.grid, self.grid)
+    def shape(self, config: WorldConfig) -> tuple[int, ...]:
+        return (config.n_agents, TRUE_STATE_CHANNELS, self.grid, self.grid)
 
-    def fill(self, state: WorldState, max_steps: int, out: np.ndarray, worlds: np.ndarray) -> None:
-        true_state(state, self.grid, max_steps, out, worlds)
+    def fill(self, state: WorldState, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None:
+        true_state(state, self.grid, config.max_steps, out, worlds)

@@ -3,12 +3,13 @@ the finished worlds) that every env layer and episode runner wraps."""
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from searchrl.world.coarse import ObservationPart
+from searchrl.world.coarse import ObservationPart, reset_parts
 from searchrl.world.config import WorldConfig, check_seed, is_int, need
 from searchrl.world.metrics import episode_metrics
 from searchrl.world.observe import observation_buffers, observe, observe_worlds
@@ -59,8 +60,9 @@ class SearchWorld:
         self._obs = observation_buffers(config, n_worlds) if observe else None
         self._final = tuple(np.zeros_like(a) for a in self._obs) if observe else (None, None)
         self.observation: tuple[np.ndarray, np.ndarray] | tuple[None, None] = (None, None)  # of the last reset/step
-        self.part_fns = tuple(parts) if observe else ()
-        self.parts = {p.key: np.zeros((n_worlds, *p.shape(config.n_agents)), np.float32) for p in self.part_fns}
+        # Its own copy of each part: a part may remember the episodes of these worlds (coarse.py)
+        self.part_fns = tuple(copy.deepcopy(p) for p in parts) if observe else ()
+        self.parts = {p.key: np.zeros((n_worlds, *p.shape(config)), np.float32) for p in self.part_fns}
         self._final_parts = {key: np.zeros_like(a) for key, a in self.parts.items()}
         self._last_map: tuple[int, DrawnWorld] | None = None  # the map seed `_draw_maps` wrote last, and its draw
         self.started = False  # a world is stepped only once reset (`reset`, `from_maps`) has drawn it
@@ -75,6 +77,7 @@ class SearchWorld:
         world = cls(config, len(map_seeds), scenario=scenario, auto_reset=False, observe=observe)
         world.rng = streams
         world._draw_maps(range(len(map_seeds)), map_seeds)
+        reset_parts(world.part_fns, world.state, config, np.arange(len(map_seeds)))
         world.observation, world.started = world._observe(), True
         return world
 
@@ -89,6 +92,7 @@ class SearchWorld:
         self._draw_maps(worlds, map_seeds)
         if self.observes:
             self.observation = observe_worlds(self.config, self.state, self._obs, np.asarray(worlds, np.int64))
+            reset_parts(self.part_fns, self.state, self.config, np.asarray(worlds, np.int64))
             self._observe_parts(np.asarray(worlds, np.int64))
 
     def _draw_maps(self, worlds: Sequence[int], map_seeds: Sequence[int]) -> None:
@@ -111,7 +115,7 @@ class SearchWorld:
 
     def _observe_parts(self, worlds: np.ndarray) -> None:
         for part in self.part_fns:
-            part.fill(self.state, self.config.max_steps, self.parts[part.key], worlds)
+            part.fill(self.state, self.config, self.parts[part.key], worlds)
 
     def reset(self, seed: int | None = None, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Reset the worlds in `mask` (all by default); `seed` reseeds the generator first."""
@@ -120,6 +124,7 @@ class SearchWorld:
             self.rng = np.random.default_rng(seed)
         mask = np.ones(self.n_worlds, bool) if mask is None else np.asarray(mask, bool)
         reset_worlds(self.config, self.state, mask, self.rng, self.scenario)
+        reset_parts(self.part_fns, self.state, self.config, np.flatnonzero(mask))
         self.observation, self.started = self._observe(), True
         return self.observation
 
@@ -142,6 +147,7 @@ class SearchWorld:
                 reset_worlds(self.config, self.state, done, self.rng, self.scenario)
                 if self.observes:  # only the reset worlds changed since the step's observation
                     maps, vector = observe_worlds(self.config, self.state, self._obs, np.flatnonzero(done))
+                    reset_parts(self.part_fns, self.state, self.config, np.flatnonzero(done))
                     self._observe_parts(np.flatnonzero(done))
         self.observation = (maps, vector)
         final = self._final if self.auto_reset else (maps, vector)

@@ -17,10 +17,10 @@ class Swept:
     def __init__(self, grid: int = 16) -> None:
         self.grid = grid
 
-    def shape(self, n_agents: int) -> tuple[int, ...]:
-        return (n_agents, 1, self.grid, self.grid)
+    def shape(self, config) -> tuple[int, ...]:
+        return (config.n_agents, 1, self.grid, self.grid)
 
-    def fill(self, state, max_steps: int, out: np.ndarray, worlds: np.ndarray) -> None:
+    def fill(self, state, config, out: np.ndarray, worlds: np.ndarray) -> None:
         h, g = state.halo, self.grid
         for k in worlds:
             n = int(state.size[k])
