@@ -346,3 +346,39 @@ def test_a_bound_cache_that_cannot_be_written_is_refused_before_work_and_a_damag
     assert "its bounds are computed again" in capsys.readouterr().err
     pd.testing.assert_frame_equal(first, again)
     assert all(pd.read_parquet(path).shape[0] for path in cache.glob("*.parquet"))  # replaced by whole files
+
+
+def test_one_cell_plays_the_grids_maps_and_pairs_with_a_baseline_on_them(tmp_path, capsys):
+    """`cell=` evaluates one cell of the grid on the maps the whole grid plays there; `baseline=` prints the paired
+    verdicts against another folder at the end, its difference the mean of the per-map differences."""
+    grid = _evaluate(tmp_path / "grid", "controller=surfing")
+    capsys.readouterr()
+    one = _evaluate(tmp_path / "one", "controller=coverage", "cell=n20_N2", f"baseline={tmp_path / 'grid'}")
+    assert set(zip(one.n, one.N, strict=True)) == {(20, 2)}
+    there = grid[(grid.n == 20) & (grid.N == 2)]
+    assert sorted(one.map_seed.unique()) == sorted(there.map_seed.unique())
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0].endswith("1 of 3 cells: n20_N2")  # what it holds, not the two it lacks
+    at = next(i for i, line in enumerate(printed) if line.startswith("against surfing ("))
+    assert printed[at + 1].split() == ["n", "N", "maps", "mine", "baseline", "diff", "95%", "CI", "verdict"]
+    n, agents, maps, mine, base, diff = printed[at + 2].split()[:6]
+    ours, theirs = one.groupby("map_seed").found_fraction.mean(), there.groupby("map_seed").found_fraction.mean()
+    assert (n, agents, maps) == ("20", "2", "3") and float(mine) == pytest.approx(ours.mean(), abs=5e-4)
+    assert float(base) == pytest.approx(theirs.mean(), abs=5e-4)
+    assert float(diff) == pytest.approx((ours - theirs).mean(), abs=5e-4)
+
+
+@pytest.mark.parametrize("bad, message", [
+    ("cell=n20_N3", "cell='n20_N3' is not allowed: a cell of the grid: one of n20_N1, n20_N2, n40_N1"),
+    ("seed=5", "a folder of this seed (5); it holds seed 7000000"),
+    ("scenario=walls", "a folder of this scenario"),
+    ("baseline=/nonexistent", "baseline='/nonexistent' is not allowed: an evaluation folder"),
+])  # fmt: skip
+def test_a_cell_off_the_grid_or_a_baseline_of_other_maps_is_refused_before_work(tmp_path, bad, message, capsys):
+    _evaluate(tmp_path / "base", "controller=surfing", "cell=n20_N1")
+    overrides = ["controller=coverage", f"baseline={tmp_path / 'base'}", *bad.split()]
+    with pytest.raises(SystemExit) as exit_, exits():
+        _evaluate(tmp_path / "out", *overrides)
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and message in err and "Traceback" not in err, err[-2000:]
+    assert not (tmp_path / "out").exists()

@@ -30,7 +30,7 @@ from searchrl.controllers.registry import heuristic
 from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds, map_prior
 from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import CELL_SETTINGS, claim_folder, evaluation_settings, option_defaults
-from searchrl.evaluate.results import cell_table
+from searchrl.evaluate.results import cell_table, coverage, paired_table
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.multirun import Stopped, refuse
@@ -131,7 +131,25 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[
     need(agents is None or (len(agents) > 0 and set(agents) <= set(on_grid)), "grid.agents", agents,
          f"null (every N) or team sizes of the grid, from {on_grid}")  # fmt: skip
     indexed = [(i, c) for i, c in enumerate(cells) if agents is None or c.n_agents in agents]
+    if cfg.get("cell") is not None:  # one cell, at its index in the whole grid: the grid's maps of that cell
+        keys = [c.key for _, c in indexed]
+        need(cfg.cell in keys, "cell", cfg.cell, f"a cell of the grid: one of {', '.join(keys)}")
+        indexed = [(i, c) for i, c in indexed if c.key == cfg.cell]
+    check_baseline(cfg, scenario)
     return indexed, given_out_dir(cfg, "runs/eval/<controller or policy>"), scenario
+
+
+def check_baseline(cfg: DictConfig, scenario: Scenario) -> None:
+    """`baseline=` names an evaluation folder whose record says it played this evaluation's maps (its seed and
+    scenario); ConfigError naming what differs."""
+    if cfg.get("baseline") is None:
+        return
+    record = coverage(cfg.baseline)
+    need(bool(record), "baseline", cfg.baseline, "an evaluation folder (one with evaluation.yaml and cells/)")
+    need(record["seed"] == int(cfg.seed), "baseline", cfg.baseline,
+         f"a folder of this seed ({cfg.seed}); it holds seed {record['seed']}, whose maps are others")  # fmt: skip
+    need(record["scenario"] == scenario.label, "baseline", cfg.baseline,
+         f"a folder of this scenario ({scenario.label}); it holds {record['scenario']}")  # fmt: skip
 
 
 def given_out_dir(cfg: DictConfig, default: str) -> Path | None:
@@ -283,6 +301,8 @@ def run_evaluation(plan: Evaluation) -> Path:
         print(f"done in {elapsed:.1f} s; {done_steps / max(elapsed, 1e-9):,.0f} agent-steps/s "
               f"(steps up to each episode's end)", file=sys.stderr)  # fmt: skip
     print(cell_table(out_dir))  # what the folder holds: a number and its CI per cell
+    if cfg.get("baseline") is not None:
+        print(paired_table(out_dir, cfg.baseline))
     return out_dir
 
 

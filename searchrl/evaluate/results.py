@@ -119,9 +119,11 @@ def coverage_line(out_dir: str | Path) -> str:
     c = coverage(out_dir)
     if not c:
         return f"{out_dir}: {len(cell_files(out_dir))} cells (no record says of which grid, seed or scenario)"
-    missing = f"; missing {', '.join(c['missing'])}" if c["missing"] else ""
+    # the shorter list: the cells missing, or those held (a one-cell evaluation of the grid holds one of 30)
+    which = (f"; missing {', '.join(c['missing'])}" if len(c["missing"]) <= len(c["cells"])
+             else f": {', '.join(c['cells'])}" if c["cells"] else "")  # fmt: skip
     return (f"{c['controller']}: scenario {c['scenario']}, seed {c['seed']}, {c['maps']} maps x {c['repeats']} "
-            f"repeats per cell, {len(c['cells'])} of {len(c['cells']) + len(c['missing'])} cells{missing}")  # fmt: skip
+            f"repeats per cell, {len(c['cells'])} of {len(c['cells']) + len(c['missing'])} cells{which}")  # fmt: skip
 
 
 def cell_table(out_dir: str | Path) -> str:
@@ -142,3 +144,29 @@ def cell_table(out_dir: str | Path) -> str:
                      "95% CI": f"[{mean - half:.3f}, {mean + half:.3f}]",
                      **({"bound": round(maps["bound"].mean(), 3)} if bound else {})})  # fmt: skip
     return f"{coverage_line(out_dir)}\n{pd.DataFrame(rows).to_string(index=False)}"
+
+
+def paired_table(out_dir: str | Path, baseline: str | Path) -> str:
+    """A folder against a baseline folder on the maps both played (searchrl/evaluate/paired.py), as the app prints
+    it at its end: per cell the maps paired, the two means, the difference with its 95 % bootstrap CI and the
+    verdict, then the count of each verdict. One line when they share no cell yet."""
+    from searchrl.evaluate.paired import paired_margins
+
+    if not cell_files(out_dir) or not cell_files(baseline):
+        return f"against {baseline}: no cell of both yet"
+    mine, base = load(out_dir), load(baseline)
+    name, other = str(mine["controller"].iloc[0]), str(base["controller"].iloc[0])
+    if other == name:
+        other = base["controller"] = f"{name} (baseline)"
+    shared = set(zip(mine.n, mine.N, strict=True)) & set(zip(base.n, base.N, strict=True))
+    if not shared:
+        return f"against {baseline}: no cell of both yet"
+    table = paired_margins(pd.concat([mine, base], ignore_index=True), name, other)
+    counts = table["verdict"].value_counts()
+    verdicts = ("better", "tie", "worse", "saturated", "too few maps")
+    summary = ", ".join(f"{verdict} on {counts[verdict]}" for verdict in verdicts if verdict in counts)
+    rows = pd.DataFrame({"n": table.n, "N": table.N, "maps": table.maps, "mine": table["mine"].round(3),
+                         "baseline": table["base"].round(3), "diff": [f"{d:+.3f}" for d in table["diff"]],
+                         "95% CI": [f"[{lo:+.3f}, {hi:+.3f}]" for lo, hi in zip(table.low, table.high, strict=True)],
+                         "verdict": table.verdict})  # fmt: skip
+    return f"against {other} ({baseline}), paired on the same maps: {summary}\n{rows.to_string(index=False)}"

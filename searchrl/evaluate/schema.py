@@ -38,6 +38,8 @@ class EvaluateConfig:
     # What a reset draws besides the sizes and the prior (conf/scenario/); any scenario applies to a checkpoint too.
     scenario: dict[str, Any] = field(default_factory=scenario_default)
     grid: GridConfig = field(default_factory=GridConfig)
+    cell: str | None = None  # one cell of the grid, e.g. n40_N2: the maps the whole grid plays there
+    baseline: str | None = None  # an evaluation folder: the paired verdicts against it, printed at the end
     seed: int = 7_000_000  # evaluation map seeds: base + 100000·cell + map, disjoint from training and validation
     shard: int = 0  # this job evaluates cells shard, shard + num_shards, …
     num_shards: int = 1
