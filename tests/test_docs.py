@@ -224,3 +224,26 @@ def test_the_settings_reference_names_every_scenario_and_suite():
     missing = [f"{g}={o}" for g in ("scenario", "suite") for o in group_options(g) if f"`{o}`" not in text
                and f"{g}={o}" not in text]  # fmt: skip
     assert not missing, missing
+
+
+@pytest.mark.parametrize("app", ["train", "evaluate"])
+def test_help_names_groups_and_options_that_exist_and_where_the_options_are(app):
+    """`--help` (hydra.help.template): each group it lists is a folder of conf/, each option it names a file there,
+    each page it points to exists; no schema pseudo-option."""
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose(config_name=app, overrides=[], return_hydra_config=True)
+    text = cfg.hydra.help.template
+    block = text.split("Groups (group=option, each a folder of conf/):\n")[1].split("\n\n")[0]
+    groups = 0
+    for line in block.splitlines():
+        group, listed = line.split(None, 1)
+        folder = ROOT / "conf" / group.lstrip("+")
+        assert folder.is_dir(), f"--help of {app} names group {group}: no {folder}"
+        for option in listed.split(":")[0].split(","):
+            option = option.replace("(default)", "").strip()
+            if option and "<" not in option:
+                assert (folder / f"{option}.yaml").is_file(), f"--help of {app}: {group}={option} does not exist"
+        groups += 1
+    assert groups >= 5 and "_schema" not in text
+    for page in re.findall(r"docs/\w+\.md", text):
+        assert (ROOT / page).is_file(), page

@@ -66,3 +66,55 @@ def test_attribute_access_by_slot_and_bad_groups():
         TeamMixVecEnv([])
     with pytest.raises(ValueError, match=r"envs\[1\]"):
         TeamMixVecEnv([SearchVecEnv(CONFIG, 1), SearchVecEnv(replace(CONFIG, diagonal=True), 1)])
+
+
+SMALL = WorldConfig(world_size=(6, 9), n_targets=(1, 2), n_agents=2, max_steps=12)
+
+
+def _two_resets(mix: TeamMixVecEnv, steps: int = 30) -> tuple[list, list]:
+    """(observations, dones) of `mix` seeded once, reset, stepped past several episode ends (worlds ending at
+    different steps), reset again without a seed, stepped again."""
+    rng, seen, ends = np.random.default_rng(3), [], []
+    mix.seed(7)
+    for _ in range(2):
+        seen.append(mix.reset()["map"].copy())
+        for _ in range(steps):
+            obs, _, dones, _ = mix.step(rng.integers(0, 5, size=mix.num_envs))
+            seen.append(obs["map"].copy())
+            ends.append(dones.copy())
+    return seen, ends
+
+
+def _mix() -> TeamMixVecEnv:
+    return TeamMixVecEnv([SearchVecEnv(SMALL, 3, seed=0), SearchVecEnv(replace(SMALL, n_agents=3), 2, seed=1)])
+
+
+def _alone() -> tuple[list, list]:
+    """The same steps by each group on its own: seeded 7 and 8 for the first reset only."""
+    envs = [SearchVecEnv(SMALL, 3, seed=7), SearchVecEnv(replace(SMALL, n_agents=3), 2, seed=8)]
+    rng, seen, ends = np.random.default_rng(3), [], []
+    for _ in range(2):
+        seen.append(np.concatenate([env.reset()["map"] for env in envs]))
+        for _ in range(30):
+            actions = np.split(rng.integers(0, 5, size=12), [6])
+            steps = [env.step(a) for env, a in zip(envs, actions, strict=True)]
+            seen.append(np.concatenate([s[0]["map"] for s in steps]))
+            ends.append(np.concatenate([s[2] for s in steps]))
+    return seen, ends
+
+
+def test_a_seed_seeds_one_reset_and_each_later_episode_is_the_groups_own():
+    """Over several episodes, worlds ending at different steps, and a second reset: the mix is its groups on their
+    own, and a seed given once seeds only the next reset (the second draws on from the groups' generators)."""
+    (mixed, mixed_ends), (alone, alone_ends) = _two_resets(_mix()), _alone()
+    assert len({tuple(np.flatnonzero(d)) for d in np.array(mixed_ends).T}) > 1  # slots end at different steps
+    assert all(np.array_equal(a, b) for a, b in zip(mixed, alone, strict=True))
+    assert np.array_equal(np.array(mixed_ends), np.array(alone_ends))
+    assert not np.array_equal(mixed[0], mixed[31])  # the second reset drew new worlds
+
+
+def test_a_planted_seed_that_outlives_its_reset_is_caught(monkeypatch):
+    monkeypatch.setattr(TeamMixVecEnv, "_reset_seeds", lambda self: None)
+    mixed, _ = _two_resets(_mix())
+    alone, _ = _alone()
+    assert not all(np.array_equal(a, b) for a, b in zip(mixed, alone, strict=True))
