@@ -44,7 +44,7 @@ if SWEEP is None or not SWEEP.is_dir():
     cli.stop(f"sweep folder {str(SWEEP)!r} does not exist: pass a folder of `python -m searchrl.train -m ...`")
 try:
     jobs = load_jobs(SWEEP)
-except FileNotFoundError as err:
+except (FileNotFoundError, ValueError) as err:  # no job, or a job's file that cannot be trusted: named
     cli.stop(str(err))
 OUT = cli.out_dir(args.out, ROOT / "analysis" / "out" / f"sweep_{SWEEP.name}")
 OUT.mkdir(parents=True, exist_ok=True)
@@ -64,7 +64,10 @@ write_atomic(OUT / "sweep.csv", lambda tmp: table.to_csv(tmp, index=False))
 # Settings as the command line gives them (markdown() rounds numbers to 3 digits: 3e-4 would read 0.000).
 shown = table.assign(**{k: table[k].map(lambda v: f"{v:.4g}" if isinstance(v, float) else str(v)) for k in keys})
 report = markdown(shown.set_index(keys) if keys else shown)
-curves = validation_curves(SWEEP, jobs)
+try:
+    curves = validation_curves(SWEEP, jobs)
+except ValueError as err:
+    cli.stop(str(err))
 if curves.random_found_fraction.notna().any():  # the same validation worlds in every job of a sweep over algo.*
     levels = curves.random_found_fraction.dropna().unique()
     report += f"\nRandom walk on the validation worlds: {', '.join(f'{v:.3f}' for v in sorted(levels))}\n"
@@ -83,7 +86,8 @@ print(report)
 curves = curves.merge(jobs[["job", *keys]], on="job")
 fig, ax = plt.subplots(figsize=(6.5, 4.0))
 for index, (key, group) in enumerate(curves.groupby(keys, sort=False) if keys else [("all", curves)]):
-    label = ", ".join(f"{k}={v}" for k, v in zip(keys, key if isinstance(key, tuple) else (key,), strict=True))
+    values = key if isinstance(key, tuple) else (key,)
+    label = ", ".join(f"{k}={v}" for k, v in zip(keys, values, strict=True)) if keys else ""
     color = f"C{index % 10}"
     for _, seed in group.groupby("job"):
         ax.plot(seed.step, seed.found_fraction, color=color, alpha=0.25, linewidth=0.8)

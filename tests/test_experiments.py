@@ -64,6 +64,7 @@ ADDED_LATER = {
     "reward": "paper: the world's own reward, the only one before the field",
     "extensions": "[]: no user's modules, only searchrl's parts, as before the field",
     "critic": "shared: the value head on the actor's features, the only critic before the field",
+    "logger": "default: progress.csv and TensorBoard, the only logs before the field",
     "scenario": "the paper's: no obstacle, targets placed from the prior, every world drawn before scenarios",
 }
 # Shipped start weights that moved after a run recorded their path: {recorded `init`: (where the same weights are

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -16,7 +17,7 @@ from PIL import Image
 
 from searchrl.analysis.sweep import load_jobs, mean_ci, score_table, setting_keys, validation_curves
 from searchrl.multirun import exits
-from searchrl.train.score import run_score
+from searchrl.train.score import run_score, write_score
 from tests.scripts import run_script
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -127,8 +128,8 @@ def make_fixture_sweep(base: Path) -> Path:
             (folder / ".hydra").mkdir(parents=True)
             overrides = ["+model=b", f"algo.learning_rate={lr}", f"seed={seed}", "hydra.launcher.n_jobs=2"]
             (folder / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(overrides))
-            _progress(folder, [(100, None), (200, score - 0.1), (300, None), (400, score)])
-            (folder / "score.json").write_text(json.dumps({"score": score, "validations": 2}))
+            _progress(folder, [(100, None), (200, score), (300, None), (400, score)])
+            write_score(folder, 2)  # as the run writes it: the mean of its last two validations
             job += 1
     killed = base / f"{job}_b_seed3"
     (killed / ".hydra").mkdir(parents=True)
@@ -256,3 +257,69 @@ def test_a_grid_sweep_started_again_in_its_folder_continues_it(tmp_path):
     assert f"{first} holds a run of other settings (algo.learning_rate: 0.0005 there, 0.0003 now)" in other.stderr
     assert f"{second} holds a run of other" not in other.stderr  # job 1's run is of these settings: not trained again
     assert (first / "model.zip").stat().st_mtime_ns == trained
+
+
+SWEEP_DAMAGES = {
+    "deleted": lambda path, other: path.unlink(),
+    "truncated": lambda path, other: path.write_bytes(path.read_bytes()[: path.stat().st_size // 2]),
+    "garbage": lambda path, other: path.write_bytes(b"\x00\xffnot this file" * 9),
+    "swapped": lambda path, other: shutil.copy(other, path),  # job 1's file of that name
+}
+
+
+@pytest.mark.slow  # a sweep of two tiny trainings, 23 notebook runs and 4 sweep reruns: about three minutes
+def test_a_sweep_folder_repairs_or_refuses_each_damaged_file_and_mixes_nothing(tmp_path):
+    """Each sweep-level file of a finished two-job sweep (its multirun.yaml, job 0's overrides, score, log and
+    configs) in turn deleted, truncated, overwritten or swapped for job 1's: the sweep table either equals the
+    undamaged one or is refused in one line naming the file (a lost score counts the job as unfinished, and the
+    sweep's rerun writes it again from the job's log); nothing of the folder is changed by the table."""
+    clean = tmp_path / "clean"
+    assert _grid(clean).returncode == 0
+    want = run_script("sweep.py", str(clean), "--out", str(tmp_path / "want"))
+    assert want.returncode == 0, want.stderr[-2000:]
+    wanted = (tmp_path / "want" / "sweep.csv").read_text()
+    job, other = sorted(p.name for p in clean.iterdir() if p.name[0].isdigit())
+    files = ["multirun.yaml", *(f"{job}/{name}" for name in (".hydra/overrides.yaml", "score.json", "progress.csv",
+                                                                "config.yaml", ".hydra/config.yaml"))]  # fmt: skip
+    outcomes = {}
+    for rel in files:
+        for name, damage in SWEEP_DAMAGES.items():
+            if rel == "multirun.yaml" and name == "swapped":
+                continue  # one per sweep
+            folder = tmp_path / "damaged" / f"{rel.replace('/', '_')}_{name}"
+            shutil.copytree(clean, folder)
+            damage(folder / rel, clean / rel.replace(job, other))
+            before = {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()}
+            out = run_script("sweep.py", str(folder), "--out", str(tmp_path / "out" / folder.name))
+            assert {p: p.read_bytes() for p in folder.rglob("*") if p.is_file()} == before
+            table = tmp_path / "out" / folder.name / "sweep.csv"
+            if out.returncode == 0:
+                outcome = "same" if table.read_text() == wanted else "unfinished"
+                assert outcome == "same" or pd.read_csv(table).seeds.tolist() == [1]
+            else:
+                lines = out.stderr.strip().splitlines()
+                assert out.returncode == 1 and len(lines) == 1 and "Traceback" not in out.stderr, out.stderr[-2000:]
+                assert str(folder / rel.split("/")[0]) in lines[0] or rel == "multirun.yaml"
+                outcome = "refused"
+            if rel.endswith("score.json"):  # the sweep again: its score from its own log
+                again = _grid(folder)
+                assert again.returncode == 0 and "score.json written again from" in again.stderr, again.stderr
+                out = run_script("sweep.py", str(folder), "--out", str(tmp_path / "again" / folder.name))
+                assert (tmp_path / "again" / folder.name / "sweep.csv").read_text() == wanted
+                outcome += ", repaired by the rerun"
+            outcomes[f"{rel.replace(job + '/', '').replace('.hydra/overrides', 'overrides')} {name}"] = outcome
+    assert outcomes == {
+        **{f"multirun.yaml {n}": "same" for n in ("deleted", "truncated", "garbage")},
+        "overrides.yaml deleted": "refused",
+        "overrides.yaml truncated": "same",
+        "overrides.yaml garbage": "refused",
+        "overrides.yaml swapped": "refused",  # job 1's seed over job 0's run: never counted as job 1's
+        "score.json deleted": "unfinished, repaired by the rerun",
+        **{f"score.json {n}": "refused, repaired by the rerun" for n in ("truncated", "garbage", "swapped")},
+        **{f"progress.csv {n}": "refused" for n in SWEEP_DAMAGES},
+        "config.yaml deleted": "same",
+        "config.yaml truncated": "same",
+        "config.yaml garbage": "refused",
+        "config.yaml swapped": "refused",
+        **{f".hydra/config.yaml {n}": "same" for n in SWEEP_DAMAGES},  # Hydra's copy: read by no table
+    }, outcomes

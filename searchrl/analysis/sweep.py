@@ -8,14 +8,16 @@ whose value differs between jobs, `seed` left out: the seeds of one setting are 
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import yaml
+from omegaconf import DictConfig, ListConfig, OmegaConf
 from scipy import stats
+
+from searchrl.train.score import stored_score
 
 SEED = "seed"
 IGNORED_PREFIXES = ("hydra.", "hydra/")  # the launcher's and sweeper's own settings
@@ -31,8 +33,10 @@ def _value(text: str) -> object:
 
 
 def job_folders(sweep_dir: Path) -> list[Path]:
-    """Every job folder of the sweep (one holding .hydra/overrides.yaml), sorted by job number where it has one."""
-    found = [p.parent.parent for p in Path(sweep_dir).glob("*/.hydra/overrides.yaml")]
+    """Every job folder of the sweep (one holding .hydra/overrides.yaml or a run's config.yaml), sorted by job number
+    where it has one."""
+    found = {p.parent.parent for p in Path(sweep_dir).glob("*/.hydra/overrides.yaml")}
+    found |= {p.parent for p in Path(sweep_dir).glob("*/config.yaml")}
 
     def order(job: Path) -> tuple[int, str]:
         head = job.name.split("_", 1)[0]
@@ -43,25 +47,56 @@ def job_folders(sweep_dir: Path) -> list[Path]:
 
 def load_jobs(sweep_dir: Path) -> pd.DataFrame:
     """One row per job: `job` (folder name), one column per override key (values parsed), `score`,
-    `validations` (how many the score averages) and `finished` (score.json present)."""
+    `validations` (how many the score averages) and `finished` (score.json present).
+
+    Each job's files are checked before they are used, ValueError in one line naming the file: its overrides must
+    be readable and say what its run's config.yaml holds, and its score.json must be the score of its own
+    progress.csv (searchrl/train/score.py `stored_score`), so a job's files swapped for another's or damaged never
+    enter the table."""
     rows = []
     for job in job_folders(sweep_dir):
-        overrides = yaml.safe_load((job / ".hydra" / "overrides.yaml").read_text()) or []
         row: dict[str, object] = {"job": job.name}
-        for item in overrides:
-            key, _, text = str(item).partition("=")
-            key = key.lstrip("+~")
+        for key, value in job_overrides(job).items():
             if not key.startswith(IGNORED_PREFIXES):
-                row[key] = _value(text)
-        score_file = job / "score.json"
-        record = json.loads(score_file.read_text()) if score_file.is_file() else {}
+                row[key] = value
+        finished = (job / "score.json").is_file()
+        record = stored_score(job) if finished else {}
         row["score"] = float(record.get("score", math.nan))
         row["validations"] = int(record.get("validations", 0))
-        row["finished"] = score_file.is_file()
+        row["finished"] = finished
         rows.append(row)
     if not rows:
         raise FileNotFoundError(f"{sweep_dir} holds no sweep jobs (no */.hydra/overrides.yaml)")
     return pd.DataFrame(rows)
+
+
+def job_overrides(job: Path) -> dict[str, object]:
+    """{key: value} of a job's `.hydra/overrides.yaml`, each checked against its run's config.yaml where the key
+    names a value of it (a group choice, `+model=b`, names the group's `name`); ValueError in one line naming the
+    file when either cannot be read or they disagree."""
+    path, config = job / ".hydra" / "overrides.yaml", job / "config.yaml"
+    try:
+        items = yaml.safe_load(path.read_text())
+        if not isinstance(items, list):
+            raise ValueError
+        cfg = OmegaConf.load(config) if config.is_file() else None
+    except (OSError, UnicodeDecodeError, ValueError, yaml.YAMLError):
+        raise ValueError(f"{path} (or {config.name} beside it) cannot be read as the job's overrides and config; "
+                         "a sweep rerun into the folder does not rewrite it: remove the job's folder to train it "
+                         "again") from None  # fmt: skip
+    overrides = {}
+    for item in items:
+        key, _, text = str(item).partition("=")
+        key, value = key.lstrip("+~"), _value(text)
+        overrides[key] = value
+        if cfg is None or key.startswith(IGNORED_PREFIXES):
+            continue
+        held = OmegaConf.select(cfg, key, default=None)
+        held = held.get("name") if isinstance(held, DictConfig) else held
+        if held is not None and not isinstance(held, ListConfig) and str(held) != str(value):
+            raise ValueError(f"{path} says {key}={value} but the job's run holds {key}={held} ({config}): another "
+                             "job's overrides or another run's folder; restore the job's own or remove it")  # fmt: skip
+    return overrides
 
 
 def setting_keys(jobs: pd.DataFrame) -> list[str]:
@@ -109,7 +144,10 @@ def validation_curves(sweep_dir: Path, jobs: pd.DataFrame) -> pd.DataFrame:
         path = Path(sweep_dir) / name / "progress.csv"
         if not path.is_file() or not path.stat().st_size:
             continue
-        progress = pd.read_csv(path)
+        try:
+            progress = pd.read_csv(path)
+        except (UnicodeDecodeError, ValueError) as err:  # pandas' parser errors are ValueErrors
+            raise ValueError(f"{path} cannot be read as a run's log ({type(err).__name__})") from None
         if "val/found_fraction" not in progress:
             continue
         random = progress.get("val/random_found_fraction", pd.Series(dtype=float))

@@ -61,8 +61,9 @@ from searchrl.train.run_record import (
     set_aside_logs,
 )
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig, register_configs, saved_config
-from searchrl.train.score import read_score, write_score
+from searchrl.train.score import read_score, stored_score, write_score
 from searchrl.train.sweep_job import continued_job
+from searchrl.train.wandb_log import start_wandb
 from searchrl.world.config import ConfigError
 
 register_configs()
@@ -130,9 +131,14 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
     model, resuming = start_model(plan, run_dir, env, resuming)
     start_step = model.num_timesteps if resuming else 0
     if resuming and is_finished(run_dir, start_step, int(cfg.total_timesteps)):
-        print(f"{run_dir} has trained its {start_step} agent-steps and saved model.zip: nothing to do, no file "
-              "changed", file=sys.stderr)  # fmt: skip
         env.close()
+        try:
+            stored_score(run_dir)
+            print(f"{run_dir} has trained its {start_step} agent-steps and saved model.zip: nothing to do, no file "
+                  "changed", file=sys.stderr)  # fmt: skip
+        except ValueError as err:  # lost or damaged, or another run's: the score of its own log
+            score_again(run_dir, cfg, err)
+            print(f"{run_dir} has trained its {start_step} agent-steps and saved model.zip", file=sys.stderr)
         return run_dir / "model.zip"
     if resuming:  # a damaged log is refused before anything is rewritten
         try:
@@ -145,7 +151,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
     record_config(cfg, run_dir)
     if not resuming and plan.clones:
         warm_start(plan, model, run_dir)
-    set_logs(model, run_dir, start_step if resuming else None)
+    set_logs(model, run_dir, start_step if resuming else None, cfg)
     preemption = Preemption()
     validation = ValidationCallback(plan.world, plan.scenario, int(cfg.validation.every), int(cfg.validation.n_worlds),
                                     int(cfg.validation.seed), bool(cfg.validation.deterministic),
@@ -168,10 +174,22 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
         raise Stopped(128 + preemption.signal)  # 143 for SIGTERM, 130 for SIGINT, as a shell reports them
     final = save_model(model, run_dir / "model.zip", run_identity(cfg))
     score = write_score(run_dir, int(cfg.validation.score_last))
+    model.logger.close()  # the W&B run finishes here; the CSV and TensorBoard files are complete
     print(f"trained {model.num_timesteps} agent-steps; model: {final}; score {score['score']:.4f} (mean found "
           f"fraction of the last {score['validations']} validations)", file=sys.stderr)  # fmt: skip
     env.close()
     return final
+
+
+def score_again(run_dir: Path, cfg: DictConfig, why: ValueError) -> dict[str, object]:
+    """Write a finished run's score.json again from its progress.csv (`why`: what was wrong with it), saying so;
+    refused in one line when the log cannot be read either."""
+    try:
+        score = write_score(run_dir, int(cfg.validation.score_last))
+    except (UnicodeDecodeError, ValueError):  # pandas' parser errors are ValueErrors
+        fail(f"{why}; its progress.csv cannot be read to write it again")
+    print(f"score.json written again from {run_dir / 'progress.csv'} ({str(why).split(';')[0]})", file=sys.stderr)
+    return score
 
 
 def prepare_folder(cfg: DictConfig, run_dir: Path, resuming: bool) -> None:
@@ -249,13 +267,15 @@ def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:
     save_model(model, run_dir / "checkpoints" / "step_0.zip", run_identity(plan.cfg))
 
 
-def set_logs(model: BaseAlgorithm, run_dir: Path, resume_step: int | None) -> None:
-    """One CSV across resumed segments (rows past the checkpoint dropped), plus TensorBoard; a resumed segment's
-    elapsed time and iterations continue the run's."""
+def set_logs(model: BaseAlgorithm, run_dir: Path, resume_step: int | None, cfg: DictConfig) -> None:
+    """One CSV across resumed segments (rows past the checkpoint dropped), plus TensorBoard, plus a W&B run with
+    `logger=wandb`; a resumed segment's elapsed time and iterations continue the run's."""
     offsets = clock_offsets(run_dir / "progress.csv", resume_step) if resume_step is not None else {}
     csv_writer = AppendingCSV(run_dir / "progress.csv", resume_step=resume_step)
     purge = None if resume_step is None else resume_step + 1
     writers = [csv_writer, ResumableTensorBoard(str(run_dir / "tensorboard"), purge)]
+    if cfg.logger.name == "wandb":
+        writers.append(start_wandb(cfg, run_dir))
     model.set_logger(Logger(str(run_dir), [ContinuedClock(w, offsets) for w in writers] if offsets else writers))
 
 
@@ -281,8 +301,13 @@ def main(cfg: DictConfig) -> float:
     if hydra_cfg.mode == RunMode.MULTIRUN:  # a sweep started again into its folder continues it (sweep_job.py)
         cfg, overrides, finished = in_sweep(continue_sweep_job, cfg, run_dir, overrides)
         if finished:
-            print(f"{run_dir} holds this job's finished run: not trained again", file=sys.stderr)
-            return read_score(run_dir)
+            try:
+                score = float(stored_score(run_dir)["score"])
+                print(f"{run_dir} holds this job's finished run: not trained again", file=sys.stderr)
+            except ValueError as err:  # its score.json damaged or another run's: written again from its own log
+                score = float(in_sweep(score_again, run_dir, cfg, err)["score"])
+                print(f"{run_dir} holds this job's finished run: not trained again", file=sys.stderr)
+            return score
     final = in_sweep(train, cfg, run_dir, overrides)
     return read_score(final.parent)
 

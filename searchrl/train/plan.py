@@ -32,6 +32,7 @@ from searchrl.schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, ove
 from searchrl.train.imitation import lr_factor
 from searchrl.train.schema import A2CConfig, RecurrentPPOConfig
 from searchrl.train.teacher_term import TEACHER_ALGORITHMS, check_settings
+from searchrl.train.wandb_log import check_logger
 from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.scenario import Scenario, ScenarioMix
 
@@ -96,6 +97,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     SearchCNN.check_sizes(list(cfg.network.conv_channels), int(cfg.network.vector_size), list(cfg.network.fc_sizes),
                           groups[0][0].fov)  # fmt: skip
     check_network_choices(cfg)
+    check_logger(cfg.logger)
     notes = unused_settings(cfg, list(overrides), groups) + round_to_rollouts(cfg, rollout)
     algorithm = TEACHER_ALGORITHMS.get(cfg.algo.name, algorithm)  # the term off (w = 0) where a recipe has none
     return Plan(cfg, groups, scenario, im.teacher, teacher_args, algorithm, teacher_term, rollout, tuple(notes))

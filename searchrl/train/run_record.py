@@ -93,9 +93,9 @@ def other_log(checkpoint: Path, step: int) -> str | None:
 
 def is_finished(run_dir: Path, step: int, total: int) -> bool:
     """Whether the run has trained `total` agent-steps and its model.zip is the model of that step: a resume with
-    that budget has nothing to do."""
+    that budget trains nothing (at most its score.json is written again, from its log)."""
     try:
-        return step >= total and (run_dir / "score.json").is_file() and saved_step(run_dir / "model.zip") == step
+        return step >= total and saved_step(run_dir / "model.zip") == step
     except (OSError, ValueError):  # no model.zip, or a damaged one: the resume writes it again
         return False
 

@@ -38,6 +38,18 @@ class CriticConfig:
 
 
 @dataclass
+class LoggerConfig:
+    """Where the run's metrics go besides progress.csv and TensorBoard (always written): `wandb` also logs every row
+    to Weights & Biases (searchrl/train/wandb_log.py; `pip install -e '.[track]'`)."""
+
+    name: str = "default"  # default: progress.csv and TensorBoard; wandb: those and a W&B run
+    project: str = "searchrl"
+    entity: str | None = None  # the W&B team or user (null: the account's default)
+    mode: str = "offline"  # offline (written under <run>/wandb/, `wandb sync` uploads it) or online
+    group: str | None = None  # runs grouped in the W&B interface (say a sweep's seeds)
+
+
+@dataclass
 class AlgoConfig:
     name: str = MISSING
     learning_rate: float = 3e-4
@@ -108,6 +120,7 @@ class TrainConfig:
     algo: Any = MISSING
     network: NetworkConfig = field(default_factory=NetworkConfig)
     critic: CriticConfig = field(default_factory=CriticConfig)
+    logger: LoggerConfig = field(default_factory=LoggerConfig)
     validation: ValidationConfig = field(default_factory=ValidationConfig)
     imitation: ImitationConfig = field(default_factory=ImitationConfig)
     # What a reset draws besides the sizes and the prior: obstacles, where the targets lie (conf/scenario/,
@@ -141,7 +154,7 @@ RETIRED_SETTINGS: dict[str, object] = {
 
 
 # What `resume=` (and a multirun continued into its folder) may change; every other setting is the run's own.
-RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints")
+RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints", "logger")
 
 
 def saved_config(path: str | Path) -> DictConfig:
@@ -189,5 +202,6 @@ def register_configs() -> None:
     cs.store(name="train_schema", node=TrainConfig)
     cs.store(group="network", name="network_schema", node=NetworkConfig)
     cs.store(group="critic", name="critic_schema", node=CriticConfig)
+    cs.store(group="logger", name="logger_schema", node=LoggerConfig)
     cs.store(group="algo", name="recurrent_ppo_schema", node=RecurrentPPOConfig)
     cs.store(group="algo", name="a2c_schema", node=A2CConfig)
