@@ -120,7 +120,7 @@ def coverage_line(out_dir: str | Path) -> str:
     if not c:
         return f"{out_dir}: {len(cell_files(out_dir))} cells (no record says of which grid, seed or scenario)"
     # the shorter list: the cells missing, or those held (a one-cell evaluation of the grid holds one of 30)
-    which = (f"; missing {', '.join(c['missing'])}" if len(c["missing"]) <= len(c["cells"])
+    which = ("" if not c["missing"] else f"; missing {', '.join(c['missing'])}" if len(c["missing"]) <= len(c["cells"])
              else f": {', '.join(c['cells'])}" if c["cells"] else "")  # fmt: skip
     return (f"{c['controller']}: scenario {c['scenario']}, seed {c['seed']}, {c['maps']} maps x {c['repeats']} "
             f"repeats per cell, {len(c['cells'])} of {len(c['cells']) + len(c['missing'])} cells{which}")  # fmt: skip
