@@ -22,6 +22,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+import pandas as pd
 
 from searchrl.analysis import cli
 from searchrl.analysis.stats import markdown, training_curves
@@ -37,25 +38,45 @@ print(f"{len(RUN_DIRS)} runs, {len(curves)} points")
 # %% [markdown]
 # ## Team metrics per world episode (smoothed over 5 log rows) and validation on fixed worlds
 #
-# The dotted line is the random walk on the same validation worlds.
+# Runs of one setting (the same config but for the seed) are drawn as their mean with a band from the lowest to the
+# highest seed (`training_bands.csv`); a setting of one seed as its line. The dotted lines are the random walk on
+# each model's validation worlds.
 
 # %%
 METRICS = [("team/R", "reward R"), ("team/L", "search time L"), ("team/F", "communications F"),
            ("team/M_bar", "information per step M̄"), ("val/found_fraction", "validation found fraction")]  # fmt: skip
 fig, axes = plt.subplots(1, len(METRICS), figsize=(3.3 * len(METRICS), 3.0))
+bands = []
 for ax, (metric, title) in zip(axes, METRICS, strict=True):
-    for (run, model), group in curves[curves.metric == metric].groupby(["run", "model"]):
-        group = group.sort_values("step")
-        smooth = group["value"].rolling(5 if metric.startswith("team") else 1, min_periods=1).mean()
-        ax.plot(group.step, smooth, label=f"{model} ({run})")
-    if metric == "val/found_fraction":
+    for index, (setting, group) in enumerate(curves[curves.metric == metric].groupby("setting", sort=False)):
+        color, window = f"C{index % 10}", 5 if metric.startswith("team") else 1
+        per_run = {}
+        for run, g in group.groupby("run"):
+            g = g.sort_values("step")
+            per_run[run] = g.assign(smooth=g.value.rolling(window, min_periods=1).mean())
+        if len(per_run) == 1:  # one seed: its line
+            ((run, line),) = per_run.items()
+            ax.plot(line.step, line.smooth, color=color, label=f"{line.model.iloc[0]} ({run})")
+            continue
+        # several seeds of one setting: their mean, and a band from the lowest to the highest seed at each step
+        table = pd.concat(per_run.values()).pivot_table(index="step", columns="run", values="smooth").dropna()
+        ax.plot(table.index, table.mean(axis=1), color=color,
+                label=f"{group.model.iloc[0]} ({len(per_run)} seeds)")  # fmt: skip
+        ax.fill_between(table.index, table.min(axis=1), table.max(axis=1), color=color, alpha=0.2, linewidth=0)
+        bands.append(pd.DataFrame({"metric": metric, "setting": setting, "seeds": len(per_run), "step": table.index,
+                                   "mean": table.mean(axis=1).to_numpy(), "low": table.min(axis=1).to_numpy(),
+                                   "high": table.max(axis=1).to_numpy()}))  # fmt: skip
+    if metric == "val/found_fraction":  # the random walk on each model's validation worlds (its action count)
         random = curves[curves.metric == "val/random_found_fraction"]
-        if len(random):
-            ax.axhline(random["value"].mean(), color="grey", linestyle=":", label="random walk")
+        for model, level in random.groupby("model")["value"].mean().items():
+            ax.axhline(level, color="grey", linestyle=":", label=f"random walk ({model})")
     ax.set(title=title, xlabel="agent-steps")
 axes[-1].legend(fontsize=6)
 fig.tight_layout()
 write_atomic(OUT / "training_curves.png", lambda tmp: fig.savefig(tmp, dpi=120, format="png"))
+if bands:  # the seeds' bands as numbers: one row per setting, metric and step
+    table = pd.concat(bands, ignore_index=True)
+    write_atomic(OUT / "training_bands.csv", lambda tmp: table.to_csv(tmp, index=False))
 
 # %% [markdown]
 # ## Convergence: validation found fraction and meetings per million agent-steps

@@ -122,7 +122,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                       "efficiency.csv": (shipped, 17), "efficiency.md": (f"Upper-bound check: 0 of {shipped} cells "
                                                                          "have a mean above the bound", None)},
         "figures.py": {"fig7_n160.png": (720, 480), "fig8_all_sizes.png": (768, 768)},
-        "training_curves.py": {"training_curves.png": (1980, 360), "training_curves.csv": (43, 5),
+        "training_curves.py": {"training_curves.png": (1980, 360), "training_curves.csv": (43, 7),
                                "training_convergence.md": ("Validation found fraction:", 6),
                                "validation.md": ("| step | run |", 5)},
         "claims.py": {"margins.csv": (8, 11), "margins.md": ("### policy:run − surfing", 8),
@@ -442,6 +442,31 @@ def test_training_curves_carry_the_teacher_distance_and_the_critic(tmp_path):
     assert out.returncode == 0, out.stderr[-3000:]
     table = (tmp_path / "tc" / "teacher_distance.md").read_text()
     assert "| 0 | 0.200 |" in table and "| 250000 | 0.400 |" in table
+
+
+def test_training_curves_draw_the_seeds_of_one_setting_as_a_band_and_a_random_walk_per_model(tmp_path):
+    """Three runs: two seeds of one setting (configs equal but for the seed) and another model's run. The two
+    seeds become one setting with a band from their lowest to their highest value (training_bands.csv); the
+    third stays a line of its own; each model's random walk is its own."""
+    runs = []
+    for name, model, seed, level in (("b0", "b", 0, 0.6), ("b1", "b", 1, 0.7), ("a0", "a", 0, 0.5)):
+        run = tmp_path / name
+        run.mkdir()
+        (run / "config.yaml").write_text(f"model:\n  name: {model}\nseed: {seed}\nalgo:\n  learning_rate: 0.0003\n")
+        log = {"time/total_timesteps": [0, 1000, 2000], "val/found_fraction": [level, level + 0.1, level + 0.05],
+               "val/random_found_fraction": [0.1 if model == "b" else 0.2] * 3}  # fmt: skip
+        pd.DataFrame(log).to_csv(run / "progress.csv", index=False)
+        runs.append(run)
+    curves = training_curves(runs)
+    settings = curves.drop_duplicates("run").set_index("run")["setting"]
+    assert settings["b0"] == settings["b1"] != settings["a0"]
+    out = _script("training_curves.py", *map(str, runs), "--out", str(tmp_path / "tc"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    bands = pd.read_csv(tmp_path / "tc" / "training_bands.csv")
+    found = bands[bands.metric == "val/found_fraction"]
+    assert found.seeds.unique().tolist() == [2] and found.step.tolist() == [0, 1000, 2000]
+    assert found["low"].round(3).tolist() == [0.6, 0.7, 0.65] and found["high"].round(3).tolist() == [0.7, 0.8, 0.75]
+    assert found["mean"].round(3).tolist() == [0.65, 0.75, 0.7]
 
 
 def test_two_folders_with_one_label_are_shown_apart_by_every_analysis_script(fixture_dirs, tmp_path):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
 
 import numpy as np
@@ -112,18 +114,36 @@ TRAIN_DIAGNOSTICS = ("train/imitation_loss", "train/explained_variance")
 
 
 def training_curves(run_dirs: list[str | Path]) -> pd.DataFrame:
-    """Tidy frame (run, model, step, metric, value) of team metrics, validation and the PPO diagnostics of
-    TRAIN_DIAGNOSTICS from each run's progress.csv."""
+    """Tidy frame (run, model, setting, seed, step, metric, value) of team metrics, validation and the PPO
+    diagnostics of TRAIN_DIAGNOSTICS from each run's progress.csv. `setting` names the run's config less its seed
+    (and what a resume may change): the runs of one setting are its seeds."""
     frames = []
     for run in map(Path, run_dirs):
         progress = pd.read_csv(run / "progress.csv")
-        model = _model_name(run)
+        model, setting, seed = _model_name(run), *_setting(run)
         keep = [c for c in progress.columns if c.startswith(("team/", "val/")) or c in TRAIN_DIAGNOSTICS]
         long = progress.melt(id_vars=["time/total_timesteps"], value_vars=keep, var_name="metric").dropna()
-        frames.append(long.rename(columns={"time/total_timesteps": "step"}).assign(run=run.name, model=model))
+        long = long.rename(columns={"time/total_timesteps": "step"})
+        frames.append(long.assign(run=run.name, model=model, setting=setting, seed=seed))
     if not frames:
         raise FileNotFoundError("no run directories given")
     return pd.concat(frames, ignore_index=True)
+
+
+# What differs between the seeds of one setting besides the seed: a resume's settings and the run's own paths
+NOT_SETTING = ("seed", "resume", "total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints", "logger",
+               "hydra")  # fmt: skip
+
+
+def _setting(run: Path) -> tuple[str, int]:
+    """(the run's setting: its model and a digest of its config less NOT_SETTING, its seed)."""
+    config = run / "config.yaml"
+    if not config.exists():
+        return run.name, 0
+    values = OmegaConf.to_container(OmegaConf.load(config))
+    kept = {k: v for k, v in values.items() if k not in NOT_SETTING}
+    digest = hashlib.sha256(json.dumps(kept, sort_keys=True, default=str).encode()).hexdigest()[:6]
+    return f"{_model_name(run)}:{digest}", int(values.get("seed", 0))
 
 
 def _model_name(run: Path) -> str:
