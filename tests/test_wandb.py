@@ -1,5 +1,6 @@
-"""`logger=wandb`: every row the run logs goes to one W&B run too, at the same agent-steps, and a resumed segment
-continues that run; offline, with no network, wandb writes it under <run>/wandb/."""
+"""The run's logs beyond progress.csv: with `logger=wandb` every row the run logs goes to one W&B run too, at the same
+agent-steps, and a resumed segment continues that run (offline, with no network, wandb writes it under
+<run>/wandb/); TensorBoard holds the run's settings as hyperparameters."""
 
 from __future__ import annotations
 
@@ -75,3 +76,20 @@ def test_a_bad_logger_setting_is_refused_before_any_file(tmp_path, capsys, bad, 
         _run(tmp_path / "run", ["+model=b", *SHORT, "logger=wandb", bad])
     assert stop.value.code == 2 and needle in capsys.readouterr().err
     assert not (tmp_path / "run").exists()
+
+
+def test_tensorboard_holds_the_runs_settings_as_hyperparameters_and_the_csv_does_not(tmp_path):
+    """TensorBoard's HParams tab: the run's settings (algo.*, model, network, critic, teacher term, scenario, seed)
+    linked to the found fractions; progress.csv gets no column for them."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+    from tensorboard.plugins.hparams import plugin_data_pb2
+
+    _run(tmp_path, ["+model=b", *SHORT, "algo.learning_rate=0.0007"])
+    events = EventAccumulator(str(next((tmp_path / "tensorboard").iterdir())))
+    events.Reload()
+    content = events.PluginTagToContent("hparams")["_hparams_/session_start_info"]
+    hparams = plugin_data_pb2.HParamsPluginData.FromString(content).session_start_info.hparams
+    assert hparams["algo.learning_rate"].number_value == pytest.approx(0.0007)
+    assert (hparams["model"].string_value, hparams["critic"].string_value) == ("b", "shared")
+    assert hparams["scenario"].string_value == "paper" and hparams["seed"].number_value == 0
+    assert "hparams" not in pd.read_csv(tmp_path / "progress.csv").columns

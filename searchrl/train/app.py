@@ -43,10 +43,12 @@ from searchrl.threads import use_threads
 from searchrl.train.build import init_weights, make_algorithm, make_vec_env
 from searchrl.train.callbacks import (
     AtomicCheckpointCallback,
+    HParamsCallback,
     Preemption,
     TeamMetricsCallback,
     ValidationCallback,
     checkpoints,
+    run_hparams,
 )
 from searchrl.train.command_line import fail
 from searchrl.train.csv_log import AppendingCSV, ContinuedClock, ResumableTensorBoard, check_log, clock_offsets
@@ -158,6 +160,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
                                     at_start=(plan.clones or cfg.init is not None) and not resuming,
                                     preemption=preemption)  # fmt: skip
     callbacks: list[BaseCallback] = [
+        HParamsCallback(run_hparams(cfg, plan.scenario.label)),
         TeamMetricsCallback(),
         AtomicCheckpointCallback(
             run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints), preemption, run_identity(cfg)

@@ -12,7 +12,9 @@ from pathlib import Path
 from types import FrameType
 
 import numpy as np
+from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import HParam
 
 from searchrl.policies.checkpoint import save_model
 from searchrl.train.csv_log import log_digest
@@ -191,3 +193,34 @@ class ValidationCallback(BaseCallback):
             self.logger.record(f"val/{name}", value)
         self.logger.record("val/random_found_fraction", self.random_level["found_fraction"])
         return metrics
+
+
+class HParamsCallback(BaseCallback):
+    """The run's settings in TensorBoard's HParams tab, linked to the validation and team found fractions, so runs
+    of a sweep compare by their settings there (written with the first log row; CSV and stdout skip it)."""
+
+    def __init__(self, hparams: dict[str, bool | int | float | str]) -> None:
+        super().__init__()
+        self.hparams = hparams
+
+    def _on_training_start(self) -> None:
+        metrics = {"val/found_fraction": 0.0, "team/found_fraction": 0.0}
+        self.logger.record("hparams", HParam(self.hparams, metrics), exclude=("stdout", "log", "json", "csv"))
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def run_hparams(cfg: DictConfig, scenario: str) -> dict[str, bool | int | float | str]:
+    """The settings a sweep varies, as TensorBoard's hyperparameters: every scalar of `algo`, the model, network,
+    critic, teacher term, reward, scenario label and seed (None shown as "none")."""
+    chosen = {
+        **{f"algo.{k}": v for k, v in OmegaConf.to_container(cfg.algo, resolve=True).items()},
+        "model": cfg.model.name if cfg.get("model") else None, "network.extractor": cfg.network.get("extractor"),
+        "network.lstm_hidden_size": cfg.network.get("lstm_hidden_size"), "critic": cfg.critic.name,
+        "imitation.teacher": cfg.imitation.teacher, "imitation.rl_weight": cfg.imitation.rl_weight,
+        "imitation.rl_schedule": cfg.imitation.rl_schedule, "reward": cfg.get("reward"), "scenario": scenario,
+        "seed": cfg.seed, "total_timesteps": cfg.total_timesteps,
+    }  # fmt: skip
+    scalars = (bool, int, float, str)
+    return {k: "none" if v is None else v for k, v in chosen.items() if v is None or isinstance(v, scalars)}

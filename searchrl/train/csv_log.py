@@ -13,6 +13,7 @@ import io
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from stable_baselines3.common.logger import KVWriter, TensorBoardOutputFormat
 
 from searchrl.atomic import write_atomic
@@ -115,7 +116,14 @@ class AppendingCSV(KVWriter):
         self._rewrite()
 
     def write(self, key_values: dict[str, Any], key_excluded: dict[str, Any], step: int = 0) -> None:
-        row = {k: ("" if v is None else str(v)) for k, v in key_values.items() if not isinstance(v, (dict, list))}
+        # numbers and text only, and nothing the caller kept from the CSV (TensorBoard's hyperparameters)
+        row = {
+            k: ("" if v is None else str(v))
+            for k, v in key_values.items()
+            if (v is None or isinstance(v, (str, int, float, np.number))) and "csv" not in (key_excluded.get(k) or ())
+        }
+        if not row:
+            return
         new = [k for k in row if k not in self.columns]
         self.rows.append(row)
         if new:
