@@ -13,7 +13,7 @@
 # target-greedy, path-greedy on walls, the shipped `term/b` policy: steps, resets, observations, the rules' kernels)
 # and the world alone at two threads, one world of 64 agents (its merge and observation shared among the threads)
 # and three worlds. numba's compile events give each function's own compile time (its callees' taken out) and
-# how many argument types it was compiled for. The figures of docs/performance.md came from this script at the
+# how many argument types it was compiled for. The figures of docs/lab/performance.md came from this script at the
 # commit that gave every compiled call one signature and, for its parent, with `git checkout <parent> -- searchrl`,
 # one sitting.
 #

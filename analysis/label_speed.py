@@ -9,7 +9,7 @@
 #
 # Microseconds per agent of `greedy_actions` (B's teacher, target-greedy with reach 2) over the three groups of
 # B's recipe (`+experiment=term/b`: 16 worlds of 8 agents, 4 of 32, 1 of 128) after 20 random steps, at 1 and 2
-# numba threads: the minimum and median of 7 trials of 20 calls per group. The figures of docs/performance.md
+# numba threads: the minimum and median of 7 trials of 20 calls per group. The figures of docs/lab/performance.md
 # came from this script at c84ea00 and at its parent (`git checkout c84ea00~1 -- searchrl/controllers`), one sitting.
 #
 #     python analysis/label_speed.py

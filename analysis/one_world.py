@@ -12,7 +12,7 @@
 # of a Table 2 cell, model B's settings, on one thread, and its moves are replayed on fresh copies of that world at
 # 1 numba thread and at all of them (`NUMBA_NUM_THREADS`: the cores) in turn, timing `step` alone: the best of 5
 # replays' mean milliseconds per step. Once target-greedy's team has gathered, its merges scan large belief boxes
-# every step, which random moves (`python -m searchrl.bench world`) never reach. The figures of docs/performance.md
+# every step, which random moves (`python -m searchrl.bench world`) never reach. The figures of docs/lab/performance.md
 # came from this script at the commit that shares the merge (two cores) and, for its parent, with `git checkout
 # <parent> -- searchrl/world`, one sitting.
 #

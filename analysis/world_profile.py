@@ -13,7 +13,7 @@
 # resets and the action draws, as shares of the wall time over 2,000 steps, three runs. Only the kernels share
 # their work among threads; the rest runs in the calling thread, so its share s bounds two threads at
 # 1 / (s + (1 − s) / 2) (Amdahl's law).
-# The figures of docs/performance.md came from this script at 3ef57a5 (two sittings), c04606f, 0854221 (two
+# The figures of docs/lab/performance.md came from this script at 3ef57a5 (two sittings), c04606f, 0854221 (two
 # sittings), 7b5cc23, ba06ae3, ca4d35b and 01d0378.
 #
 #     python analysis/world_profile.py

@@ -4,7 +4,7 @@ passes) and numba's (the world's batch kernels, searchrl/world/parallel.py).
 The two pools are two OpenMP runtimes (torch's bundled libgomp and numba's), and each one's workers spin a while
 after every parallel region before they sleep. When the network runs on the same cores as the world, the world's
 spinning workers take cycles from torch's update: B's recipe on two cores trained at 2,688 agent-steps/s with the
-world on two threads against 2,926 with it on one (docs/performance.md#the-world-on-every-core), where the world is
+world on two threads against 2,926 with it on one (`python -m searchrl.bench train`), where the world is
 5 % of the time. So the world gets every thread only where torch does not compute on the CPU (a policy on a GPU, a
 heuristic without a network) and one thread where it does. Results do not depend on the world's count
 (tests/test_threads.py).

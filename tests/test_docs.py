@@ -23,7 +23,7 @@ from searchrl.paths import CONF_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-PAGES = [README, *sorted((ROOT / "docs").glob("*.md"))]
+PAGES = [README, *sorted((ROOT / "docs").rglob("*.md"))]  # the product docs and the lab notebook (docs/lab/)
 CITE = re.compile(r"<!-- cite: (\S+) -->")
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
@@ -163,7 +163,7 @@ def test_the_docs_name_only_registered_controllers_and_controllers_md_names_ever
     the configs is registered, and docs/controllers.md gives every registered heuristic its name in backticks."""
     from searchrl.controllers.registry import HEURISTICS
 
-    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml"))]
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml"))]
     # a user's package registers its own (docs/extending.md's example)
     users = {m for p in (ROOT / "tests" / "extension_example").glob("*.py")
              for m in re.findall(r'register\("([a-z_]+)"', p.read_text())}  # fmt: skip
@@ -188,7 +188,7 @@ def test_the_docs_name_only_group_options_that_exist():
     for path in (ROOT / "tests" / "extension_example").glob("*.py"):  # what a user's package stores (extending.md)
         for group, name in re.findall(r'group="([a-z]+)",\s*name="([a-z_]+)"', path.read_text()):
             options[group].add(name)
-    pages = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml")),
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml")),
              *sorted((ROOT / "analysis").glob("*.py")), *sorted((ROOT / "analysis").glob("*.sh"))]  # fmt: skip
     stale = []
     for page in pages:

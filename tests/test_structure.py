@@ -273,3 +273,16 @@ child = {**os.environ, "A": "1"}
 """
     patches, reads = _patches_and_environment_reads(source)
     assert patches == [7, 8, 9, 10, 11] and reads == [14, 14]
+
+
+def test_no_code_points_into_the_lab_notebook():
+    """The package, its configs and its tests cite the product docs (docs/*.md), never the lab notebook
+    (docs/lab/: the log, the research and the performance narrative), which records history, not behaviour. The
+    research scripts in analysis/ may: their figures are the notebook's."""
+    lab = ROOT / "docs" / "lab"
+    names = ["docs/lab", *(p.name for p in lab.glob("*.md") if not (ROOT / "docs" / p.name).exists())]
+    pattern = re.compile("|".join(re.escape(n) for n in names))
+    files = [*PACKAGE.rglob("*.py"), *(ROOT / "conf").rglob("*.yaml"), *(ROOT / "tests").rglob("*.py")]
+    found = [f"{p.relative_to(ROOT)}:{n}" for p in sorted(files) if p.name not in ("test_docs.py", "test_structure.py")
+             for n, line in enumerate(p.read_text().splitlines(), 1) if pattern.search(line)]  # fmt: skip
+    assert names[1:] and not found, found

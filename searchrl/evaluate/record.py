@@ -30,7 +30,7 @@ from searchrl.world.scenario import PAPER, Scenario
 RECORD = "evaluation.yaml"
 GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents", "agents", "maps_per_cell", "repeats")
 # Settings removed since records were written, with the one value a record may hold (what the code does now): a
-# record holding them at that value describes the same episodes. docs/log.md names the last commit with each.
+# record holding them at that value describes the same episodes. `git log -S <name>` finds the last commit with each.
 RETIRED_SETTINGS: dict[str, object] = {
     **{f"world.{name}": value for name, value in RETIRED_FIELDS.items()},
     "controller_args.far": False,  # footprint-greedy reading the belief beyond its view

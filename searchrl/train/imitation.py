@@ -148,7 +148,7 @@ def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_e
     loss, value loss, accuracy = argmax action is the teacher's, averaged over the epoch's minibatches; learning
     rate of the epoch's last step). `lr_schedule` "linear" takes each phase's rate from `learning_rate` down to 0
     over its minibatches ("constant" keeps it); the shipped C is fitted so, and its small late steps leave fewer
-    slips than a constant rate (docs/log.md).
+    slips than a constant rate (conf/experiment/clone/c.yaml).
 
     Why two phases: the returns' squared error is ~20× the imitation loss at the start, and through the shared
     extractor it drowned the imitation gradient (accuracy stayed at the majority action). Why a unit-gain action

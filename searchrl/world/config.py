@@ -37,7 +37,7 @@ def check_seed(seed: object, name: str = "seed") -> None:
 
 ANY = "any value"  # a retired setting that did nothing at any value (RETIRED_FIELDS, drop_retired)
 # Fields removed from WorldConfig, each with the one value a saved config may hold: the behaviour every run that
-# recorded it had, which is what the world does now. docs/log.md names the last commit that had each.
+# recorded it had, which is what the world does now. `git log -S <name>` finds the last commit that had each.
 # obstacle_density moved to the scenario (scenario.obstacles.density, searchrl/world/scenario.py).
 RETIRED_FIELDS: dict[str, object] = {"context": 0, "info_reward": "information", "obstacle_density": 0.0}
 
@@ -60,7 +60,7 @@ def drop_retired(values: dict, retired: dict[str, object], prefix: str = "") -> 
             only is ANY or value == only,
             prefix + key,
             value,
-            f"{only!r} only: the setting was removed from searchrl (docs/log.md names the last commit with it)",
+            f"{only!r} only: the setting was removed from searchrl (`git log -S <name>` finds the last commit with it)",
         )
     return values
 

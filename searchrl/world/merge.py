@@ -12,7 +12,7 @@ its new neighbours' boxes and its kept neighbours' news, within the union.
 The result is the whole union's, bit for bit: the same new values; the same ΔM, since the cells that change are
 the same ones, visited in the same row-major order; the same boxes, grown by the whole union. A team that stays
 together scans what changed since the last step instead of everything its members have seen
-(docs/performance.md#the-merge). A world that was just reset (`merged` false) knows no last merge,
+(`python -m searchrl.bench world` times it). A world that was just reset (`merged` false) knows no last merge,
 and treats every neighbour as new.
 
 A merge comes in three pieces: `plan_merge` (a world's neighbours and each agent's rectangles), `merge_values`
