@@ -40,11 +40,30 @@ class FakeWandb(types.ModuleType):
         return Run()
 
 
+def _tensorboard_hparams(folder):
+    """The hyperparameters of the first TensorBoard event file in `folder` (its HParams tab's session)."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+    from tensorboard.plugins.hparams import plugin_data_pb2
+
+    events = EventAccumulator(str(sorted(folder.iterdir())[0]))
+    events.Reload()
+    content = events.PluginTagToContent("hparams")["_hparams_/session_start_info"]
+    return plugin_data_pb2.HParamsPluginData.FromString(content).session_start_info.hparams
+
+
 def test_every_logged_row_goes_to_one_wandb_run_that_a_resume_continues(tmp_path, monkeypatch):
+    """Every row the run logs goes to one W&B run, at its agent-step, and a resume continues that run; TensorBoard
+    holds the run's settings (algo.*, model, network, critic, teacher term, scenario, seed) as its hyperparameters,
+    linked to the found fractions, and progress.csv gets no column for them."""
     fake = FakeWandb()
     monkeypatch.setitem(sys.modules, "wandb", fake)
-    _run(tmp_path, ["+model=b", *SHORT, "logger=wandb", "checkpoint_every=512"])
+    _run(tmp_path, ["+model=b", *SHORT, "logger=wandb", "checkpoint_every=512", "algo.learning_rate=0.0007"])
     progress = pd.read_csv(tmp_path / "progress.csv")
+    assert "hparams" not in progress.columns  # TensorBoard's alone
+    hparams = _tensorboard_hparams(tmp_path / "tensorboard")
+    assert hparams["algo.learning_rate"].number_value == pytest.approx(0.0007)
+    assert (hparams["model"].string_value, hparams["critic"].string_value) == ("b", "shared")
+    assert hparams["scenario"].string_value == "paper" and hparams["seed"].number_value == 0
     validations = progress.dropna(subset=["val/found_fraction"])
     sent = [(step, row["val/found_fraction"]) for step, row in fake.rows if "val/found_fraction" in row]
     assert sent == list(zip(validations["time/total_timesteps"], validations["val/found_fraction"], strict=True))
@@ -76,20 +95,3 @@ def test_a_bad_logger_setting_is_refused_before_any_file(tmp_path, capsys, bad, 
         _run(tmp_path / "run", ["+model=b", *SHORT, "logger=wandb", bad])
     assert stop.value.code == 2 and needle in capsys.readouterr().err
     assert not (tmp_path / "run").exists()
-
-
-def test_tensorboard_holds_the_runs_settings_as_hyperparameters_and_the_csv_does_not(tmp_path):
-    """TensorBoard's HParams tab: the run's settings (algo.*, model, network, critic, teacher term, scenario, seed)
-    linked to the found fractions; progress.csv gets no column for them."""
-    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
-    from tensorboard.plugins.hparams import plugin_data_pb2
-
-    _run(tmp_path, ["+model=b", *SHORT, "algo.learning_rate=0.0007"])
-    events = EventAccumulator(str(next((tmp_path / "tensorboard").iterdir())))
-    events.Reload()
-    content = events.PluginTagToContent("hparams")["_hparams_/session_start_info"]
-    hparams = plugin_data_pb2.HParamsPluginData.FromString(content).session_start_info.hparams
-    assert hparams["algo.learning_rate"].number_value == pytest.approx(0.0007)
-    assert (hparams["model"].string_value, hparams["critic"].string_value) == ("b", "shared")
-    assert hparams["scenario"].string_value == "paper" and hparams["seed"].number_value == 0
-    assert "hparams" not in pd.read_csv(tmp_path / "progress.csv").columns
