@@ -139,7 +139,9 @@ def test_training_curves_are_tidy_per_run_with_the_model_from_its_config(tmp_pat
     )
     (tmp_path / "nomodel" / "config.yaml").write_text("seed: 3\n")
     curves = training_curves([tmp_path / "b_run", tmp_path / "bare", str(tmp_path / "nomodel")])
-    assert list(curves.columns) == ["step", "metric", "value", "run", "model"]
+    assert list(curves.columns) == ["step", "metric", "value", "run", "model", "setting", "seed"]
+    seeds = curves.drop_duplicates("run").set_index("run")["seed"]
+    assert seeds.to_dict() == {"b_run": 0, "bare": 0, "nomodel": 3}  # a run without config.yaml: seed 0
     assert curves.index.tolist() == list(range(len(curves)))  # one plain index over the runs
     b_run = curves[curves.run == "b_run"]
     assert b_run[["step", "metric", "value"]].values.tolist() == [
