@@ -80,6 +80,7 @@ def test_every_logged_row_goes_to_one_wandb_run_that_a_resume_continues(tmp_path
     assert fake.rows[-1][0] == 1536
 
 
+@pytest.mark.slow  # the wandb package itself, offline: its service process takes a while to start and end
 def test_wandb_offline_writes_its_run_under_the_run_folder(tmp_path, monkeypatch):
     pytest.importorskip("wandb")  # installed with '.[track]', which '.[dev]' includes
     monkeypatch.setenv("WANDB_SILENT", "true")
