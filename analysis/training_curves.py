@@ -116,10 +116,11 @@ print(markdown(validation))
 # ## Distance to the teacher, and the critic
 #
 # For runs with a teacher (`imitation.teacher`), the cross-entropy of the policy's action distribution toward the
-# teacher's actions on the learner's own states (nats; the teacher term's loss, logged also when its weight is 0)
-# and the critic's explained variance, each the mean over windows of 250k agent-steps (labelled by their first step).
-# A run whose cross-entropy climbs while its validation falls is being moved away from its teacher by PPO's
-# advantages. Written to `teacher_distance.md`.
+# teacher's actions on the learner's own states (nats; the teacher term's loss, logged also when its weight is 0),
+# the policy's own entropy (nats: minus SB3's `train/entropy_loss`) and the critic's explained variance, each the
+# mean over windows of 250k agent-steps (labelled by their first step). A run whose cross-entropy climbs while its
+# validation falls is being moved away from its teacher; whether toward other moves or toward no move in
+# particular, its entropy says. Written to `teacher_distance.md`.
 
 
 # %%
@@ -129,7 +130,9 @@ def per_window(metric: str, width: int = 250_000) -> str:
 
 
 if (curves.metric == "train/imitation_loss").any():
+    curves.loc[curves.metric == "train/entropy_loss", "value"] *= -1  # SB3 logs minus the entropy
     report = (f"Cross-entropy toward the teacher (nats):\n\n{per_window('train/imitation_loss')}\n"
+              f"Entropy of the policy (nats):\n\n{per_window('train/entropy_loss')}\n"
               f"Explained variance of the critic:\n\n{per_window('train/explained_variance')}")  # fmt: skip
     write_text_atomic(OUT / "teacher_distance.md", report)
     print(report)

@@ -3,8 +3,8 @@ OMP_WAIT_POLICY once, when it starts).
 
 A waiting thread spins briefly, then sleeps (libgomp's default), or sleeps at once (PASSIVE). PPO's update is many
 small parallel regions: on two idle cores B's shipped recipe trained at 3,760 agent-steps/s with the default
-against 2,619 with PASSIVE (`python -m searchrl.bench train`). Where the cores are shared, spinning steals time from the working
-threads (1,107 against 1,959 with the other core busy; a tiny run in a parallel sweep once slowed 20x). So a
+against 2,619 with PASSIVE (`python -m searchrl.bench train`). Where the cores are shared, spinning steals time from
+the working threads (1,107 against 1,959 with the other core busy; a tiny run in a parallel sweep once slowed 20x). So a
 multirun (Hydra's -m: its jobs may share the cores) sleeps and a single run spins briefly; an OMP_WAIT_POLICY
 already set is left alone. Importing the world or the package sets nothing.
 """

@@ -2,7 +2,8 @@
 heuristic on a small slice of the grid, through `run_cell` (the evaluation's episode loop), and the wall-aware
 rules, B's teacher and the policy among walls under iid walls. The open-grid episodes of the first five
 heuristics and the policies were recorded at 05d7673, before scenarios, the episode runner and the removal of the
-negative experiments; columns, heuristics and the walled rows added since were written in later (each by the commit that added it).
+negative experiments; columns, heuristics and the walled rows added since were written in later (each by the
+commit that added it).
 
 `python -m tests.golden_slice --write` rewrites tests/golden/slice.parquet; do that only for a change that is meant
 to change episodes, and say which in the commit that does. tests/test_golden.py compares a fresh run with the file.

@@ -110,7 +110,7 @@ def beside_paper(summary: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
 
 # The teacher term's cross-entropy toward the teacher's actions (logged whatever its weight, 0 included) and the
 # critic's explained variance: how far RL has moved the policy from its teacher, and how good its advantages are.
-TRAIN_DIAGNOSTICS = ("train/imitation_loss", "train/explained_variance")
+TRAIN_DIAGNOSTICS = ("train/imitation_loss", "train/explained_variance", "train/entropy_loss")
 
 
 def training_curves(run_dirs: list[str | Path]) -> pd.DataFrame:

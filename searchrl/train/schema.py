@@ -143,7 +143,8 @@ class TrainConfig:
 
 
 # Settings removed from training, each with the one value a saved run may hold (ANY: inert at every value): a run
-# saved before is read without them (`resume=`, the recipes' tests). `git log -S <name>` finds the last commit with each.
+# saved before is read without them (`resume=`, the recipes' tests). `git log -S <name>` finds the last commit with
+# each.
 RETIRED_SETTINGS: dict[str, object] = {
     **{f"env.world.{name}": value for name, value in RETIRED_FIELDS.items()},
     "network.context_channels": ANY,  # the context stream's widths: no stream was built without env.world.context

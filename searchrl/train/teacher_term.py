@@ -1,7 +1,7 @@
 """PPO that keeps what imitation taught: a cross-entropy term toward a teacher's actions inside PPO's own loss.
 
-PPO started from a clone of a heuristic unlearns it (SB3 issue #543; docs/results.md, RL that keeps its teacher): the first
-advantages come from a critic that never saw the learner's states, and nothing in PPO's loss holds the policy near
+PPO started from a clone of a heuristic unlearns it (SB3 issue #543; docs/results.md, RL that keeps its teacher): the
+first advantages come from a critic that never saw the learner's states, and nothing in PPO's loss holds the policy near
 what it was taught. Two remedies, both after PRIMAL (Sartoretti et al. 2019), which never stops imitating, and
 kickstarting (Schmitt et al. 2018), which distils toward the teacher with a weight that falls to 0:
 
