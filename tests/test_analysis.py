@@ -122,7 +122,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                       "efficiency.csv": (shipped, 17), "efficiency.md": (f"Upper-bound check: 0 of {shipped} cells "
                                                                          "have a mean above the bound", None)},
         "figures.py": {"fig7_n160.png": (720, 480), "fig8_all_sizes.png": (768, 768)},
-        "training_curves.py": {"training_curves.png": (1980, 360), "training_curves.csv": (43, 7),
+        "training_curves.py": {"training_curves.png": (1980, 360), "training_curves.csv": (46, 7),
                                "training_convergence.md": ("Validation found fraction:", 6),
                                "validation.md": ("| step | run |", 5)},
         "claims.py": {"margins.csv": (8, 11), "margins.md": ("### policy:run − surfing", 8),
