@@ -147,6 +147,8 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                               "tail.md": ("Worst-10 % tail: per scenario and cell", 5)},
         "beyond.py": {"beyond.csv": (2, 9), "beyond.png": (600, 384),
                       "beyond.md": ("Each policy minus surfing over surfing: scenario paper", 4)},
+        "report.py": {"report.csv": (3, 6), "improvement.csv": (2, 5), "report.png": (1200, 432),
+                      "report.md": ("Over 4 cells and ", 9)},
         "shipped.py": {"shipped.md": ("| policy | RL agent-steps | RL hours (1 core) | policy found | paper |", 6)},
         "sweep.py": {"sweep.csv": (2, 5), "sweep.md": ("| algo.learning_rate | seeds | score | low | high |", 4),
                      "sweep_curves.png": (780, 480)},

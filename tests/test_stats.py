@@ -228,3 +228,34 @@ def test_outputs_keep_every_row_and_a_plain_index():
     bounds = pd.DataFrame({"n": [40], "N": [1], "bound": [0.5], "mc_stderr": [0.01], "detection_bound": [0.4],
                            "detection_mc_stderr": [0.02]})  # fmt: skip
     assert with_bounds(summary, bounds)["detection_mc_stderr"].tolist() == [0.02]
+
+
+def test_the_aggregates_match_their_definitions_on_known_scores():
+    """rliable's statistics (searchrl/analysis/aggregate.py) on scores with known answers."""
+    from searchrl.analysis.aggregate import (
+        bootstrap,
+        common_tasks,
+        interquartile_mean,
+        iqm,
+        performance_profile,
+        probability_of_improvement,
+    )
+
+    assert interquartile_mean(np.arange(1, 9)) == 4.5  # 3, 4, 5, 6
+    assert interquartile_mean(np.array([0.0, 0.0, 1.0, 1.0, 1.0, 9.0, 9.0, 100.0])) == 3.0  # 1, 1, 1, 9
+    low = {("paper", 40, 1): np.array([0.1, 0.2, 0.3]), ("paper", 80, 2): np.array([0.2, 0.2, 0.4])}
+    high = {task: scores + 0.5 for task, scores in low.items()}
+    assert probability_of_improvement(high, low) == 1.0 and probability_of_improvement(low, high) == 0.0
+    assert probability_of_improvement(low, low) == 0.5  # every tie counts half
+    one = {("paper", 40, 1): np.array([0.1, 0.5]), ("paper", 80, 2): np.array([0.3])}
+    assert probability_of_improvement(one, {("paper", 40, 1): np.array([0.3])}) == 0.5  # shared cells only
+    assert performance_profile(low, np.array([0.0, 0.15, 0.25, 0.4])).tolist() == [1.0, 5 / 6, 2 / 6, 0.0]
+    point, lo, hi = bootstrap(iqm, low, n_boot=300)
+    assert lo <= point <= hi and point == iqm(low)
+    # the same maps drawn for both controllers: a controller against itself is exactly 0.5 in every draw
+    assert bootstrap(probability_of_improvement, low, low, n_boot=50)[1:] == (0.5, 0.5)
+    shorter = {("paper", 40, 1): np.array([0.9, 0.8])}
+    cut = common_tasks(low, shorter)
+    assert list(cut[0]) == [("paper", 40, 1)] and cut[0][("paper", 40, 1)].tolist() == [0.1, 0.2]
+    with pytest.raises(ValueError, match="share no cell"):
+        common_tasks(low, {("walls", 40, 1): np.array([0.5])})
