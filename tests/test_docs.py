@@ -247,3 +247,14 @@ def test_help_names_groups_and_options_that_exist_and_where_the_options_are(app)
     assert groups >= 5 and "_schema" not in text
     for page in re.findall(r"docs/\w+\.md", text):
         assert (ROOT / page).is_file(), page
+
+
+def test_every_figure_the_readme_embeds_is_written_by_a_notebook_it_names():
+    """An image of analysis/out/ in the README is an output of the analysis script its caption names (the script's
+    source writes a file of that name), so the figure can be made again and its caption says by what."""
+    images = re.findall(r"!\[([^\]]*)\]\((analysis/out/[^)]+\.png)\)", README.read_text())
+    assert images
+    for caption, path in images:
+        scripts = re.findall(r"analysis/\w+\.py", caption)
+        assert scripts, f"README's {path}: its caption names no analysis script"
+        assert any(Path(path).name in (ROOT / script).read_text() for script in scripts), (path, scripts)
