@@ -31,12 +31,12 @@ pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 # Scripts that train or evaluate a policy of their own: context_probe.py is run by tests/test_context.py on one,
-# guided_b.py (an extension module: parts, networks, teachers) by tests/test_guided.py; compile_time.py, label_speed.py,
-# one_world.py and world_profile.py are benchmarks, timed by hand like `python -m searchrl.bench` (their kernels'
-# results are the golden slice's and tests/test_threads.py's; compile_time.py's one signature a function is
-# tests/test_structure.py's)
-EXPERIMENTS = ("compile_time.py", "context_probe.py", "guided_b.py", "label_speed.py", "one_world.py",
-               "world_profile.py")  # fmt: skip
+# guided_b.py (an extension module: parts, networks, teachers) by tests/test_guided.py; compile_time.py,
+# label_speed.py, module_trace.py, one_world.py and world_profile.py are benchmarks and traces, run by hand like
+# `python -m searchrl.bench` (their kernels' results are the golden slice's and tests/test_threads.py's;
+# compile_time.py's one signature a function is tests/test_structure.py's)
+EXPERIMENTS = ("compile_time.py", "context_probe.py", "guided_b.py", "label_speed.py", "module_trace.py",
+               "one_world.py", "world_profile.py")  # fmt: skip
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,83 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
+
+# %% [markdown]
+# # Which modules a training crosses: a trace of the calls from the command line to model.zip
+#
+# Runs `python -m searchrl.train` in this process on the command line given (a recipe with a small budget by
+# default) under `sys.setprofile`, and counts the searchrl modules whose functions were called, with their source
+# lines, and those of them that only the call path through the world's kernels reaches. Written to
+# `module_trace.md`. Run from the repository root:
+#
+#     python analysis/module_trace.py [--out DIR] [OVERRIDE ...]
+#
+# (default overrides: `+experiment=term/b total_timesteps=12288 validation.every=0 progress_bar=false threads=1`,
+# into a temporary run folder).
+
+# %%
+import sys
+import tempfile
+from pathlib import Path
+
+from searchrl.analysis import cli
+from searchrl.analysis.stats import markdown
+from searchrl.atomic import write_text_atomic
+
+ROOT = Path.cwd()
+parser = cli.parser("The searchrl modules a training calls into", dirs=None)
+parser.usage = "module_trace.py [-h] [--out DIR] [OVERRIDE ...]"
+args, OVERRIDES = cli.parse(parser, rest=True)
+OUT = cli.out_dir(args.out, ROOT / "analysis" / "out" / "module_trace")
+OVERRIDES = OVERRIDES or ["+experiment=term/b", "total_timesteps=12288", "validation.every=0", "progress_bar=false",
+                          "threads=1"]  # fmt: skip
+
+# %%
+called: dict[str, int] = {}
+
+
+def profile(frame, event, arg):
+    if event == "call":
+        name = frame.f_globals.get("__name__", "")
+        if name.startswith("searchrl.") and name != "searchrl.analysis.cli":
+            called[name] = called.get(name, 0) + 1
+
+
+with tempfile.TemporaryDirectory() as run:
+    argv = ["searchrl.train", *OVERRIDES, f"hydra.run.dir={run}"]
+    sys.argv = argv
+    import runpy
+
+    sys.setprofile(profile)
+    try:
+        runpy.run_module("searchrl.train", run_name="__main__")
+    except SystemExit as stop:
+        if stop.code not in (0, None):
+            sys.setprofile(None)
+            cli.stop(f"the training ended with status {stop.code}")
+    finally:
+        sys.setprofile(None)
+
+# %%
+import pandas as pd  # noqa: E402
+
+rows = []
+for name, calls in sorted(called.items()):
+    path = ROOT / (name.replace(".", "/") + ".py")
+    if not path.exists():
+        path = ROOT / name.replace(".", "/") / "__init__.py"
+    rows.append({"module": name, "calls": calls, "lines": len(path.read_text().splitlines()) if path.exists() else 0})
+table = pd.DataFrame(rows).sort_values("module").set_index("module")
+# the package's layer of each module (searchrl.world, envs, policies, controllers, train, the top level)
+table.insert(0, "layer", [m.split(".")[1] if (ROOT / "searchrl" / m.split(".")[1]).is_dir() else "top level"
+                           for m in table.index])  # fmt: skip
+layers = table.groupby("layer").agg(modules=("lines", "size"), lines=("lines", "sum"))
+report = (f"`python -m searchrl.train {' '.join(OVERRIDES)}` calls into {len(table)} searchrl modules, "
+          f"{int(table.lines.sum())} lines of source ({int(layers.drop('world').modules.sum())} modules and "
+          f"{int(layers.drop('world').lines.sum())} lines outside the world):\n\n{markdown(layers)}\n"
+          f"{markdown(table)}")  # fmt: skip
+OUT.mkdir(parents=True, exist_ok=True)
+write_text_atomic(OUT / "module_trace.md", report)
+print(report)
