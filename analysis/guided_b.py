@@ -224,19 +224,16 @@ class VectorParts(SearchCNN):
 
 @register_network("guided_cnn")
 class GuidedCNN(VectorParts):
-    keys = ("map", "vector", "guidance")
     parts = ("guidance",)
 
 
 @register_network("guided_evidence_cnn")
 class GuidedEvidenceCNN(VectorParts):
-    keys = ("map", "vector", "guidance", "evidence")
     parts = ("guidance", "evidence")
 
 
 @register_network("guided_plan_cnn")
 class GuidedPlanCNN(VectorParts):
-    keys = ("map", "vector", "guidance", "evidence", "coverage_plan")
     parts = ("guidance", "evidence", "coverage_plan")
 
 

@@ -12,7 +12,7 @@ import traceback
 from pathlib import Path
 from unittest import mock
 
-from searchrl.controllers import registry
+from tests.registries import isolated_registries
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -23,10 +23,10 @@ def run_script(notebook: str, *args: str, env: dict[str, str] | None = None) -> 
     stderr, an uncaught exception's traceback in stderr with status 1."""
     env = {k: v for k, v in os.environ.items() if not k.startswith("SEARCHRL_")} | {"MPLBACKEND": "Agg"} | (env or {})
     out, err, code = io.StringIO(), io.StringIO(), 0
-    # a script may register a controller for its process (analysis/oracle_teacher.py): the registry is restored
-    with (mock.patch.dict(registry.HEURISTICS), mock.patch.object(registry, "TEACHERS", registry.TEACHERS),
-          mock.patch.dict(os.environ, env, clear=True), mock.patch.object(sys, "argv", [notebook, *args]),
-          contextlib.chdir(ROOT), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err)):  # fmt: skip
+    # a script may register parts for its process (analysis/oracle_teacher.py a teacher): the registries are restored
+    with (isolated_registries(), mock.patch.dict(os.environ, env, clear=True),
+          mock.patch.object(sys, "argv", [notebook, *args]), contextlib.chdir(ROOT),
+          contextlib.redirect_stdout(out), contextlib.redirect_stderr(err)):  # fmt: skip
         try:
             runpy.run_path(str(ROOT / "analysis" / notebook), run_name="__main__")
         except SystemExit as stop:  # as the interpreter reports it: a message is printed, status 1

@@ -37,8 +37,12 @@ class SearchCNN(BaseFeaturesExtractor):
     fc_sizes: widths of the FC layers after concatenation (the paper has two).
     """
 
-    keys: tuple[str, ...] = ("map", "vector")  # the observation keys it reads
     parts: tuple[str, ...] = ()  # the observation parts (searchrl/envs/parts.py) the env must add for it
+    keys: tuple[str, ...] = ("map", "vector")  # the observation keys it reads: the window, the 3-vector, its parts
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.keys = ("map", "vector", *cls.parts)
 
     def __init__(
         self,

@@ -87,6 +87,11 @@ class WithGrid(SearchCNN):
     part: ClassVar[str]
     gated: ClassVar[bool]
 
+    def __init_subclass__(cls, **kwargs) -> None:
+        if "part" in cls.__dict__:
+            cls.parts = (cls.part,)
+        super().__init_subclass__(**kwargs)
+
     def __init__(self, observation_space: spaces.Dict, conv_channels: Sequence[int] = (32, 64, 128),
                  vector_size: int = 32, fc_sizes: Sequence[int] = (256, 256)) -> None:  # fmt: skip
         super().__init__(observation_space, conv_channels, vector_size, fc_sizes)
@@ -107,8 +112,6 @@ class WithGrid(SearchCNN):
 class OwnMapCNN(WithGrid):
     """The paper's network plus the agent's own whole belief map, coarse, through a gate that starts at 0."""
 
-    keys = ("map", "vector", "own_map")
-    parts = ("own_map",)
     part = "own_map"
     gated = True
 
@@ -117,8 +120,6 @@ class OwnMapCNN(WithGrid):
 class TrueStateCritic(WithGrid):
     """A critic's extractor: the paper's network plus the world's true state, coarse."""
 
-    keys = ("map", "vector", "true_state")
-    parts = ("true_state",)
     part = "true_state"
     gated = False
 

@@ -50,8 +50,8 @@ def continued_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple
         key = differ[0]
         raise ConfigError(f"{run_dir} holds a run of other settings ({key}: {before.get(key, '<absent>')} there, "
                           f"{now.get(key, '<absent>')} now): sweep into another hydra.sweep.dir")  # fmt: skip
-    finished = (run_dir / "model.zip").is_file() and (run_dir / "score.json").is_file()
-    if finished and int(saved.total_timesteps) == int(cfg.total_timesteps):
+    # model.zip is written once the budget is trained; its score.json is checked by the app (score.py stored_score)
+    if (run_dir / "model.zip").is_file() and int(saved.total_timesteps) == int(cfg.total_timesteps):
         return cfg, overrides, True
     resumed = cfg.copy()
     resumed.resume = str(run_dir)

@@ -146,35 +146,31 @@ def reset_parts(parts: Iterable[ObservationPart], state: WorldState, config: Wor
             reset(state, config, worlds)
 
 
-class OwnMap:
-    """The observation part `own_map` (module docstring): an agent's own belief map, coarse; an actor may read it."""
+class CoarseView:
+    """A part that is a coarse view of the whole world: (N, channels, grid, grid) per world."""
 
-    key = "own_map"
-    privileged = False
-    high = 1.0
+    channels: ClassVar[int]
 
     def __init__(self, grid: int = 16) -> None:
         self.grid = grid
 
     def shape(self, config: WorldConfig) -> tuple[int, ...]:
-        return (config.n_agents, OWN_MAP_CHANNELS, self.grid, self.grid)
+        return (config.n_agents, self.channels, self.grid, self.grid)
+
+
+class OwnMap(CoarseView):
+    """The observation part `own_map` (module docstring): an agent's own belief map, coarse; an actor may read it."""
+
+    key, privileged, high, channels = "own_map", False, 1.0, OWN_MAP_CHANNELS
 
     def fill(self, state: WorldState, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None:
         own_map(state, self.grid, out, worlds)
 
 
-class TrueState:
+class TrueState(CoarseView):
     """The observation part `true_state` (module docstring): the world's true state, coarse; a critic's only."""
 
-    key = "true_state"
-    privileged = True
-    high = float("inf")  # target counts
-
-    def __init__(self, grid: int = 16) -> None:
-        self.grid = grid
-
-    def shape(self, config: WorldConfig) -> tuple[int, ...]:
-        return (config.n_agents, TRUE_STATE_CHANNELS, self.grid, self.grid)
+    key, privileged, high, channels = "true_state", True, float("inf"), TRUE_STATE_CHANNELS  # high: target counts
 
     def fill(self, state: WorldState, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None:
         true_state(state, self.grid, config.max_steps, out, worlds)

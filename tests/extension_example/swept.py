@@ -34,7 +34,5 @@ class Swept:
 
 @register_network("swept_cnn")
 class SweptCNN(WithGrid):
-    keys = ("map", "vector", "swept")
-    parts = ("swept",)
     part = "swept"
     gated = False
