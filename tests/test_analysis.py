@@ -106,8 +106,12 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
 
 # context_probe.py needs a policy trained with the context: tests/test_context.py runs it on one
 # hedging.py runs rules and a shipped policy itself (about 50 s): in the slow run
-@pytest.mark.parametrize("notebook", [pytest.param(p.name, marks=pytest.mark.slow) if p.name == "hedging.py" else p.name
-                                      for p in NOTEBOOKS if p.name not in EXPERIMENTS])  # fmt: skip
+# beyond.py tabulates research folders (about 30 s): in the slow run
+SLOW_NOTEBOOKS = ("hedging.py", "beyond.py")
+
+
+@pytest.mark.parametrize("notebook", [pytest.param(p.name, marks=pytest.mark.slow) if p.name in SLOW_NOTEBOOKS
+                                      else p.name for p in NOTEBOOKS if p.name not in EXPERIMENTS])  # fmt: skip
 def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
     eval_dirs = [fixture_dirs / "eval" / c for c in ("surfing", "coverage", "policy")]
     _run_notebook(notebook, eval_dirs, fixture_dirs / "run", tmp_path)

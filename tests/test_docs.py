@@ -103,6 +103,7 @@ def test_readme_command_parses(command, capsys):
         assert (ROOT / words[1]).is_file(), f"{command!r}: no script {words[1]}"
 
 
+@pytest.mark.slow  # the README's shell commands are checked in the default run
 def test_readme_python_examples_run():
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
     assert blocks, "README has no python example"

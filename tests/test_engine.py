@@ -203,6 +203,7 @@ def test_bench_train_reports_fps_and_the_shares_of_the_wall_time(capsys):
     assert row["slots"] == 16 * 8 and row["batch_size"] == 1024
 
 
+@pytest.mark.slow  # a benchmark's second recipe
 def test_bench_train_times_a_recipe_with_the_teacher_term(capsys):
     assert bench_main(["train", "--updates", "1", "--threads", "1", "--experiment", "term/b", "--json"]) == 0
     (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]

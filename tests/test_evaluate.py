@@ -165,7 +165,8 @@ def _episodes(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 @pytest.mark.parametrize("controller", ["controller=greedy", "controller=surfing", "controller=random",
-                                        f"checkpoint={ROOT / 'runs/reference/b/model.zip'}"])  # fmt: skip
+                                        pytest.param(f"checkpoint={ROOT / 'runs/reference/b/model.zip'}",
+                                                     marks=pytest.mark.slow)])  # fmt: skip
 def test_batches_threads_and_shards_change_no_episode(tmp_path, controller):
     """Each episode draws from its own streams: one world per batch on two threads in three shards plays the same
     episodes, bit for bit, as the whole cell in one batch on one thread (a sampled policy included)."""

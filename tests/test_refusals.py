@@ -66,6 +66,7 @@ def test_both_apps_name_the_failed_jobs_of_a_multirun(app):
     assert callbacks.failed_jobs._target_ == "searchrl.multirun.FailedJobs"
 
 
+@pytest.mark.slow  # one refusal per job, second of a kind
 def test_an_evaluation_multirun_runs_every_valid_job_past_a_refused_one(tmp_path):
     cmd = [sys.executable, "-m", "searchrl.evaluate", "-m", "controller=surfing", "controller.w_p=0.5,nan,0.7", *SLICE,
            f"out_dir={tmp_path}/w" + "${controller.w_p}", f"hydra.sweep.dir={tmp_path}/sweep"]  # fmt: skip

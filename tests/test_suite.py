@@ -110,6 +110,7 @@ def test_a_bad_family_is_named_before_any_folder(tmp_path, capsys):
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.slow  # an evaluation folder's fault injection is in the default run
 def test_a_suite_folder_repairs_or_refuses_each_damaged_file_and_loses_nothing(tmp_path, capsys):
     """Each file of a finished suite folder (its suite.yaml, each scenario's record and cells) in turn deleted,
     truncated, overwritten or swapped for another suite run's (seed 6): the rerun repairs it (the folder then loads

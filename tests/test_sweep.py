@@ -58,6 +58,7 @@ def test_optuna_sweeps_the_search_space_and_reports_the_best_trial(optuna_sweep)
     assert best["best_params"]["algo.learning_rate"] == pytest.approx(winner["algo.learning_rate"])
 
 
+@pytest.mark.slow  # the study's first sweep is in the default run
 def test_the_same_command_into_the_same_folder_resumes_the_study(optuna_sweep):
     """The new trial's job is numbered 0 again, with other parameters: it goes beside the first trial's folder."""
     import optuna

@@ -158,6 +158,7 @@ def test_init_copies_policy_weights_only(tmp_path, capsys):
         init_weights(other, str(source), wider.cfg)
 
 
+@pytest.mark.slow  # resume after a kill is in the default run
 def test_resume_of_an_initialised_run_needs_no_init_file(tmp_path):
     """A run started with init= resumes from its own checkpoint even after the init file is gone."""
     source = _run(tmp_path / "source", ["+model=b", *TINY, "validation.every=0"])
@@ -256,7 +257,8 @@ def test_bad_input_fails_before_work(tmp_path, capsys):
     assert not (tmp_path / "x" / "config.yaml").exists()  # Hydra makes the folder; the app writes nothing
 
 
-@pytest.mark.parametrize("launcher", ["local", pytest.param("submitit_local", marks=pytest.mark.slow)])
+@pytest.mark.slow  # a training multirun: tests/test_sweep.py runs one in the default run
+@pytest.mark.parametrize("launcher", ["local", "submitit_local"])
 def test_multirun_sweeps(tmp_path, launcher):
     cmd = [sys.executable, "-m", "searchrl.train", "-m", f"hydra/launcher={launcher}", "+model=a,c", *TINY,
            "total_timesteps=256", "validation.every=0", f"hydra.sweep.dir={tmp_path}"]  # fmt: skip
