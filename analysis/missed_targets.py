@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 from hydra import compose, initialize_config_dir
 from hydra.errors import HydraException
+from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from searchrl.analysis import cli
@@ -57,7 +58,7 @@ BINS = ["on_edge", "1_in", "2_in", "3+_in"]  # distance to the nearest edge: 0, 
 
 try:
     with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
-        cfg = compose("evaluate", overrides=OVERRIDES)
+        cfg = OmegaConf.to_object(compose("evaluate", overrides=OVERRIDES))  # the app's typed settings
     world, name, model, factory, needs_obs = make_controller_factory(cfg)
 except (HydraException, OmegaConfBaseException, ValueError, FileNotFoundError) as err:  # ConfigError too
     message = str(err).split("\nConfig search path")[0]  # Hydra's lists a group's options, but not their schemas
@@ -93,8 +94,8 @@ for key in CELLS:
         tally["missed"] += edge_bins(state, first, state.target_valid & ~state.target_found)
         tally["all"] += edge_bins(state, first, state.target_valid)
 
-    frame = run_cell(factory, world, grid[index[key]], index[key], int(cfg.grid.maps_per_cell),
-                     int(cfg.grid.repeats), int(cfg.seed), float(cfg.batch_mb), needs_obs, on_done=count)  # fmt: skip
+    frame = run_cell(factory, world, grid[index[key]], index[key], cfg.grid.maps_per_cell,
+                     cfg.grid.repeats, cfg.seed, cfg.batch_mb, needs_obs, on_done=count)  # fmt: skip
     missed, every = tally["missed"], tally["all"]
     rows.append({
         "controller": LABEL, "cell": key, "episodes": len(frame), "found": frame["found_fraction"].mean(),

@@ -75,6 +75,7 @@ def test_an_integer_world_size_is_an_n_by_n_world_everywhere() -> None:
     env.world.world_size and env.extra_teams' world_size."""
     import numpy as np
     from hydra import compose, initialize_config_dir
+    from omegaconf import OmegaConf
 
     import searchrl
     import searchrl.train.app
@@ -99,9 +100,9 @@ def test_an_integer_world_size_is_an_n_by_n_world_everywhere() -> None:
         cfg = compose(config_name="train", overrides=["+model=b", "env.world.world_size=20", teams])
         with pytest.raises(ConfigError, match=r"env.extra_teams\[0\]: world_size='big'"):
             team_groups(
-                compose(
-                    config_name="train",
-                    overrides=["env.extra_teams=[{n_agents:4,n_worlds:1,world_size:big}]"],
+                OmegaConf.to_object(
+                    compose(config_name="train", overrides=["env.extra_teams=[{n_agents:4,n_worlds:1,world_size:big}]"])
                 )
             )
-    assert [(w.world_size, k) for w, k in team_groups(cfg)] == [((20, 20), 16), ((40, 40), 1), ((30, 50), 1)]
+    groups = team_groups(OmegaConf.to_object(cfg))
+    assert [(w.world_size, k) for w, k in groups] == [((20, 20), 16), ((40, 40), 1), ((30, 50), 1)]

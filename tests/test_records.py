@@ -5,7 +5,7 @@ per-world random streams (searchrl/evaluate/record.py, grid.py, runner.py; searc
 from __future__ import annotations
 
 import hashlib
-from dataclasses import replace
+from dataclasses import asdict, replace
 
 import numpy as np
 import pandas as pd
@@ -31,8 +31,9 @@ from searchrl.world.streams import WorldStreams, random_source
 
 
 def _cfg(*overrides: str):
+    """The evaluation app's typed settings (EvaluateConfig) of these overrides."""
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        return compose(config_name="evaluate", overrides=list(overrides))
+        return OmegaConf.to_object(compose(config_name="evaluate", overrides=list(overrides)))
 
 
 def test_file_sha256_reads_the_whole_file_in_blocks(tmp_path):
@@ -57,7 +58,7 @@ def test_a_heuristics_record_names_it_its_settings_its_world_and_the_whole_grid(
                                 "n_distributions": [8, 16, 32, 64], "max_agents": [32, 64, 128, 256],
                                 "agents": None, "maps_per_cell": 100, "repeats": 2}  # fmt: skip
     assert settings["controller_args"]["name"] == "greedy" and settings["controller_args"]["horizon"] == 3
-    assert settings["world"] == OmegaConf.to_container(cfg.env.world, resolve=True)
+    assert settings["world"] == asdict(cfg.env.world)
 
 
 def test_a_checkpoints_record_names_its_file_by_hash_and_how_it_acts(tmp_path):

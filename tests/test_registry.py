@@ -91,7 +91,7 @@ def test_unknown_names_are_refused_listing_the_registry():
     with pytest.raises(ConfigError, match=rf"controller='planner' is not allowed: one of {names}"):
         heuristic("planner")
     with pytest.raises(ConfigError, match=rf"one of {names}, or checkpoint=<model.zip>"):
-        make_controller_factory(_compose("controller=greedy", "controller.name=planner"))
+        make_controller_factory(OmegaConf.to_object(_compose("controller=greedy", "controller.name=planner")))
     with pytest.raises(ConfigError, match=rf"imitation.teacher='random' is not allowed: one of {', '.join(TEACHERS)}"):
         make_teacher("random", WorldConfig(), 0)
     assert TEACHERS == tuple(n for n in HEURISTICS if n != "random")
@@ -107,8 +107,8 @@ def test_greedy_target_composes_to_the_spelled_out_greedy_settings():
     # Its own settings still apply on top, and the schema checks them
     assert _compose("controller=greedy_target", "controller.reach=2").controller.reach == 2.0
     # The same controller: class, label, every setting
-    world, label, _, factory, _ = make_controller_factory(named)
-    _, spelled_label, _, spelled_factory, _ = make_controller_factory(spelled)
+    world, label, _, factory, _ = make_controller_factory(OmegaConf.to_object(named))
+    _, spelled_label, _, spelled_factory, _ = make_controller_factory(OmegaConf.to_object(spelled))
     a, b = factory(world), spelled_factory(world)
     assert type(a) is type(b) is FootprintGreedy and label == spelled_label == "greedy"
     assert {f.name: getattr(a, f.name) for f in fields(HEURISTICS["greedy"].schema) if f.name != "name"} == {

@@ -60,19 +60,21 @@ def test_optuna_sweeps_the_search_space_and_reports_the_best_trial(optuna_sweep)
 
 @pytest.mark.slow  # the study's first sweep is in the default run
 def test_the_same_command_into_the_same_folder_resumes_the_study(optuna_sweep):
-    """The new trial's job is numbered 0 again, with other parameters: it goes beside the first trial's folder."""
+    """The new trial's job is numbered 0 again, with other parameters: its folder, named by them, goes beside the
+    first trials' folders, which stay untouched."""
     import optuna
 
     sweep = optuna_sweep / "sweep"
     first = load_jobs(sweep)
-    before = {p.name: (p / "model.zip").stat().st_mtime_ns for p in sweep.glob("*_b_seed0")}
+    before = {p.parent.name: p.stat().st_mtime_ns for p in sweep.glob("*/model.zip")}
     _optuna(sweep, optuna_sweep / "study.db", trials=1)
     study = optuna.load_study(study_name="b_recurrent_ppo", storage=f"sqlite:///{optuna_sweep / 'study.db'}")
     assert len(study.trials) == 3 and all(t.state.name == "COMPLETE" for t in study.trials)
     assert study.trials[2].params["algo.learning_rate"] not in set(first["algo.learning_rate"])  # a new trial
-    assert sorted(p.name for p in sweep.glob("*_b_seed0*")) == ["0_b_seed0", "0_b_seed0.1", "1_b_seed0"]
-    assert {p.name: (p / "model.zip").stat().st_mtime_ns for p in sweep.glob("*_b_seed0")} == before  # untouched
-    assert (sweep / "0_b_seed0.1" / "model.zip").is_file()
+    after = {p.parent.name: p.stat().st_mtime_ns for p in sweep.glob("*/model.zip")}
+    (new,) = set(after) - set(before)
+    assert new.startswith("0_model=b,") and f"algo.learning_rate={study.trials[2].params['algo.learning_rate']}" in new
+    assert {name: after[name] for name in before} == before  # untouched
 
 
 @pytest.mark.slow
@@ -324,3 +326,14 @@ def test_a_sweep_folder_repairs_or_refuses_each_damaged_file_and_mixes_nothing(t
         "config.yaml swapped": "refused",
         **{f".hydra/config.yaml {n}": "same" for n in SWEEP_DAMAGES},  # Hydra's copy: read by no table
     }, outcomes
+
+
+def test_a_job_folder_is_named_by_the_values_its_job_set():
+    from searchrl.train.schema import job_name
+
+    name = job_name(3, ["+experiment=term/b", "algo.learning_rate=0.001", "seed=1", "progress_bar=false",
+                        "logger.mode=offline", "hydra.launcher.n_jobs=2"])  # fmt: skip
+    assert name == "3_experiment=term-b,algo.learning_rate=0.001,seed=1"  # one folder level, what it trains
+    assert job_name(0, []) == "0"
+    long = job_name(1, [f"grid.world_sizes=[{','.join(['160'] * 60)}]"])
+    assert len(long) == 160 and long != job_name(1, [f"grid.world_sizes=[{','.join(['160'] * 61)}]"])

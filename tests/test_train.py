@@ -147,7 +147,7 @@ def test_init_copies_policy_weights_only(tmp_path, capsys):
     source = _run(tmp_path / "source", ["+model=b", *TINY, "validation.every=0"])
     plan = make_plan(_compose(["+model=b", *TINY]))
     model = make_algorithm(plan, make_vec_env(plan))
-    init_weights(model, str(source), plan.cfg)
+    init_weights(model, str(source), plan.record())
     loaded = RecurrentPPO.load(source)
     for name, value in loaded.policy.state_dict().items():
         torch.testing.assert_close(model.policy.state_dict()[name], value)
@@ -155,7 +155,7 @@ def test_init_copies_policy_weights_only(tmp_path, capsys):
     wider = make_plan(_compose(["+model=b", *TINY, "network.lstm_hidden_size=16"]))
     other = make_algorithm(wider, make_vec_env(wider))
     with pytest.raises(ValueError, match="does not fit this run's policy"):
-        init_weights(other, str(source), wider.cfg)
+        init_weights(other, str(source), wider.record())
 
 
 @pytest.mark.slow  # resume after a kill is in the default run
@@ -268,7 +268,7 @@ def test_multirun_sweeps(tmp_path, launcher):
     assert out.returncode == 0, out.stderr[-3000:]
     models = sorted(tmp_path.glob("*/model.zip"))
     assert len(models) == 2, [str(p) for p in tmp_path.rglob("*")][:40]
-    assert [p.parent.name for p in models] == ["0_a_seed0", "1_c_seed0"]
+    assert [p.parent.name.split(",")[0] for p in models] == ["0_model=a", "1_model=c"]  # named by their overrides
 
 
 @pytest.mark.parametrize(
@@ -340,8 +340,8 @@ def test_a_machine_replicates_every_group_of_worlds_and_minibatches_are_whole_sl
 
     base, big = (make_plan(_compose(["+experiment=term/b", *m])) for m in ([], ["machine=cpu16"]))
     assert [(w.n_agents, 4 * k) for w, k in base.groups] == [(w.n_agents, k) for w, k in big.groups]
-    assert big.rollout == 4 * base.rollout and big.cfg.algo.batch_size == 4 * base.cfg.algo.batch_size
-    assert big.cfg.threads == 16 and big.cfg.device == "cpu"
+    assert big.rollout == 4 * base.rollout and big.settings.algo.batch_size == 4 * base.settings.algo.batch_size
+    assert big.settings.threads == 16 and big.settings.device == "cpu"
     refused = {"env.replicas=0": "env.replicas=0 is not allowed",
                "algo.batch_size=1000": "algo.batch_size=1000 is not allowed: a multiple of algo.n_steps"}  # fmt: skip
     for bad, message in refused.items():

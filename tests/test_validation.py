@@ -110,7 +110,7 @@ def test_validation_acts_with_a_copy_and_reports_what_evaluation_reports(trained
     assert all(torch.equal(value, weights[name]) for name, value in policy.state_dict().items())
     assert all(torch.equal(now, then) for now, then in zip(_generators(), generators, strict=True))
     model.save(tmp_path / "model.zip")
-    OmegaConf.save(plan.cfg, tmp_path / "config.yaml")  # what checkpoint_config reads the world and algo from
+    OmegaConf.save(plan.record(), tmp_path / "config.yaml")  # what checkpoint_config reads the world and algo from
     actor = load_actor(tmp_path / "model.zip", plan.world, device=model.device)
     frame = run_cell(lambda config, streams: PolicyController(actor, config, False, streams), plan.world, cell, 0,
                      maps=4, repeats=1, seed=11)  # fmt: skip

@@ -75,12 +75,12 @@ def run(updates: int = 4, threads: int | None = None, network: str = "paper", ex
     register_configs()  # the training app's schemas, which the composed config names
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = compose(config_name="train", overrides=overrides)
-    threads, device = int(cfg.threads), str(resolve_device(str(cfg.device)))  # `auto` read as cpu or cuda
     # The few timed rollouts would all fall in a recipe's critic warm-up (its first rollouts, value-only updates):
     # time the updates the rest of the run makes.
     cfg.imitation.critic_warmup = 0
-    use_threads(threads, network_on_cpu=torch.device(device).type == "cpu")
     plan = make_plan(cfg)
+    threads, device = plan.settings.threads, str(resolve_device(plan.settings.device))  # `auto`: cpu or cuda
+    use_threads(threads, network_on_cpu=torch.device(device).type == "cpu")
     sync = torch.cuda.synchronize if torch.device(device).type == "cuda" else lambda: None
     env = make_vec_env(plan, seed=0)
     base = env.venv if isinstance(env, TeacherLabels) else env
@@ -112,7 +112,7 @@ def run(updates: int = 4, threads: int | None = None, network: str = "paper", ex
     fps = rollout * updates / wall
     acting_s, update_s = raw_acting[0] / updates, raw_update[0] / updates  # per rollout
     raw = rollout / (acting_s + update_s)
-    name = f"recurrent_ppo_{network}_model_b_K{cfg.env.n_worlds}_N{cfg.env.world.n_agents}"
+    name = f"recurrent_ppo_{network}_model_b_K{plan.settings.env.n_worlds}_N{plan.world.n_agents}"
     name = experiment.replace("/", "_") if experiment else name  # term/b -> term_b
     slots = sum(k * world.n_agents for world, k in plan.groups)
     row = {"case": f"{name}_{machine or torch.device(device).type}_threads{threads}", "engine": "sb3",

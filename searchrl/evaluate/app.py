@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
@@ -32,7 +32,7 @@ from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import CELL_SETTINGS, claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.results import cell_table, coverage, paired_table
 from searchrl.evaluate.runner import cell_config, run_cell
-from searchrl.evaluate.schema import register_configs
+from searchrl.evaluate.schema import EvaluateConfig, register_configs
 from searchrl.multirun import Stopped, refuse
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor, training_scenario
 from searchrl.policies.device import check_device, resolve_device
@@ -51,7 +51,7 @@ register_configs()
 fail = refuse  # the one-line refusal, exit status 2 (searchrl/multirun.py)
 
 
-def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, object, bool]:
+def make_controller_factory(cfg: EvaluateConfig) -> tuple[WorldConfig, str, str, object, bool]:
     """(world settings, controller label, model name, factory(config, seed) -> controller, needs observations); the
     seed is an int or the episodes' WorldStreams (searchrl/evaluate/runner.py). The label
     is what results are recorded under: `policy:<run>`, or the registry's label of `controller=<name>` (greedy for
@@ -60,13 +60,13 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
         world_dict, _, model_name = checkpoint_config(cfg.checkpoint)
         world = WorldConfig.from_dict(world_dict)
         run_name = checkpoint_label(cfg.checkpoint)
-        device = resolve_device(str(cfg.device))  # checked here too: analysis scripts call this function alone
+        device = resolve_device(cfg.device)  # checked here too: analysis scripts call this function alone
         actor = load_actor(cfg.checkpoint, world, device=device)  # loaded once, serves every cell
 
-        return world, f"policy:{run_name}", model_name, policy_factory(actor, bool(cfg.deterministic)), True
-    world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
+        return world, f"policy:{run_name}", model_name, policy_factory(actor, cfg.deterministic), True
+    world = WorldConfig.from_dict(asdict(cfg.env.world))
     model_name = cfg.model.name if cfg.model is not None else "b"
-    settings = OmegaConf.to_container(cfg.controller, resolve=True)
+    settings = asdict(cfg.controller)
     name = settings.pop("name")
     try:
         entry = heuristic(name)
@@ -79,17 +79,9 @@ def make_controller_factory(cfg: DictConfig) -> tuple[WorldConfig, str, str, obj
 FIXED_BY_CHECKPOINT = ("env", "world", "model", "controller")
 
 
-def scenario_of(cfg: DictConfig) -> Scenario:
-    """The evaluation's scenario (`scenario=`, conf/scenario/), ConfigError naming a bad part."""
-    node = cfg.get("scenario")
-    return Scenario.from_dict(None if node is None else OmegaConf.to_container(node, resolve=True))
-
-
-def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[int, Cell]], Path | None, Scenario]:
+def check_evaluation(cfg: EvaluateConfig, overrides: list[str]) -> tuple[list[tuple[int, Cell]], Path | None, Scenario]:
     """Every check of an evaluation's settings, before any work or file: ((grid index, cell) pairs, output folder,
-    scenario). Raises
-    ConfigError naming the bad value and what is allowed."""
-    check_known_keys(cfg)  # `+grid.map_per_cell=50` composes: refused here, not run without
+    scenario). Raises ConfigError naming the bad value and what is allowed."""
     if cfg.checkpoint is not None:
         fixed = [o for o, k in zip(overrides, override_keys(overrides), strict=True)
                  if k.split(".")[0] in FIXED_BY_CHECKPOINT]  # fmt: skip
@@ -106,32 +98,30 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[
                 f"{', '.join(set_by_grid)} cannot apply to an evaluation: the grid sets N, n, targets and Gaussians "
                 "per cell (grid.*), one team per world, and deterministic is for checkpoints; remove them"
             )
-        for key, value in cfg.controller.items():
+        for key, value in asdict(cfg.controller).items():
             if isinstance(value, float):
                 need(math.isfinite(value), f"controller.{key}", value, "a finite number")
-    check_device(str(cfg.device))  # asked for and missing: refused, never run on the CPU instead
-    need(cfg.checkpoint is not None or str(cfg.device) in ("cpu", "auto"), "device", cfg.device,
+    check_device(cfg.device)  # asked for and missing: refused, never run on the CPU instead
+    need(cfg.checkpoint is not None or cfg.device in ("cpu", "auto"), "device", cfg.device,
          f"cpu: controller={cfg.controller.name} runs on the CPU (device is for checkpoint=<model.zip>)")  # fmt: skip
-    need(0 <= int(cfg.seed) <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
-    need(1 <= int(cfg.threads) <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
+    need(0 <= cfg.seed <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
+    need(1 <= cfg.threads <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
     need(math.isfinite(cfg.batch_mb) and cfg.batch_mb > 0, "batch_mb", cfg.batch_mb, "a number of MiB > 0")
-    need(int(cfg.bound_draws) >= 100, "bound_draws", cfg.bound_draws, "an integer >= 100 (placements per map)")
-    need(int(cfg.num_shards) >= 1, "num_shards", cfg.num_shards, "an integer >= 1")
-    need(0 <= int(cfg.shard) < int(cfg.num_shards), "shard", cfg.shard, f"0 <= shard < num_shards={cfg.num_shards}")
+    need(cfg.bound_draws >= 100, "bound_draws", cfg.bound_draws, "an integer >= 100 (placements per map)")
+    need(cfg.num_shards >= 1, "num_shards", cfg.num_shards, "an integer >= 1")
+    need(0 <= cfg.shard < cfg.num_shards, "shard", cfg.shard, f"0 <= shard < num_shards={cfg.num_shards}")
     for name in ("maps_per_cell", "repeats"):
-        need(int(cfg.grid[name]) >= 1, f"grid.{name}", cfg.grid[name], "must be >= 1")
-    scenario = scenario_of(cfg)
-    cells = table2_cells(
-        list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
-        list(cfg.grid.max_agents),
-    )  # fmt: skip
+        need(getattr(cfg.grid, name) >= 1, f"grid.{name}", getattr(cfg.grid, name), "must be >= 1")
+    scenario = Scenario.from_dict(cfg.scenario)  # ConfigError naming a bad part
+    grid = cfg.grid
+    cells = table2_cells(grid.world_sizes, grid.n_targets, grid.n_distributions, grid.max_agents)
     # A subset of team sizes keeps each cell's index in the whole grid, so its maps are the grid's (map_seed)
-    agents = None if cfg.grid.get("agents") is None else [int(a) for a in cfg.grid.agents]
+    agents = grid.agents
     on_grid = sorted({c.n_agents for c in cells})
     need(agents is None or (len(agents) > 0 and set(agents) <= set(on_grid)), "grid.agents", agents,
          f"null (every N) or team sizes of the grid, from {on_grid}")  # fmt: skip
     indexed = [(i, c) for i, c in enumerate(cells) if agents is None or c.n_agents in agents]
-    if cfg.get("cell") is not None:  # one cell, at its index in the whole grid: the grid's maps of that cell
+    if cfg.cell is not None:  # one cell, at its index in the whole grid: the grid's maps of that cell
         keys = [c.key for _, c in indexed]
         need(cfg.cell in keys, "cell", cfg.cell, f"a cell of the grid: one of {', '.join(keys)}")
         indexed = [(i, c) for i, c in indexed if c.key == cfg.cell]
@@ -139,22 +129,22 @@ def check_evaluation(cfg: DictConfig, overrides: list[str]) -> tuple[list[tuple[
     return indexed, given_out_dir(cfg, "runs/eval/<controller or policy>"), scenario
 
 
-def check_baseline(cfg: DictConfig, scenario: Scenario) -> None:
+def check_baseline(cfg: EvaluateConfig, scenario: Scenario) -> None:
     """`baseline=` names an evaluation folder whose record says it played this evaluation's maps (its seed and
     scenario); ConfigError naming what differs."""
-    if cfg.get("baseline") is None:
+    if cfg.baseline is None:
         return
     record = coverage(cfg.baseline)
     need(bool(record), "baseline", cfg.baseline, "an evaluation folder (one with evaluation.yaml and cells/)")
-    need(record["seed"] == int(cfg.seed), "baseline", cfg.baseline,
+    need(record["seed"] == cfg.seed, "baseline", cfg.baseline,
          f"a folder of this seed ({cfg.seed}); it holds seed {record['seed']}, whose maps are others")  # fmt: skip
     need(record["scenario"] == scenario.label, "baseline", cfg.baseline,
          f"a folder of this scenario ({scenario.label}); it holds {record['scenario']}")  # fmt: skip
 
 
-def given_out_dir(cfg: DictConfig, default: str) -> Path | None:
+def given_out_dir(cfg: EvaluateConfig, default: str) -> Path | None:
     """`out_dir=` as a folder, None when left out (the app's `default`); an empty one is refused, not taken for it."""
-    need(cfg.out_dir is None or str(cfg.out_dir).strip() != "", "out_dir", cfg.out_dir,
+    need(cfg.out_dir is None or cfg.out_dir.strip() != "", "out_dir", cfg.out_dir,
          f"a folder (leave it out for {default})")  # fmt: skip
     return None if cfg.out_dir is None else Path(cfg.out_dir)
 
@@ -175,9 +165,10 @@ def check_out_dir(out_dir: Path) -> None:
 
 @dataclass
 class Evaluation:
-    """One evaluation folder's checked plan: its cells (grid index, cell), folder, scenario and controller."""
+    """One evaluation folder's checked plan: its settings as typed objects (EvaluateConfig, searchrl/evaluate/
+    schema.py: no DictConfig below the plan), cells (grid index, cell), folder, scenario and controller."""
 
-    cfg: DictConfig
+    settings: EvaluateConfig
     cells: list[tuple[int, Cell]]
     out_dir: Path
     scenario: Scenario
@@ -187,12 +178,14 @@ class Evaluation:
     factory: object
     needs_observation: bool
     shard_offset: int = 0  # a suite's folders rotate which shard runs their first cell
-    settings: dict | None = None  # what its claimed folder records, and so each cell it writes
+    record: dict | None = None  # what its claimed folder records, and so each cell it writes
 
 
 def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | None = None) -> Evaluation:
     """Every check of an evaluation, before any work or file (ConfigError naming the bad value)."""
     extensions.import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
+    check_known_keys(cfg)  # `+grid.map_per_cell=50` composes: refused here, not run without
+    cfg = OmegaConf.to_object(cfg)  # typed from here on: the schema checked every value's type
     cells, out_dir, scenario = check_evaluation(cfg, overrides)
     world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
     for index, cell in cells:  # a cell impossible for its n or N fails now, not when reached
@@ -200,8 +193,8 @@ def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | N
             scenario.check(cell_config(world, cell))  # first: each value's type and range
             factory(cell_config(world, cell))
             walls = draws_walls(scenario)
-            for m in range(int(cfg.grid.maps_per_cell) if walls else 0):  # exact: every map its episodes will draw
-                map_prior(cell_config(world, cell), map_seed(int(cfg.seed), index, m), scenario)
+            for m in range(cfg.grid.maps_per_cell if walls else 0):  # exact: every map its episodes will draw
+                map_prior(cell_config(world, cell), map_seed(cfg.seed, index, m), scenario)
         except ConfigError as err:
             raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
     if cfg.checkpoint is not None:  # a policy met outside its training distribution: said beside its results
@@ -226,11 +219,11 @@ def draws_walls(scenario: Scenario | ScenarioMix) -> bool:
 def claim_evaluation(plan: Evaluation) -> None:
     """Make the folder and record its settings (or find them equal); ConfigError / FolderBusy / OSError."""
     check_out_dir(plan.out_dir)
-    if plan.cfg.bound_cache is not None:  # the bounds are written after a cell's episodes: refused now, not then
-        check_writable(plan.cfg.bound_cache, "bound_cache", folder=True)
+    if plan.settings.bound_cache is not None:  # the bounds are written after a cell's episodes: refused now, not then
+        check_writable(plan.settings.bound_cache, "bound_cache", folder=True)
     with hold(plan.out_dir / LOCKS / "evaluation.lock", f"out_dir={str(plan.out_dir)!r}", wait_s=60):
-        plan.settings = claim_folder(plan.out_dir, evaluation_settings(plan.cfg, plan.controller, plan.model),
-                                     option_defaults(plan.cfg))  # fmt: skip
+        plan.record = claim_folder(plan.out_dir, evaluation_settings(plan.settings, plan.controller, plan.model),
+                                   option_defaults(plan.settings))  # fmt: skip
 
 
 def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
@@ -251,12 +244,12 @@ def run_evaluation(plan: Evaluation) -> Path:
     """Run the plan's cells of this shard that have no result yet (its folder claimed); returns the folder."""
     from searchrl.threads import use_threads
 
-    cfg, out_dir, scenario, world = plan.cfg, plan.out_dir, plan.scenario, plan.world
-    on_cpu = cfg.checkpoint is not None and resolve_device(str(cfg.device)).type == "cpu"
-    use_threads(int(cfg.threads), network_on_cpu=on_cpu)  # a heuristic's or a GPU policy's world: every thread
-    mine = [(i, c) for i, c in plan.cells if (i + plan.shard_offset) % int(cfg.num_shards) == int(cfg.shard)]
+    cfg, out_dir, scenario, world = plan.settings, plan.out_dir, plan.scenario, plan.world
+    on_cpu = cfg.checkpoint is not None and resolve_device(cfg.device).type == "cpu"
+    use_threads(cfg.threads, network_on_cpu=on_cpu)  # a heuristic's or a GPU policy's world: every thread
+    mine = [(i, c) for i, c in plan.cells if (i + plan.shard_offset) % cfg.num_shards == cfg.shard]
     todo = [(i, c) for i, c in mine if not (out_dir / "cells" / f"{c.key}.parquet").exists()]
-    maps, repeats = int(cfg.grid.maps_per_cell), int(cfg.grid.repeats)
+    maps, repeats = cfg.grid.maps_per_cell, cfg.grid.repeats
     total = sum(maps * repeats * world.max_steps * c.n_agents for _, c in todo)
     print(f"{plan.controller}: {len(todo)} of {len(mine)} cells to run into {out_dir}", file=sys.stderr)
     start, done_steps = time.perf_counter(), 0
@@ -269,19 +262,19 @@ def run_evaluation(plan: Evaluation) -> Path:
                         if target.exists():  # finished by another job since the list was made
                             continue
                         remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
-                        frame = run_cell(plan.factory, world, cell, index, maps, repeats, int(cfg.seed),
-                                         float(cfg.batch_mb), plan.needs_observation, on_steps=bar.update,
+                        frame = run_cell(plan.factory, world, cell, index, maps, repeats, cfg.seed,
+                                         cfg.batch_mb, plan.needs_observation, on_steps=bar.update,
                                          scenario=scenario)  # fmt: skip
                         seeds = frame["map_seed"].unique().tolist()
-                        bounds = cell_bounds(world, cell, seeds, int(cfg.bound_draws), cfg.bound_cache,
-                                             scenario=scenario, workers=int(cfg.threads))  # fmt: skip
+                        bounds = cell_bounds(world, cell, seeds, cfg.bound_draws, cfg.bound_cache,
+                                             scenario=scenario, workers=cfg.threads)  # fmt: skip
                         frame = frame.merge(bounds[["map_seed", *BOUND_COLUMNS]], on="map_seed", validate="many_to_one")
                         for position, (name, value) in enumerate(scenario_columns(scenario, world).items()):
                             frame.insert(position, name, value)
                         frame.insert(0, "world", world.sensing_label)
                         frame.insert(0, "model", plan.model)
                         frame.insert(0, "controller", plan.controller)
-                        frame.attrs[CELL_SETTINGS] = plan.settings  # the cell says what it holds (record.py)
+                        frame.attrs[CELL_SETTINGS] = plan.record  # the cell says what it holds (record.py)
                         write_atomic(target, lambda tmp, f=frame: f.to_parquet(tmp))
                 except FolderBusy as busy:
                     print(f"skipped: {busy}", file=sys.stderr)
@@ -301,7 +294,7 @@ def run_evaluation(plan: Evaluation) -> Path:
         print(f"done in {elapsed:.1f} s; {done_steps / max(elapsed, 1e-9):,.0f} agent-steps/s "
               f"(steps up to each episode's end)", file=sys.stderr)  # fmt: skip
     print(cell_table(out_dir))  # what the folder holds: a number and its CI per cell
-    if cfg.get("baseline") is not None:
+    if cfg.baseline is not None:
         print(paired_table(out_dir, cfg.baseline))
     return out_dir
 

@@ -15,17 +15,20 @@ from __future__ import annotations
 import hashlib
 import json
 import sys
-from dataclasses import fields
+from dataclasses import asdict, fields, is_dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pyarrow.parquet as pq
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import OmegaConf
 
 from searchrl.atomic import write_text_atomic
 from searchrl.policies.device import resolve_device
 from searchrl.world.config import RETIRED_FIELDS, ConfigError, WorldConfig, drop_retired
 from searchrl.world.scenario import PAPER, Scenario
+
+if TYPE_CHECKING:
+    from searchrl.evaluate.schema import EvaluateConfig
 
 RECORD = "evaluation.yaml"
 GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents", "agents", "maps_per_cell", "repeats")
@@ -45,30 +48,30 @@ def file_sha256(path: str | Path) -> str:
     return digest.hexdigest()
 
 
-def evaluation_settings(cfg: DictConfig, label: str, model_name: str) -> dict[str, Any]:
+def evaluation_settings(cfg: EvaluateConfig, label: str, model_name: str) -> dict[str, Any]:
     """The settings that decide a folder's episodes. A checkpoint is named by the hash of its file (its world and
     network come with it); a heuristic by its parameters and the world settings it runs in. The grid lists are
     recorded whole: a cell's maps are seeded by its index in them, so another list gives other maps per cell."""
     settings: dict[str, Any] = {
         "controller": label,
         "model": model_name,
-        "seed": int(cfg.seed),
-        "grid": {key: OmegaConf.to_container(cfg.grid, resolve=True)[key] for key in GRID_KEYS},
-        "scenario": Scenario.from_dict(OmegaConf.to_container(cfg.scenario, resolve=True)).to_dict(),
+        "seed": cfg.seed,
+        "grid": {key: asdict(cfg.grid)[key] for key in GRID_KEYS},
+        "scenario": Scenario.from_dict(cfg.scenario).to_dict(),
     }
     if cfg.checkpoint is not None:
         settings["checkpoint_sha256"] = file_sha256(cfg.checkpoint)
-        settings["deterministic"] = bool(cfg.deterministic)
-        settings["device"] = resolve_device(str(cfg.device)).type  # auto recorded as what it ran on
+        settings["deterministic"] = cfg.deterministic
+        settings["device"] = resolve_device(cfg.device).type  # auto recorded as what it ran on
     else:
         # Named by the label: a preset (controller=greedy_target) records the controller it sets (greedy) and every
         # setting, as the same settings spelled out do, so either may resume the other's folder.
-        settings["controller_args"] = {**OmegaConf.to_container(cfg.controller, resolve=True), "name": label}
-        settings["world"] = OmegaConf.to_container(cfg.env.world, resolve=True)
+        settings["controller_args"] = {**asdict(cfg.controller), "name": label}
+        settings["world"] = asdict(cfg.env.world)
     return settings
 
 
-def option_defaults(cfg: DictConfig) -> dict[str, Any]:
+def option_defaults(cfg: EvaluateConfig) -> dict[str, Any]:
     """Flattened defaults of the heuristic's own schema (`controller_args.<name>`) and of the world (`world.<name>`):
     an option added to a controller or the world after a folder was recorded is absent there, and at its default
     it plays the episodes the record describes. A record made before scenarios existed ran the paper's, one made
@@ -78,8 +81,8 @@ def option_defaults(cfg: DictConfig) -> dict[str, Any]:
         return defaults | {"device": "cpu"}
     world = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default for f in fields(WorldConfig)}
     defaults |= _flatten({"world": world})
-    schema = OmegaConf.get_type(cfg.controller)
-    if schema is not None and schema is not dict:
+    schema = type(cfg.controller)
+    if is_dataclass(schema):
         defaults.update(_flatten({"controller_args": OmegaConf.to_container(OmegaConf.structured(schema))}))
     return defaults
 

@@ -21,7 +21,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from searchrl.atomic import FolderBusy, storage_message, write_text_atomic
 from searchrl.evaluate.app import claim_evaluation, fail, given_out_dir, plan_evaluation, run_evaluation
-from searchrl.evaluate.schema import GridConfig
+from searchrl.evaluate.schema import EvaluateConfig, GridConfig
 from searchrl.schema import override_keys
 from searchrl.world.config import ConfigError, need
 from searchrl.world.scenario import Scenario, scenario_grid
@@ -55,7 +55,7 @@ def suite_scenarios(suite: dict[str, Any]) -> list[Scenario]:
     return scenarios
 
 
-def suite_default_dir(cfg: DictConfig, name: str) -> Path:
+def suite_default_dir(cfg: EvaluateConfig, name: str) -> Path:
     """runs/suite/<suite>/<controller> or runs/suite/<suite>/policy/<run path under runs/>."""
     if cfg.checkpoint is not None:
         from searchrl.policies.checkpoint import checkpoint_label
@@ -75,7 +75,9 @@ def evaluate_suite(cfg: DictConfig, overrides: list[str]) -> list[Path]:
                               "grid, seed and scenarios are conf/suite/); remove them, or evaluate with grid.* and "
                               "scenario=… without suite=")  # fmt: skip
         suite = OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(SuiteConfig), cfg.suite), resolve=True)
-        base = given_out_dir(cfg, "runs/suite/<suite>/<controller or policy>") or suite_default_dir(cfg, suite["name"])
+        typed = OmegaConf.to_object(cfg)
+        base = (given_out_dir(typed, "runs/suite/<suite>/<controller or policy>")
+                or suite_default_dir(typed, suite["name"]))  # fmt: skip
         scenarios = suite_scenarios(suite)
         for offset, scenario in enumerate(scenarios):
             one = copy.deepcopy(cfg)

@@ -40,10 +40,10 @@ def run_config(path: str | Path) -> DictConfig:
     for folder in (path.parent, path.parent.parent):
         if (folder / "config.yaml").exists():
             try:
-                cfg = OmegaConf.load(folder / "config.yaml")
-                OmegaConf.select(cfg, "env.world", throw_on_missing=True)  # a run config has both
-                str(cfg.algo.name)
-                return cfg
+                record = OmegaConf.load(folder / "config.yaml")
+                OmegaConf.select(record, "env.world", throw_on_missing=True)  # a run config has both
+                str(record.algo.name)
+                return record
             except Exception as err:  # not YAML, not a mapping, no env.world or algo.name: all say the same
                 raise ValueError(
                     f"checkpoint={str(path)!r}: its run's {folder / 'config.yaml'} cannot be read as a run config "
@@ -55,9 +55,9 @@ def run_config(path: str | Path) -> DictConfig:
 
 def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
     """(world settings, algorithm name, model name) of a checkpoint's run (`run_config`)."""
-    cfg = run_config(path)
-    model = str(cfg.model.name) if cfg.get("model") else "unknown"
-    return OmegaConf.to_container(cfg.env.world, resolve=True), str(cfg.algo.name), model
+    record = run_config(path)
+    model = str(record.model.name) if record.get("model") else "unknown"
+    return OmegaConf.to_container(record.env.world, resolve=True), str(record.algo.name), model
 
 
 def training_scenario(path: str | Path) -> dict | None:
@@ -119,9 +119,10 @@ def pickled_entries(path: str | Path) -> list[str]:
     return [k for k, v in _data(path).items() if isinstance(v, dict) and ":serialized:" in v]
 
 
-def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
-    """SB3 `custom_objects` for the model.zip at `path` of a run configured by `cfg`: every entry of REBUILT, made
-    from `cfg` and searchrl's code; ValueError in one line if the file pickles any other entry (it is not opened)."""
+def rebuilt_entries(path: str | Path, record: DictConfig) -> dict[str, Any]:
+    """SB3 `custom_objects` for the model.zip at `path` of a run whose record (its config.yaml, read or made by a
+    Plan) is `record`: every entry of REBUILT, made from `record` and searchrl's code; ValueError in one line if the
+    file pickles any other entry (it is not opened)."""
     unknown = [name for name in pickled_entries(path) if name not in REBUILT]
     if unknown:
         raise ValueError(
@@ -129,13 +130,13 @@ def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
             "refused, since unpickling a file runs whatever code it holds (a searchrl model pickles only "
             f"{', '.join(REBUILT)})"
         )
-    algo, world = str(cfg.algo.name), WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))
-    clip_range = cfg.algo.get("clip_range")
-    critic = cfg.get("critic")
+    algo, world = str(record.algo.name), WorldConfig.from_dict(OmegaConf.to_container(record.env.world, resolve=True))
+    clip_range = record.algo.get("clip_range")
+    critic = record.get("critic")
     try:
-        kwargs, parts = policy_kwargs(cfg.network, algo, critic), observation_parts(cfg.network, critic)
+        kwargs, parts = policy_kwargs(record.network, algo, critic), observation_parts(record.network, critic)
     except ValueError as err:  # a part registered by a module this process has not imported
-        named = list(cfg.get("extensions") or [])
+        named = list(record.get("extensions") or [])
         hint = f"; its run had extensions={named}: pass them here too" if named else ""
         raise ValueError(f"checkpoint={str(path)!r}: its run's {err}{hint}") from None
     return dict.fromkeys(LEFT_EMPTY) | {
@@ -144,7 +145,7 @@ def rebuilt_entries(path: str | Path, cfg: DictConfig) -> dict[str, Any]:
         "observation_space": observation_space(world, parts),
         "action_space": action_space(world),
         "clip_range": None if clip_range is None else float(clip_range),  # SB3 makes it a schedule again
-        "lr_schedule": FloatSchedule(float(cfg.algo.learning_rate)),  # made again from learning_rate too
+        "lr_schedule": FloatSchedule(float(record.algo.learning_rate)),  # made again from learning_rate too
     }
 
 
@@ -201,19 +202,19 @@ def saved_step(path: str | Path) -> int | None:
     return step if isinstance(step, int) else None
 
 
-def load_checkpoint(path: str | Path, cfg: DictConfig | None = None, cls: type[BaseAlgorithm] | None = None,
+def load_checkpoint(path: str | Path, record: DictConfig | None = None, cls: type[BaseAlgorithm] | None = None,
                     **kwargs: object) -> BaseAlgorithm:  # fmt: skip
-    """The SB3 model saved at `path` by a run configured by `cfg` (default: the run's own config.yaml,
+    """The SB3 model saved at `path` by a run whose record is `record` (default: the run's own config.yaml,
     `run_config`), loaded as `cls` (a subclass of the run's algorithm class, if given), without unpickling anything
     of the file: its pickled entries are rebuilt (`rebuilt_entries`) and its tensors read by SB3 with torch's
     weights-only loader. ValueError in one line naming the file if it cannot be read (truncated, not an SB3 zip,
     another algorithm's or network's weights, a pickled entry searchrl does not rebuild, tensors that are not
     weights only). An OSError (no permission now, an I/O fault) passes through as it is: the file may be whole."""
-    cfg = run_config(path) if cfg is None else cfg
-    algo = str(cfg.algo.name)
+    record = run_config(path) if record is None else record
+    algo = str(record.algo.name)
     if algo not in ALGORITHMS:
         raise ValueError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
-    custom = rebuilt_entries(path, cfg)
+    custom = rebuilt_entries(path, record)
     try:
         return (cls or ALGORITHMS[algo][0]).load(str(path), custom_objects=custom, **kwargs)
     except OSError:

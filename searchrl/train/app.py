@@ -24,7 +24,6 @@ from omegaconf.errors import OmegaConfBaseException
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.logger import Logger
-from stable_baselines3.common.utils import get_device
 from stable_baselines3.common.vec_env import VecEnv
 
 from searchrl.atomic import (
@@ -127,43 +126,43 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
 
 
 def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
-    cfg = plan.cfg
+    cfg = plan.settings
     prepare_folder(cfg, run_dir, resuming)
     env = make_vec_env(plan)
     model, resuming = start_model(plan, run_dir, env, resuming)
     start_step = model.num_timesteps if resuming else 0
-    if resuming and is_finished(run_dir, start_step, int(cfg.total_timesteps)):
+    if resuming and is_finished(run_dir, start_step, cfg.total_timesteps):
         env.close()
         try:
             stored_score(run_dir)
             print(f"{run_dir} has trained its {start_step} agent-steps and saved model.zip: nothing to do, no file "
                   "changed", file=sys.stderr)  # fmt: skip
         except ValueError as err:  # lost or damaged, or another run's: the score of its own log
-            score_again(run_dir, cfg, err)
+            score_again(run_dir, cfg.validation.score_last, err)
             print(f"{run_dir} has trained its {start_step} agent-steps and saved model.zip", file=sys.stderr)
         return run_dir / "model.zip"
     if resuming:  # a damaged log is refused before anything is rewritten
         try:
-            check_log(run_dir / "progress.csv", start_step, plan.rollout * int(cfg.log_interval))
+            check_log(run_dir / "progress.csv", start_step, plan.rollout * cfg.log_interval)
         except ValueError as err:
             fail(f"resume={cfg.resume!r}: {err}")
         problem = other_log(run_dir / "checkpoints" / f"step_{start_step}.zip", start_step)
         if problem:
             fail(f"resume={cfg.resume!r}: {problem}; nothing was changed")
-    record_config(cfg, run_dir)
+    record_config(plan, run_dir)
     if not resuming and plan.clones:
         warm_start(plan, model, run_dir)
     set_logs(model, run_dir, start_step if resuming else None, cfg)
     preemption = Preemption()
-    validation = ValidationCallback(plan.world, plan.scenario, int(cfg.validation.every), int(cfg.validation.n_worlds),
-                                    int(cfg.validation.seed), bool(cfg.validation.deterministic),
+    validation = ValidationCallback(plan.world, plan.scenario, cfg.validation.every, cfg.validation.n_worlds,
+                                    cfg.validation.seed, cfg.validation.deterministic,
                                     at_start=(plan.clones or cfg.init is not None) and not resuming,
                                     preemption=preemption)  # fmt: skip
     callbacks: list[BaseCallback] = [
         HParamsCallback(run_hparams(cfg, plan.scenario.label)),
         TeamMetricsCallback(),
         AtomicCheckpointCallback(
-            run_dir / "checkpoints", int(cfg.checkpoint_every), int(cfg.keep_checkpoints), preemption, run_identity(cfg)
+            run_dir / "checkpoints", cfg.checkpoint_every, cfg.keep_checkpoints, preemption, run_identity(cfg)
         ),
         validation,
     ]
@@ -176,7 +175,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
               f"continue with resume={run_dir}", file=sys.stderr)  # fmt: skip
         raise Stopped(128 + preemption.signal)  # 143 for SIGTERM, 130 for SIGINT, as a shell reports them
     final = save_model(model, run_dir / "model.zip", run_identity(cfg))
-    score = write_score(run_dir, int(cfg.validation.score_last))
+    score = write_score(run_dir, cfg.validation.score_last)
     model.logger.close()  # the W&B run finishes here; the CSV and TensorBoard files are complete
     print(f"trained {model.num_timesteps} agent-steps; model: {final}; score {score['score']:.4f} (mean found "
           f"fraction of the last {score['validations']} validations)", file=sys.stderr)  # fmt: skip
@@ -184,20 +183,21 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
     return final
 
 
-def score_again(run_dir: Path, cfg: DictConfig, why: ValueError) -> dict[str, object]:
-    """Write a finished run's score.json again from its progress.csv (`why`: what was wrong with it), saying so;
-    refused in one line when the log cannot be read either."""
+def score_again(run_dir: Path, score_last: int, why: ValueError) -> dict[str, object]:
+    """Write a finished run's score.json again from its progress.csv, the mean of its last `score_last`
+    validations (`why`: what was wrong with it), saying so; refused in one line when the log cannot be read
+    either."""
     try:
-        score = write_score(run_dir, int(cfg.validation.score_last))
+        score = write_score(run_dir, score_last)
     except (UnicodeDecodeError, ValueError):  # pandas' parser errors are ValueErrors
         fail(f"{why}; its progress.csv cannot be read to write it again")
     print(f"score.json written again from {run_dir / 'progress.csv'} ({str(why).split(';')[0]})", file=sys.stderr)
     return score
 
 
-def prepare_folder(cfg: DictConfig, run_dir: Path, resuming: bool) -> None:
+def prepare_folder(cfg: TrainConfig, run_dir: Path, resuming: bool) -> None:
     """Refuse a folder that holds another run (or a finished one with nothing to resume from), clear what a killed
-    writer left, and set torch's and numba's threads and the device as the run records them."""
+    writer left, and set torch's and numba's threads as the run records them."""
     if not resuming and ((run_dir / "config.yaml").exists() or checkpoints(run_dir / "checkpoints")):
         fail(f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder")
     if resuming and not checkpoints(run_dir / "checkpoints") and (run_dir / "model.zip").exists():
@@ -210,22 +210,21 @@ def prepare_folder(cfg: DictConfig, run_dir: Path, resuming: bool) -> None:
             fail(str(err))
     for folder in (run_dir, run_dir / "checkpoints"):  # left by a killed writer; we hold the folder's lock
         remove_temporaries(folder)
-    cfg.device = str(get_device(cfg.device))  # recorded as used (device=auto becomes cpu or cuda)
-    use_threads(int(cfg.threads), network_on_cpu=cfg.device == "cpu")  # torch's and the world's (numba's)
+    use_threads(cfg.threads, network_on_cpu=cfg.device == "cpu")  # torch's and the world's (numba's)
 
 
 def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple[BaseAlgorithm, bool]:
     """(the algorithm, whether it resumes): the newest readable checkpoint with its step count and optimiser state,
     or a fresh one (from init= weights if given), also for a resume of a run killed before its first checkpoint."""
-    cfg = plan.cfg
+    cfg = plan.settings
     if resuming:
         model, checkpoint = load_newest_checkpoint(plan, run_dir, env)
         if model is not None:
             start = model.num_timesteps
-            if int(cfg.total_timesteps) < start:
+            if cfg.total_timesteps < start:
                 fail(f"total_timesteps={cfg.total_timesteps} is not allowed: {run_dir} has trained {start} "
                      f"agent-steps already ({checkpoint.name}); give total_timesteps >= {start}")  # fmt: skip
-            model.set_random_seed((int(cfg.seed) + start) % 2**32)  # new scenarios, not a replay of the first
+            model.set_random_seed((cfg.seed + start) % 2**32)  # new scenarios, not a replay of the first
             print(f"resuming {run_dir} from {checkpoint.name} at {start} agent-steps", file=sys.stderr)
             return model, True
         aside = set_aside_logs(run_dir)
@@ -234,24 +233,24 @@ def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple
     model = make_algorithm(plan, env)
     if cfg.init is not None:
         try:
-            fresh = init_weights(model, str(cfg.init), cfg)
+            fresh = init_weights(model, cfg.init, plan.record())
         except ValueError as err:
             fail(str(err))
         print(f"policy weights from {cfg.init}" + (f"; fresh: {', '.join(fresh)}" if fresh else ""), file=sys.stderr)
     return model, False
 
 
-def record_config(cfg: DictConfig, run_dir: Path) -> None:
+def record_config(plan: Plan, run_dir: Path) -> None:
     """The run's record (`config_record`), written once the run has started well: a resume writes back what it
     changed (say total_timesteps) but never what it resumes from."""
-    write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(config_record(cfg)))
+    write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(config_record(plan.settings)))
 
 
 def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:
     """Clone the teacher into the fresh policy (imitation.py); imitation.csv records each epoch, imitation.zip the
     clone before RL, and checkpoints/step_0.zip too, so a kill before the first RL checkpoint resumes from it."""
-    im, seed = plan.cfg.imitation, int(plan.cfg.seed)
-    demos = collect(list(plan.groups), str(plan.teacher), int(im.episodes), float(plan.cfg.algo.gamma), seed,
+    im, seed = plan.settings.imitation, plan.settings.seed
+    demos = collect(list(plan.groups), str(plan.teacher), im.episodes, plan.settings.algo.gamma, seed,
                     plan.teacher_args, plan.scenario)  # fmt: skip
     print(f"imitation: {len(demos)} sequences of {plan.teacher}, found fraction {demos.found_fraction:.3f}",
           file=sys.stderr)  # fmt: skip
@@ -264,13 +263,13 @@ def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:
               f"value loss {row['value_loss']:.2f}", file=sys.stderr)  # fmt: skip
         write_text_atomic(run_dir / "imitation.csv", pd.DataFrame(rows).to_csv(index=False))
 
-    fit = (int(im.epochs), int(im.value_epochs), int(im.batch_sequences), float(im.learning_rate))
-    clone(model.policy, demos, *fit, seed, on_epoch=record, lr_schedule=str(im.lr_schedule))
-    save_model(model, run_dir / "imitation.zip", run_identity(plan.cfg))  # the clone before RL, to evaluate
-    save_model(model, run_dir / "checkpoints" / "step_0.zip", run_identity(plan.cfg))
+    fit = (im.epochs, im.value_epochs, im.batch_sequences, im.learning_rate)
+    clone(model.policy, demos, *fit, seed, on_epoch=record, lr_schedule=im.lr_schedule)
+    save_model(model, run_dir / "imitation.zip", run_identity(plan.settings))  # the clone before RL, to evaluate
+    save_model(model, run_dir / "checkpoints" / "step_0.zip", run_identity(plan.settings))
 
 
-def set_logs(model: BaseAlgorithm, run_dir: Path, resume_step: int | None, cfg: DictConfig) -> None:
+def set_logs(model: BaseAlgorithm, run_dir: Path, resume_step: int | None, cfg: TrainConfig) -> None:
     """One CSV across resumed segments (rows past the checkpoint dropped), plus TensorBoard, plus a W&B run with
     `logger=wandb`; a resumed segment's elapsed time and iterations continue the run's."""
     offsets = clock_offsets(run_dir / "progress.csv", resume_step) if resume_step is not None else {}
@@ -286,11 +285,11 @@ def learn(plan: Plan, model: BaseAlgorithm, callbacks: list[BaseCallback], valid
           resuming: bool) -> None:  # fmt: skip
     """RL up to total_timesteps; a run without RL (total_timesteps=0, a clone only) is validated once for its
     score."""
-    cfg = plan.cfg
-    remaining = int(cfg.total_timesteps) - model.num_timesteps
+    cfg = plan.settings
+    remaining = cfg.total_timesteps - model.num_timesteps
     if remaining > 0:
-        model.learn(total_timesteps=remaining, callback=CallbackList(callbacks), log_interval=int(cfg.log_interval),
-                    reset_num_timesteps=not resuming, progress_bar=bool(cfg.progress_bar))  # fmt: skip
+        model.learn(total_timesteps=remaining, callback=CallbackList(callbacks), log_interval=cfg.log_interval,
+                    reset_num_timesteps=not resuming, progress_bar=cfg.progress_bar)  # fmt: skip
     elif not resuming:
         validation.init_callback(model)
         validation.on_training_end()
@@ -308,7 +307,7 @@ def main(cfg: DictConfig) -> float:
                 score = float(stored_score(run_dir)["score"])
                 print(f"{run_dir} holds this job's finished run: not trained again", file=sys.stderr)
             except ValueError as err:  # its score.json damaged or another run's: written again from its own log
-                score = float(in_sweep(score_again, run_dir, cfg, err)["score"])
+                score = float(in_sweep(score_again, run_dir, cfg.validation.score_last, err)["score"])
                 print(f"{run_dir} holds this job's finished run: not trained again", file=sys.stderr)
             return score
     final = in_sweep(train, cfg, run_dir, overrides)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from omegaconf import DictConfig, OmegaConf
+from dataclasses import asdict
+
+from omegaconf import DictConfig
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 
@@ -19,25 +21,25 @@ from searchrl.train.teacher_term import TeacherTerm
 def make_vec_env(plan: Plan, seed: int | None = None) -> VecEnv:
     """One SearchVecEnv, or a TeamMixVecEnv when env.extra_teams adds groups (group j seeded with seed + j); with
     the teacher term, wrapped to label every step with the teacher's action (`TeacherLabels`)."""
-    parts = observation_parts(plan.cfg.network, plan.cfg.get("critic"))
-    reward = make_reward(str(plan.cfg.get("reward", "paper")))
+    parts = observation_parts(asdict(plan.settings.network), asdict(plan.settings.critic))
+    reward = make_reward(plan.settings.reward)
     envs = [SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=plan.scenario,
                          parts=parts, reward=reward) for j, (world, k) in enumerate(plan.groups)]  # fmt: skip
     env = envs[0] if len(envs) == 1 else TeamMixVecEnv(envs)
     if plan.teacher_term and plan.teacher is not None:
-        return TeacherLabels(env, str(plan.teacher), plan.teacher_args, int(plan.cfg.seed))
+        return TeacherLabels(env, plan.teacher, plan.teacher_args, plan.settings.seed)
     return env
 
 
 def make_algorithm(plan: Plan, env: VecEnv) -> BaseAlgorithm:
     """A fresh algorithm on `env`, with the teacher term's settings and labels where the run uses them."""
-    cfg = plan.cfg
-    settings = OmegaConf.to_container(cfg.algo, resolve=True)
-    settings.pop("name")
-    critic = cfg.get("critic")
-    model = plan.algorithm(policy_class(cfg.algo.name, critic), env, seed=int(cfg.seed), device=cfg.device,
-                           policy_kwargs=policy_kwargs(cfg.network, cfg.algo.name, critic), verbose=0,
-                           **settings)  # fmt: skip
+    s = plan.settings
+    algo = asdict(s.algo)
+    algo.pop("name")
+    network, critic = asdict(s.network), asdict(s.critic)  # the policies read a run's record: mappings
+    model = plan.algorithm(policy_class(s.algo.name, critic), env, seed=s.seed, device=s.device,
+                           policy_kwargs=policy_kwargs(network, s.algo.name, critic), verbose=0,
+                           **algo)  # fmt: skip
     attach_teacher(plan, model, env)
     return model
 
@@ -45,7 +47,7 @@ def make_algorithm(plan: Plan, env: VecEnv) -> BaseAlgorithm:
 def load_algorithm(plan: Plan, path: str, env: VecEnv) -> BaseAlgorithm:
     """A checkpoint with its step count and optimiser state, attached to `env` (and its teacher labels); ValueError
     naming the file if it cannot be read."""
-    model = load_checkpoint(path, plan.cfg, cls=plan.algorithm, env=env, device=plan.cfg.device)
+    model = load_checkpoint(path, plan.record(), cls=plan.algorithm, env=env, device=plan.settings.device)
     attach_teacher(plan, model, env)
     return model
 
@@ -82,7 +84,6 @@ def init_weights(model: BaseAlgorithm, path: str, cfg: DictConfig) -> list[str]:
 def attach_teacher(plan: Plan, model: BaseAlgorithm, env: VecEnv) -> None:
     """Give a teacher-term algorithm its settings and the wrapper's labels (None without a teacher)."""
     if isinstance(model, TeacherTerm):
-        im = plan.cfg.imitation
+        im = plan.settings.imitation
         source = env if isinstance(env, TeacherLabels) else None
-        model.configure_teacher(float(im.rl_weight), str(im.rl_schedule), int(im.critic_warmup), source,
-                                int(im.rl_anneal_steps))  # fmt: skip
+        model.configure_teacher(im.rl_weight, im.rl_schedule, im.critic_warmup, source, im.rl_anneal_steps)

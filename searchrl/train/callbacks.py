@@ -8,16 +8,17 @@ import signal
 import sys
 import threading
 from collections import defaultdict
+from dataclasses import asdict
 from pathlib import Path
 from types import FrameType
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import HParam
 
 from searchrl.policies.checkpoint import save_model
 from searchrl.train.csv_log import log_digest
+from searchrl.train.schema import TrainConfig
 from searchrl.train.validation import run_episodes
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import Scenario
@@ -211,16 +212,17 @@ class HParamsCallback(BaseCallback):
         return True
 
 
-def run_hparams(cfg: DictConfig, scenario: str) -> dict[str, bool | int | float | str]:
+def run_hparams(settings: TrainConfig, scenario: str) -> dict[str, bool | int | float | str]:
     """The settings a sweep varies, as TensorBoard's hyperparameters: every scalar of `algo`, the model, network,
     critic, teacher term, reward, scenario label and seed (None shown as "none")."""
+    s = settings
     chosen = {
-        **{f"algo.{k}": v for k, v in OmegaConf.to_container(cfg.algo, resolve=True).items()},
-        "model": cfg.model.name if cfg.get("model") else None, "network.extractor": cfg.network.get("extractor"),
-        "network.lstm_hidden_size": cfg.network.get("lstm_hidden_size"), "critic": cfg.critic.name,
-        "imitation.teacher": cfg.imitation.teacher, "imitation.rl_weight": cfg.imitation.rl_weight,
-        "imitation.rl_schedule": cfg.imitation.rl_schedule, "reward": cfg.get("reward"), "scenario": scenario,
-        "seed": cfg.seed, "total_timesteps": cfg.total_timesteps,
+        **{f"algo.{k}": v for k, v in asdict(s.algo).items()},
+        "model": s.model.name if s.model else None, "network.extractor": s.network.extractor,
+        "network.lstm_hidden_size": s.network.lstm_hidden_size, "critic": s.critic.name,
+        "imitation.teacher": s.imitation.teacher, "imitation.rl_weight": s.imitation.rl_weight,
+        "imitation.rl_schedule": s.imitation.rl_schedule, "reward": s.reward, "scenario": scenario,
+        "seed": s.seed, "total_timesteps": s.total_timesteps,
     }  # fmt: skip
     scalars = (bool, int, float, str)
     return {k: "none" if v is None else v for k, v in chosen.items() if v is None or isinstance(v, scalars)}

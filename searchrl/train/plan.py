@@ -1,9 +1,10 @@
 """A training run's plan: its composed config checked once and read once into the objects every later step uses.
 
 `make_plan(cfg)` refuses a bad value with one ConfigError naming it and what is allowed, before any work or file;
-what it returns holds the world of each group of worlds, the scenario, the teacher (validated by building it), the
-algorithm class and the rollout size, so nothing downstream reads or checks the config again
-(searchrl/train/app.py builds env, algorithm, teacher and callbacks from it in one flat sequence).
+what it returns holds the settings as typed objects (`TrainConfig` and its groups' dataclasses, searchrl/train/
+schema.py: no DictConfig and no casts below this module), the world of each group of worlds, the scenario, the
+teacher (validated by building it), the algorithm class and the rollout size, so nothing downstream reads or checks
+the config again (searchrl/train/app.py builds env, algorithm, teacher and callbacks from it in one flat sequence).
 """
 
 from __future__ import annotations
@@ -12,13 +13,14 @@ import copy
 import math
 import zipfile
 from collections.abc import Sequence
-from dataclasses import dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.utils import get_device
 
 from searchrl import extensions
 from searchrl.controllers.registry import make_teacher
@@ -30,7 +32,7 @@ from searchrl.policies.extractor import SearchCNN
 from searchrl.policies.networks import observation_parts
 from searchrl.schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, override_keys
 from searchrl.train.imitation import lr_factor
-from searchrl.train.schema import A2CConfig, RecurrentPPOConfig
+from searchrl.train.schema import A2CConfig, ImitationConfig, RecurrentPPOConfig, TrainConfig
 from searchrl.train.teacher_term import TEACHER_ALGORITHMS, check_settings
 from searchrl.train.wandb_log import check_logger
 from searchrl.world.config import ConfigError, WorldConfig, need
@@ -43,7 +45,9 @@ ALGO_SCHEMAS = {"recurrent_ppo": RecurrentPPOConfig, "a2c": A2CConfig}
 class Plan:
     """What a run is built from. `groups[0]` is env.world with env.n_worlds, then one per env.extra_teams entry."""
 
-    cfg: DictConfig  # the composed config, total_timesteps and checkpoint_every rounded up to whole rollouts
+    # The composed config as typed objects: total_timesteps and checkpoint_every rounded up to whole rollouts, the
+    # device resolved (auto: cpu or cuda). Read, never written, below the plan.
+    settings: TrainConfig
     groups: tuple[tuple[WorldConfig, int], ...]  # (world config, K worlds) per group
     scenario: Scenario
     teacher: str | None  # imitation.teacher: a heuristic of the registry, or None
@@ -60,47 +64,53 @@ class Plan:
     @property
     def clones(self) -> bool:
         """A warm start: the teacher is cloned before RL."""
-        return self.teacher is not None and int(self.cfg.imitation.epochs) > 0
+        return self.teacher is not None and self.settings.imitation.epochs > 0
+
+    def record(self) -> DictConfig:
+        """The settings as a DictConfig, the form a run's config.yaml and its checkpoints' loaders read."""
+        return OmegaConf.structured(self.settings)
 
 
 def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
-    """Check every setting of `cfg` (a composed train config) and read it into a Plan holding a copy of it;
+    """Check every setting of `cfg` (a composed train config) and read it into a Plan holding its typed settings;
     ConfigError naming the first bad value. `overrides` (the command line's) only choose the notes on settings the
     run will not use."""
-    cfg = copy.deepcopy(cfg)  # rounded to whole rollouts below; the caller's stays as composed
     extensions.import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
     check_known_keys(cfg)  # `+total_timestep=...` composes: refused here, not trained past
     check_model(cfg)
     algorithm = check_algo(cfg)
-    groups = tuple(team_groups(cfg))
-    scenario = Scenario.from_dict(OmegaConf.to_container(cfg.scenario, resolve=True) if "scenario" in cfg else None)
+    cfg = copy.deepcopy(cfg)  # the caller's stays as it is: the algo node typed below, the budgets rounded
+    # A run's config.yaml merged into TrainConfig (resume=) leaves `algo` (Any) untyped: its group's schema types it.
+    cfg.algo = OmegaConf.merge(OmegaConf.structured(ALGO_SCHEMAS[cfg.algo.name]), cfg.algo)
+    s: TrainConfig = OmegaConf.to_object(cfg)  # typed from here on: the schema checked every value's type
+    groups = tuple(team_groups(s))
+    scenario = Scenario.from_dict(s.scenario)
     for world, _ in groups:
         scenario.check(world)
     draw_walls(scenario, groups)
-    check_device(str(cfg.device))
-    check_numbers(cfg)
-    rollout = int(cfg.algo.n_steps) * sum(k * world.n_agents for world, k in groups)
-    batch = cfg.algo.get("batch_size")
-    need(batch is None or 1 <= int(batch) <= rollout, "algo.batch_size", batch, f"1 <= batch_size <= rollout "
+    check_device(s.device)
+    check_numbers(s)
+    rollout = s.algo.n_steps * sum(k * world.n_agents for world, k in groups)
+    batch = getattr(s.algo, "batch_size", None)
+    need(batch is None or 1 <= batch <= rollout, "algo.batch_size", batch, f"1 <= batch_size <= rollout "
          f"size {rollout}")  # fmt: skip
     # A minibatch is whole slots' rollouts (searchrl/train/slot_buffer.py): a whole number of n_steps.
-    need(batch is None or int(batch) % int(cfg.algo.n_steps) == 0, "algo.batch_size", batch,
-         f"a multiple of algo.n_steps={cfg.algo.n_steps} (minibatches of whole slots' rollouts)")  # fmt: skip
-    check_init(cfg)
-    im = cfg.imitation
-    teacher_args = dict(OmegaConf.to_container(im.teacher_args, resolve=True) or {})
+    need(batch is None or batch % s.algo.n_steps == 0, "algo.batch_size", batch,
+         f"a multiple of algo.n_steps={s.algo.n_steps} (minibatches of whole slots' rollouts)")  # fmt: skip
+    check_init(s)
+    im = s.imitation
     if im.teacher is not None:
-        make_teacher(im.teacher, groups[0][0], 0, teacher_args)  # an unknown teacher or a bad argument, named
+        make_teacher(im.teacher, groups[0][0], 0, dict(im.teacher_args))  # an unknown teacher or a bad argument, named
         check_imitation(im)
-    teacher_term = float(im.rl_weight) != 0 or int(im.critic_warmup) != 0
-    check_teacher_term(cfg, teacher_term)
-    SearchCNN.check_sizes(list(cfg.network.conv_channels), int(cfg.network.vector_size), list(cfg.network.fc_sizes),
-                          groups[0][0].fov)  # fmt: skip
-    check_network_choices(cfg)
-    check_logger(cfg.logger)
-    notes = unused_settings(cfg, list(overrides), groups) + round_to_rollouts(cfg, rollout)
-    algorithm = TEACHER_ALGORITHMS.get(cfg.algo.name, algorithm)  # the term off (w = 0) where a recipe has none
-    return Plan(cfg, groups, scenario, im.teacher, teacher_args, algorithm, teacher_term, rollout, tuple(notes))
+    teacher_term = im.rl_weight != 0 or im.critic_warmup != 0
+    check_teacher_term(s, teacher_term)
+    SearchCNN.check_sizes(s.network.conv_channels, s.network.vector_size, s.network.fc_sizes, groups[0][0].fov)
+    check_network_choices(s)
+    check_logger(s.logger)
+    notes = unused_settings(s, list(overrides), groups) + round_to_rollouts(s, rollout)
+    algorithm = TEACHER_ALGORITHMS.get(s.algo.name, algorithm)  # the term off (w = 0) where a recipe has none
+    s.device = str(get_device(s.device))  # recorded as used (device=auto becomes cpu or cuda)
+    return Plan(s, groups, scenario, im.teacher, dict(im.teacher_args), algorithm, teacher_term, rollout, tuple(notes))
 
 
 def draw_walls(scenario: Scenario | ScenarioMix, groups: Sequence[tuple[WorldConfig, int]], draws: int = 4) -> None:
@@ -138,29 +148,29 @@ def check_algo(cfg: DictConfig) -> type[BaseAlgorithm]:
     return ALGORITHMS[cfg.algo.name][0]
 
 
-def team_groups(cfg: DictConfig) -> list[tuple[WorldConfig, int]]:
+def team_groups(s: TrainConfig) -> list[tuple[WorldConfig, int]]:
     """(world config, K) per group of worlds: env.world with env.n_worlds, then each of env.extra_teams; every K
     times env.replicas."""
-    world = WorldConfig.from_dict(OmegaConf.to_container(cfg.env.world, resolve=True))  # ConfigError naming a field
-    replicas = cfg.env.get("replicas", 1)
-    need(isinstance(replicas, int) and replicas >= 1, "env.replicas", replicas, "an integer >= 1 (1: the recipe's "
-         "worlds once)")  # fmt: skip
-    groups = [(world, int(cfg.env.n_worlds) * replicas)]
-    for j, team in enumerate(cfg.env.extra_teams):
-        if int(team.n_worlds) < 1:
+    world = WorldConfig.from_dict(asdict(s.env.world))  # ConfigError naming a field
+    replicas = s.env.replicas
+    need(replicas >= 1, "env.replicas", replicas, "an integer >= 1 (1: the recipe's worlds once)")
+    groups = [(world, s.env.n_worlds * replicas)]
+    for j, team in enumerate(s.env.extra_teams):
+        if team.n_worlds < 1:
             raise ConfigError(f"env.extra_teams[{j}].n_worlds={team.n_worlds!r} is not allowed: must be >= 1")
         try:
-            sizes = OmegaConf.to_container(team, resolve=True)["world_size"]  # n, [low, high] or null (the world's)
+            sizes = team.world_size  # n, [low, high] or null (the world's)
             sizes = world.world_size if sizes is None else tuple(sizes) if isinstance(sizes, list) else sizes
-            team_world = replace(world, n_agents=int(team.n_agents), world_size=sizes)
-            groups.append((team_world, int(team.n_worlds) * replicas))
+            team_world = replace(world, n_agents=team.n_agents, world_size=sizes)
+            groups.append((team_world, team.n_worlds * replicas))
         except ConfigError as err:
             raise ConfigError(f"env.extra_teams[{j}]: {err}") from None
     return groups
 
 
-def check_numbers(cfg: DictConfig) -> None:
+def check_numbers(cfg: TrainConfig) -> None:
     algo = cfg.algo
+    clip = getattr(algo, "clip_range", 0.2)  # PPO's; A2C has none
     numbers = [  # (name, value, ok, allowed); NaN fails every comparison
         ("seed", cfg.seed, 0 <= cfg.seed < 2**32, "0 <= seed < 2**32 (numpy and torch seeds)"),
         ("validation.seed", cfg.validation.seed, cfg.validation.seed >= 0, "an integer >= 0"),
@@ -170,7 +180,7 @@ def check_numbers(cfg: DictConfig) -> None:
         ("algo.ent_coef", algo.ent_coef, 0 <= algo.ent_coef < math.inf, "a number >= 0"),
         ("algo.vf_coef", algo.vf_coef, 0 <= algo.vf_coef < math.inf, "a number >= 0"),
         ("algo.max_grad_norm", algo.max_grad_norm, 0 < algo.max_grad_norm < math.inf, "a number > 0"),
-        ("algo.clip_range", algo.get("clip_range", 0.2), 0 < algo.get("clip_range", 0.2) < math.inf, "a number > 0"),
+        ("algo.clip_range", clip, 0 < clip < math.inf, "a number > 0"),
     ]
     for name, value, ok, allowed in numbers:
         need(bool(ok), name, value, allowed)
@@ -181,67 +191,64 @@ def check_numbers(cfg: DictConfig) -> None:
         "algo.n_steps": cfg.algo.n_steps,
         "log_interval": cfg.log_interval,
         "keep_checkpoints": cfg.keep_checkpoints,
-        "algo.n_epochs": cfg.algo.get("n_epochs", 1),
+        "algo.n_epochs": getattr(cfg.algo, "n_epochs", 1),
         "network.lstm_hidden_size": cfg.network.lstm_hidden_size,
     }
     for name, value in positive.items():
-        if int(value) < 1:
+        if value < 1:
             raise ConfigError(f"{name}={value!r} is not allowed: must be >= 1")
-    need(int(cfg.threads) <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
+    need(cfg.threads <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
     # 0 agent-steps of RL is a clone-only run: model.zip is the policy fitted to the teacher (or the init weights).
-    no_start = cfg.imitation.teacher is None and cfg.get("init") is None
-    if int(cfg.total_timesteps) < 0 or (int(cfg.total_timesteps) == 0 and no_start):
+    no_start = cfg.imitation.teacher is None and cfg.init is None
+    if cfg.total_timesteps < 0 or (cfg.total_timesteps == 0 and no_start):
         raise ConfigError(
             f"total_timesteps={cfg.total_timesteps!r} is not allowed: must be >= 1, or 0 with imitation.teacher "
             "or init (a run without RL)"
         )
-    need(int(cfg.validation.every) >= 0, "validation.every", cfg.validation.every,
+    need(cfg.validation.every >= 0, "validation.every", cfg.validation.every,
          ">= 0 agent-steps between validations (0: only the final model's)")  # fmt: skip
     for key in ("n_worlds", "score_last"):
-        need(int(cfg.validation[key]) >= 1, f"validation.{key}", cfg.validation[key], ">= 1")
+        need(getattr(cfg.validation, key) >= 1, f"validation.{key}", getattr(cfg.validation, key), ">= 1")
 
 
-def check_network_choices(cfg: DictConfig) -> None:
+def check_network_choices(cfg: TrainConfig) -> None:
     """reward, network.extractor and critic.name registered, their grids large enough, and a run that can feed them."""
     try:
-        make_reward(str(cfg.reward))
-        parts = observation_parts(cfg.network, cfg.critic)  # unregistered names, with the nearest
-        policy_class(str(cfg.algo.name), cfg.critic)  # a critic of its own needs RecurrentPPO
+        make_reward(cfg.reward)
+        parts = observation_parts(asdict(cfg.network), asdict(cfg.critic))  # unregistered names, with the nearest
+        policy_class(cfg.algo.name, asdict(cfg.critic))  # a critic of its own needs RecurrentPPO
     except ValueError as err:
         raise ConfigError(str(err)) from None
-    for name in ("network.grid", "critic.grid"):
-        value = OmegaConf.select(cfg, name)
-        need(isinstance(value, int) and value >= 4, name, value, "an integer >= 4 (two stride-2 convolutions)")
-    if parts and cfg.imitation.teacher is not None and int(cfg.imitation.epochs) > 0:
+    for name, value in (("network.grid", cfg.network.grid), ("critic.grid", cfg.critic.grid)):
+        need(value >= 4, name, value, "an integer >= 4 (two stride-2 convolutions)")
+    if parts and cfg.imitation.teacher is not None and cfg.imitation.epochs > 0:
         need(False, "imitation.epochs", cfg.imitation.epochs, f"0 with network.extractor={cfg.network.extractor} or "
              f"critic.name={cfg.critic.name} (cloning records the window and 3-vector only): start from a clone "
              "with init=")  # fmt: skip
 
 
-def check_init(cfg: DictConfig) -> None:
+def check_init(cfg: TrainConfig) -> None:
     """init= names a model zip (a resumed run continues from its checkpoint and no longer needs it)."""
-    if cfg.get("init") is not None and cfg.get("resume") is None:
+    if cfg.init is not None and cfg.resume is None:
         if not Path(cfg.init).is_file():
             need(False, "init", cfg.init, "an existing model.zip, imitation.zip or checkpoint of a run")
         need(zipfile.is_zipfile(cfg.init), "init", cfg.init, "a model zip written by searchrl.train (this is not one)")
 
 
-def check_imitation(im: DictConfig) -> None:
+def check_imitation(im: ImitationConfig) -> None:
     for name in ("episodes", "batch_sequences"):
-        if int(im[name]) < 1:
-            raise ConfigError(f"imitation.{name}={im[name]!r} is not allowed: must be >= 1")
+        need(getattr(im, name) >= 1, f"imitation.{name}", getattr(im, name), "must be >= 1")
     for name in ("epochs", "value_epochs"):
-        if int(im[name]) < 0:
-            raise ConfigError(f"imitation.{name}={im[name]!r} is not allowed: must be >= 0")
-    need(0 < float(im.learning_rate) < math.inf, "imitation.learning_rate", im.learning_rate, "must be > 0")
-    lr_factor(str(im.lr_schedule), 0, 1)  # an unknown schedule, named
+        need(getattr(im, name) >= 0, f"imitation.{name}", getattr(im, name), "must be >= 0")
+    need(0 < im.learning_rate < math.inf, "imitation.learning_rate", im.learning_rate, "must be > 0")
+    lr_factor(im.lr_schedule, 0, 1)  # an unknown schedule, named
 
 
-def check_teacher_term(cfg: DictConfig, teacher_term: bool) -> None:
+def check_teacher_term(cfg: TrainConfig, teacher_term: bool) -> None:
     im = cfg.imitation
-    weight = float(im.rl_weight)
-    check_settings(weight, str(im.rl_schedule), int(im.critic_warmup))
-    need(int(im.rl_anneal_steps) >= 1, "imitation.rl_anneal_steps", im.rl_anneal_steps, "an integer >= 1 (agent-steps)")
+    weight = im.rl_weight
+    check_settings(weight, im.rl_schedule, im.critic_warmup)
+    need(im.rl_anneal_steps >= 1, "imitation.rl_anneal_steps", im.rl_anneal_steps, "an integer >= 1 (agent-steps)")
     if weight > 0 and im.teacher is None:
         need(False, "imitation.rl_weight", weight, "0 without imitation.teacher (the term imitates the teacher)")
     if teacher_term and cfg.algo.name not in TEACHER_ALGORITHMS:
@@ -249,7 +256,7 @@ def check_teacher_term(cfg: DictConfig, teacher_term: bool) -> None:
              "imitation.critic_warmup (the teacher term is a PPO loss term)")  # fmt: skip
 
 
-def unused_settings(cfg: DictConfig, overrides: list[str], groups: tuple[tuple[WorldConfig, int], ...]) -> list[str]:
+def unused_settings(cfg: TrainConfig, overrides: list[str], groups: tuple[tuple[WorldConfig, int], ...]) -> list[str]:
     """Notes on what this run will not use that the command line set: imitation settings without a teacher, the
     LSTM size of a feed-forward algorithm, a minibatch larger than the demonstrations. (Validation settings always
     count: the final model is validated for the run's score even with validation.every=0.) Said, not refused: a
@@ -263,20 +270,21 @@ def unused_settings(cfg: DictConfig, overrides: list[str], groups: tuple[tuple[W
     if cfg.algo.name != "recurrent_ppo":
         unused += [k for k in keys if k == "network.lstm_hidden_size"]
     notes = [f"{k} has no effect here (no imitation.teacher, or a feed-forward algo)" for k in unused]
-    sequences = sum(k * world.n_agents for world, k in groups) * int(cfg.imitation.episodes)
-    if cfg.imitation.teacher is not None and int(cfg.imitation.batch_sequences) > sequences:
+    sequences = sum(k * world.n_agents for world, k in groups) * cfg.imitation.episodes
+    if cfg.imitation.teacher is not None and cfg.imitation.batch_sequences > sequences:
         notes.append(f"imitation.batch_sequences={cfg.imitation.batch_sequences} is more than the {sequences} teacher "
                      "sequences: each minibatch holds all of them")  # fmt: skip
     return notes
 
 
-def round_to_rollouts(cfg: DictConfig, rollout: int) -> list[str]:
+def round_to_rollouts(cfg: TrainConfig, rollout: int) -> list[str]:
     """Round total_timesteps and checkpoint_every up to whole rollouts in `cfg` (SB3 trains and saves whole
     rollouts: the config then records what runs); a note for each changed."""
     notes = []
     for key in ("total_timesteps", "checkpoint_every"):
-        whole = -(-int(cfg[key]) // rollout) * rollout
-        if whole != int(cfg[key]):
-            notes.append(f"{key}={cfg[key]} rounds up to {whole} (whole rollouts of {rollout} agent-steps)")
-            cfg[key] = whole
+        given = getattr(cfg, key)
+        whole = -(-given // rollout) * rollout
+        if whole != given:
+            notes.append(f"{key}={given} rounds up to {whole} (whole rollouts of {rollout} agent-steps)")
+            setattr(cfg, key, whole)
     return notes

@@ -11,12 +11,11 @@ in under a step name) or a config.yaml edited since the checkpoint was saved.
 
 from __future__ import annotations
 
-import copy
 import sys
 from pathlib import Path
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.vec_env import VecEnv
 
@@ -26,23 +25,23 @@ from searchrl.train.callbacks import checkpoints
 from searchrl.train.command_line import fail
 from searchrl.train.csv_log import log_digest
 from searchrl.train.plan import Plan
-from searchrl.train.schema import RESUME_OVERRIDES
+from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig
 from searchrl.world.scenario import Scenario
 
 
-def config_record(cfg: DictConfig) -> dict[str, Any]:
+def config_record(settings: TrainConfig) -> dict[str, Any]:
     """The run's record as config.yaml holds it: resolved, `resume` cleared, the scenario with every part written
     out (a run made before a part existed drew its default)."""
-    record = copy.deepcopy(cfg)
+    record = OmegaConf.structured(settings)
     record.resume = None
     record.scenario = Scenario.from_dict(OmegaConf.to_container(record.scenario, resolve=True)
                                          if "scenario" in record else None).to_dict()  # fmt: skip
     return OmegaConf.to_container(record, resolve=True)
 
 
-def run_identity(cfg: DictConfig) -> dict[str, Any]:
+def run_identity(settings: TrainConfig) -> dict[str, Any]:
     """The settings that make a run the run it is: its record less what a resume may change."""
-    return {k: v for k, v in config_record(cfg).items() if k not in (*RESUME_OVERRIDES, "resume", "hydra")}
+    return {k: v for k, v in config_record(settings).items() if k not in (*RESUME_OVERRIDES, "resume", "hydra")}
 
 
 def _leaves(node: Any, prefix: str = "") -> dict[str, Any]:
@@ -55,8 +54,8 @@ def _leaves(node: Any, prefix: str = "") -> dict[str, Any]:
     return out
 
 
-def foreign_checkpoint(path: Path, step: int, cfg: DictConfig) -> str | None:
-    """Why the checkpoint `path`, named for `step`, cannot be this run's (configured by `cfg`), or None: the step
+def foreign_checkpoint(path: Path, step: int, settings: TrainConfig) -> str | None:
+    """Why the checkpoint `path`, named for `step`, cannot be this run's (of `settings`), or None: the step
     it was saved at is another, or a setting it records differs from the run's config.yaml. Settings one side lacks
     are not compared (a later version adds settings at their defaults; retired ones are dropped). A file saved
     before models carried an identity is checked by its step alone."""
@@ -68,7 +67,7 @@ def foreign_checkpoint(path: Path, step: int, cfg: DictConfig) -> str | None:
         return None
     if identity.get("step") != step:
         return f"records step {identity.get('step')}, not {step} (move it out of checkpoints/)"
-    theirs, ours = _leaves(identity.get("run", {})), _leaves(run_identity(cfg))
+    theirs, ours = _leaves(identity.get("run", {})), _leaves(run_identity(settings))
     differ = sorted(k for k in theirs.keys() & ours.keys() if theirs[k] != ours[k])
     if differ:
         key = differ[0]
@@ -125,15 +124,15 @@ def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[Base
         return None, None
     for step, path in found:
         try:
-            problem = foreign_checkpoint(path, step, plan.cfg)  # a whole file of another run is not set aside
+            problem = foreign_checkpoint(path, step, plan.settings)  # a whole file of another run is not set aside
             if problem:
-                fail(f"resume={plan.cfg.resume!r}: checkpoints/{path.name} {problem}; nothing was changed")
+                fail(f"resume={plan.settings.resume!r}: checkpoints/{path.name} {problem}; nothing was changed")
             return load_algorithm(plan, str(path), env), path
         except OSError as err:  # cannot be read now (permission, I/O): maybe whole, so nothing is set aside
-            fail(f"resume={plan.cfg.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
+            fail(f"resume={plan.settings.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
                  f"{err.strerror or err}); nothing was renamed: restore access and resume again")  # fmt: skip
         except ValueError as err:
             aside = path.with_name(f"{path.name}.unreadable")
             path.rename(aside)
             print(f"warning: {err}; set aside as {aside.name}, trying the checkpoint before it", file=sys.stderr)
-    fail(f"resume={plan.cfg.resume!r}: no checkpoint under checkpoints/ can be read (set aside as *.unreadable)")
+    fail(f"resume={plan.settings.resume!r}: no checkpoint under checkpoints/ can be read (set aside as *.unreadable)")

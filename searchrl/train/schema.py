@@ -10,6 +10,7 @@ conf/train.yaml-> TrainConfig
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -172,12 +173,28 @@ def run_dir(resume: str | None, model: str, seed: int, now: str) -> str:
     return f"{resume}/resumed/{now}" if resume else f"runs/train/{model}/{now}_seed{seed}"
 
 
-def job_subdir(sweep_dir: str, name: str, overrides: Any) -> str:
-    """A multirun job's folder under `sweep_dir` (`hydra.sweep.subdir`): `name` (`<num>_<model>_seed<seed>`) when
-    that folder is new or was made for the same overrides (a multirun continued into its folder continues its jobs:
-    searchrl/train/sweep_job.py), else `name.1`, `name.2`, ... the first that is. An Optuna study continued into
-    its folder numbers its new trials' jobs from 0 again, with other parameters: they go beside the earlier ones."""
+# Task overrides left out of a job folder's name: they change how a job runs, not what it trains.
+UNNAMED = ("progress_bar", "logger", "hydra")
+
+
+def job_name(num: int, overrides: list[str]) -> str:
+    """`<num>_<key=value,...>`: a multirun job's number and its task overrides (Hydra's `override_dirname`, less
+    UNNAMED, `+` dropped, `/` written `-`), so the folder and its TensorBoard run say what the job set, swept values
+    included; e.g. `3_model=b,algo.learning_rate=0.001,seed=1`. Cut at 160 characters with a digest of the rest."""
+    kept = [o.lstrip("+") for o in overrides if o.lstrip("+~").split("=")[0].split(".")[0] not in UNNAMED]
+    name = f"{num}_{','.join(kept)}".replace("/", "-").rstrip("_")
+    if len(name) > 160:
+        name = f"{name[:143]}~{hashlib.sha256(name.encode()).hexdigest()[:16]}"
+    return name
+
+
+def job_subdir(sweep_dir: str, num: int, overrides: Any) -> str:
+    """A multirun job's folder under `sweep_dir` (`hydra.sweep.subdir`): `job_name` when that folder is new or was
+    made for the same overrides (a multirun continued into its folder continues its jobs: searchrl/train/
+    sweep_job.py), else `<name>.1`, `<name>.2`, ... the first that is (an Optuna study continued into its folder
+    numbers its new trials' jobs from 0 again: a trial of the same parameters goes beside the earlier one)."""
     wanted = [str(o) for o in overrides]
+    name = job_name(int(num), wanted)
     for k in range(10_000):
         folder = name if k == 0 else f"{name}.{k}"
         saved = Path(sweep_dir) / folder / ".hydra" / "overrides.yaml"

@@ -51,7 +51,7 @@ def continued_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple
         raise ConfigError(f"{run_dir} holds a run of other settings ({key}: {before.get(key, '<absent>')} there, "
                           f"{now.get(key, '<absent>')} now): sweep into another hydra.sweep.dir")  # fmt: skip
     # model.zip is written once the budget is trained; its score.json is checked by the app (score.py stored_score)
-    if (run_dir / "model.zip").is_file() and int(saved.total_timesteps) == int(cfg.total_timesteps):
+    if (run_dir / "model.zip").is_file() and saved.total_timesteps == cfg.total_timesteps:
         return cfg, overrides, True
     resumed = cfg.copy()
     resumed.resume = str(run_dir)

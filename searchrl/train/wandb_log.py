@@ -11,18 +11,19 @@ from __future__ import annotations
 
 import hashlib
 import numbers
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.logger import KVWriter
 
+from searchrl.train.schema import LoggerConfig, TrainConfig
 from searchrl.world.config import ConfigError
 
 MODES = ("offline", "online")
 
 
-def check_logger(logger: DictConfig) -> None:
+def check_logger(logger: LoggerConfig) -> None:
     """ConfigError in one line for a logger that cannot run: an unknown name or mode, or wandb not installed."""
     if logger.name not in ("default", "wandb"):
         raise ConfigError(f"logger={logger.name!r} is not allowed: default or wandb")
@@ -51,12 +52,12 @@ class WandbOutput(KVWriter):
         self.run.finish()
 
 
-def start_wandb(cfg: DictConfig, run_dir: Path) -> WandbOutput:
+def start_wandb(cfg: TrainConfig, run_dir: Path) -> WandbOutput:
     """The W&B run of `run_dir` (started, or continued where a segment of it ran before), its config the run's."""
     import wandb
 
     run_id = hashlib.sha256(str(run_dir.resolve()).encode()).hexdigest()[:16]
     run = wandb.init(project=cfg.logger.project, entity=cfg.logger.entity, group=cfg.logger.group,
                      mode=cfg.logger.mode, dir=str(run_dir), name=run_dir.name, id=run_id, resume="allow",
-                     config=OmegaConf.to_container(cfg, resolve=True))  # fmt: skip
+                     config=asdict(cfg))  # fmt: skip
     return WandbOutput(run)
