@@ -27,10 +27,10 @@ import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import markdown, paired_margins
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import coverage_line, load
+from searchrl.reporting import cli
+from searchrl.reporting.stats import markdown, paired_margins
 
 ROOT = Path.cwd()
 parser = cli.parser("Policies against their teacher over a cell set, and the budget curve", "EVAL_DIR",

@@ -31,12 +31,12 @@ from pathlib import Path
 import pandas as pd
 from omegaconf import OmegaConf
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import is_hard, markdown, with_bounds
 from searchrl.atomic import write_atomic, write_text_atomic
-from searchrl.evaluate.bound import BOUND_DRAWS, grid_bounds
+from searchrl.evaluate.cell_bounds import BOUND_DRAWS, grid_bounds
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.schema import EvaluateConfig, GridConfig
+from searchrl.reporting import cli
+from searchrl.reporting.stats import is_hard, markdown, with_bounds
 from searchrl.world.config import WorldConfig
 
 parser = cli.parser("The search bound over the grid and each controller's efficiency", dirs="TABLE_CSV",

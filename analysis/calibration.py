@@ -27,10 +27,10 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import markdown, paper_table3, summarize
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load, world_config_of
+from searchrl.reporting import cli
+from searchrl.reporting.stats import markdown, paper_table3, summarize
 
 ROOT = Path.cwd()
 parser = cli.parser("Which k: the heuristics on the full grid in four worlds", dirs=None)

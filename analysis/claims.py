@@ -26,10 +26,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import efficiency_summary, markdown, paired_margins, summarize
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load
+from searchrl.reporting import cli
+from searchrl.reporting.stats import efficiency_summary, markdown, paired_margins, summarize
 
 ROOT = Path.cwd()
 EVAL_DIRS, OUT = cli.eval_inputs("The paper's claims, checked on this reproduction", ROOT / "analysis" / "out")
@@ -176,7 +176,7 @@ if "diagonal" in policies:
     lines.append("\nModel with the highest mean found fraction per cell (rows N, columns n):\n")
     lines.append(markdown(best.fillna("–")))
 if "bound_fraction" in episodes and episodes["bound_fraction"].notna().all():
-    # How much of what any team could expect each controller finds (searchrl/evaluate/bound.py).
+    # How much of what any team could expect each controller finds (searchrl/evaluate/cell_bounds.py).
     lines.append("\n## Efficiency against the search bound\n")
     lines.append("Mean found fraction, bound and found / bound over the hard cells (n = 40 with N <= 2, n = 80 "
                  "with N <= 8, n = 160 with N <= 32), and mean found / bound over every cell whose bound is below "

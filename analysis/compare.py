@@ -30,10 +30,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import markdown, paired_margins
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import load
+from searchrl.reporting import cli
+from searchrl.reporting.stats import markdown, paired_margins
 
 ROOT = Path.cwd()
 UNSATURATED = 0.95  # below this found fraction of the reference a cell is "unsaturated" (issue 28's line)

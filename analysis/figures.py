@@ -10,7 +10,7 @@
 # Fig. 7: found fraction against N at n = 160, one line per controller or policy (95 % bootstrap CI bands), the
 # paper's four DRL models dashed, each in the colour of our policy of the same model. Fig. 8: every world size, DRL
 # policies against information surfing and coverage. Where the evaluations carry the per-map search bound
-# (searchrl/evaluate/bound.py), both show it dotted, and Fig. 8 gains a row of efficiency = found / bound.
+# (searchrl/evaluate/cell_bounds.py), both show it dotted, and Fig. 8 gains a row of efficiency = found / bound.
 # Run from the repository root:
 # `python analysis/figures.py [EVAL_DIR ...] [--out DIR]`; inputs and output as in `table3.py`.
 
@@ -22,10 +22,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import paper_table3, summarize
 from searchrl.atomic import write_atomic
 from searchrl.evaluate.results import load
+from searchrl.reporting import cli
+from searchrl.reporting.stats import paper_table3, summarize
 
 ROOT = Path.cwd()
 EVAL_DIRS, OUT = cli.eval_inputs("Fig. 7 and Fig. 8: found fraction against team size", ROOT / "analysis" / "out")

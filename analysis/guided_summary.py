@@ -28,9 +28,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from searchrl.analysis.stats import bootstrap_mean_ci, markdown, worst_tenth
 from searchrl.atomic import write_text_atomic
 from searchrl.evaluate.results import load
+from searchrl.reporting.stats import bootstrap_mean_ci, markdown, worst_tenth
 
 parser = argparse.ArgumentParser(description=__doc__)
 parser.add_argument("tag", help="the guided policy's folder name in each scenario")

@@ -31,7 +31,6 @@ import pandas as pd
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from searchrl.analysis import cli
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.controllers.policy import PolicyController
 from searchrl.controllers.registry import make_controller
@@ -41,7 +40,8 @@ from searchrl.evaluate.runner import run_cell
 from searchrl.evaluate.schema import register_configs
 from searchrl.evaluate.suite import SuiteConfig, suite_scenarios
 from searchrl.policies.checkpoint import checkpoint_config, load_actor
-from searchrl.schema import group_option
+from searchrl.reporting import cli
+from searchrl.shared_schema import group_option
 from searchrl.world.config import WorldConfig
 
 parser = cli.parser("Tune the hedging rules' knobs on tuning seeds", dirs=None)

@@ -33,12 +33,12 @@ from hydra.errors import HydraException
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import markdown
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.app import make_controller_factory
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.runner import run_cell
+from searchrl.reporting import cli
+from searchrl.reporting.stats import markdown
 
 ROOT = Path.cwd()
 parser = cli.parser("Which targets a controller misses, by distance to the world's edge", dirs=None)

@@ -22,9 +22,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import markdown
 from searchrl.atomic import write_text_atomic
+from searchrl.reporting import cli
+from searchrl.reporting.stats import markdown
 
 ROOT = Path.cwd()
 parser = cli.parser("The searchrl modules a training calls into", dirs=None)
@@ -41,7 +41,7 @@ called: dict[str, int] = {}
 def profile(frame, event, arg):
     if event == "call":
         name = frame.f_globals.get("__name__", "")
-        if name.startswith("searchrl.") and name != "searchrl.analysis.cli":
+        if name.startswith("searchrl.") and name != "searchrl.reporting.cli":
             called[name] = called.get(name, 0) + 1
 
 

@@ -23,12 +23,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import markdown
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.grid import map_seed, table2_cells
 from searchrl.evaluate.runner import cell_config
 from searchrl.evaluate.schema import EvaluateConfig, GridConfig
+from searchrl.reporting import cli
+from searchrl.reporting.stats import markdown
 from searchrl.world.config import WorldConfig
 from searchrl.world.reset import reset_world
 from searchrl.world.scenario import Scenario

@@ -7,7 +7,7 @@
 # %% [markdown]
 # # Aggregate report: IQM, performance profiles and probability of improvement over cells and scenarios
 #
-# The statistics rliable made the field's standard (searchrl/analysis/aggregate.py), over evaluation folders of one
+# The statistics rliable made the field's standard (searchrl/reporting/aggregate.py), over evaluation folders of one
 # grid and seed: every (scenario, n, N) cell is a task and every map a run. Per controller the interquartile mean of
 # its found fractions with a 95 % stratified-bootstrap interval, and its performance profile (the share of maps
 # above each threshold); for each policy against each rule, the probability of improvement P(policy > rule). The
@@ -32,8 +32,10 @@ import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
-from searchrl.analysis import cli
-from searchrl.analysis.aggregate import (
+from searchrl.atomic import write_atomic, write_text_atomic
+from searchrl.evaluate.results import coverage_line, load
+from searchrl.reporting import cli
+from searchrl.reporting.aggregate import (
     bootstrap,
     common_tasks,
     iqm,
@@ -41,9 +43,7 @@ from searchrl.analysis.aggregate import (
     probability_of_improvement,
     task_scores,
 )
-from searchrl.analysis.stats import markdown
-from searchrl.atomic import write_atomic, write_text_atomic
-from searchrl.evaluate.results import coverage_line, load
+from searchrl.reporting.stats import markdown
 
 ROOT = Path.cwd()
 parser = cli.parser("IQM, performance profiles and probability of improvement over cells and scenarios",

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import HARD_CELLS, is_hard, markdown
 from searchrl.atomic import write_text_atomic
+from searchrl.reporting import cli
+from searchrl.reporting.stats import HARD_CELLS, is_hard, markdown
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ["a", "b", "c", "diagonal"]

@@ -41,10 +41,10 @@ import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import bootstrap_mean_ci, worst_tenth
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import cell_files, load
+from searchrl.reporting import cli
+from searchrl.reporting.stats import bootstrap_mean_ci, worst_tenth
 
 parser = cli.parser("Tables and figure of a scenario suite", dirs="SUITE_DIR")
 parser.add_argument("--focus", default=None, help="controller label compared, paired, with every other")

@@ -26,10 +26,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import yaml
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import markdown
-from searchrl.analysis.sweep import load_jobs, score_table, setting_keys, validation_curves
 from searchrl.atomic import write_atomic, write_text_atomic
+from searchrl.reporting import cli
+from searchrl.reporting.stats import markdown
+from searchrl.reporting.sweep import load_jobs, score_table, setting_keys, validation_curves
 
 ROOT = Path.cwd()
 p = cli.parser("The score of a sweep by setting", "SWEEP_DIR",

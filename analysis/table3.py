@@ -21,10 +21,10 @@
 # %%
 from pathlib import Path
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import beside_paper, efficiency_summary, markdown, paper_table3, summarize, table3
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.evaluate.results import coverage_line, load
+from searchrl.reporting import cli
+from searchrl.reporting.stats import beside_paper, efficiency_summary, markdown, paper_table3, summarize, table3
 
 ROOT = Path.cwd()
 EVAL_DIRS, OUT = cli.eval_inputs(
@@ -75,7 +75,7 @@ if len(policies):
 # %% [markdown]
 # ## Efficiency against the search bound
 #
-# Where the evaluations carry the per-map search bound (`bound_fraction`; searchrl/evaluate/bound.py): per cell,
+# Where the evaluations carry the per-map search bound (`bound_fraction`; searchrl/evaluate/cell_bounds.py): per cell,
 # found / bound (rows N, columns n), and per controller its means over the hard cells and the unsaturated ones.
 # Written to `table3_efficiency.md`.
 

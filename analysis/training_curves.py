@@ -24,9 +24,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import pandas as pd
 
-from searchrl.analysis import cli
-from searchrl.analysis.stats import markdown, training_curves
 from searchrl.atomic import write_atomic, write_text_atomic
+from searchrl.reporting import cli
+from searchrl.reporting.stats import markdown, training_curves
 
 ROOT = Path.cwd()
 RUN_DIRS, OUT = cli.run_inputs("Fig. 5 and Fig. 6: training curves", ROOT / "analysis" / "out")

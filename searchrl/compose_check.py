@@ -130,7 +130,7 @@ def _misspelt_hints(compose, config_name: str, overrides: list[str]) -> dict[str
     from omegaconf import DictConfig, OmegaConf
 
     from searchrl.paths import CONF_DIR
-    from searchrl.schema import nearest
+    from searchrl.shared_schema import nearest
 
     keys = [
         o.partition("=")[0]

@@ -12,7 +12,9 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from searchrl.analysis.stats import (
+from searchrl.evaluate.results import load
+from searchrl.render import main as render_main
+from searchrl.reporting.stats import (
     beside_paper,
     bootstrap_mean_ci,
     markdown,
@@ -22,8 +24,6 @@ from searchrl.analysis.stats import (
     table3,
     training_curves,
 )
-from searchrl.evaluate.results import load
-from searchrl.render import main as render_main
 from tests.scripts import run_script as _script
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -291,7 +291,7 @@ def test_a_missing_or_empty_folder_is_named_in_one_line(tmp_path):
 
 def test_a_jupyter_kernels_flags_are_not_taken_for_folders(tmp_path, monkeypatch):
     """In a notebook argv holds the kernel's flags: they are dropped and the environment variables are read."""
-    from searchrl.analysis import cli
+    from searchrl.reporting import cli
 
     kernel = ["-f", "/run/user/kernel-1.json", "--HistoryManager.hist_file=:memory:"]
     args, rest = cli.parse(cli.parser("x"), kernel)

@@ -141,7 +141,7 @@ def test_no_controller_finds_more_than_the_bound(controller):
     """On the hardest small cells (one agent, n = 40 and 80) the bound binds least loosely; a controller's mean
     found fraction stays under the mean bound fraction of the same maps."""
     from searchrl.controllers.registry import make_controller
-    from searchrl.evaluate.bound import cell_bounds
+    from searchrl.evaluate.cell_bounds import cell_bounds
     from searchrl.evaluate.grid import Cell, map_seed
     from searchrl.evaluate.runner import cell_config, run_cell
     from searchrl.world.config import WorldConfig
@@ -157,7 +157,7 @@ def test_no_controller_finds_more_than_the_bound(controller):
 
 
 def test_the_cache_gives_the_same_bounds_and_only_for_the_same_map(tmp_path):
-    from searchrl.evaluate.bound import cell_bounds
+    from searchrl.evaluate.cell_bounds import cell_bounds
     from searchrl.evaluate.grid import Cell
     from searchrl.world.config import WorldConfig
 
@@ -190,7 +190,7 @@ def test_a_world_reads_the_detection_bound_of_its_own_moves_from_one_cached_row(
     reads its (larger) bound from the rows a cardinal one wrote, and the cell bound is the same for both."""
     from dataclasses import replace
 
-    from searchrl.evaluate.bound import cell_bounds
+    from searchrl.evaluate.cell_bounds import cell_bounds
     from searchrl.evaluate.grid import Cell
     from searchrl.world.config import WorldConfig
 
@@ -209,7 +209,7 @@ def test_the_maps_and_so_the_bounds_do_not_depend_on_the_model_or_the_sensing():
     function of the cell and its seed alone."""
     from dataclasses import replace
 
-    from searchrl.evaluate.bound import map_prior
+    from searchrl.evaluate.cell_bounds import map_prior
     from searchrl.evaluate.grid import Cell
     from searchrl.evaluate.runner import cell_config
     from searchrl.world.config import WorldConfig
@@ -245,7 +245,7 @@ def test_the_grids_table_summarises_each_cells_maps(tmp_path, capsys):
     bound fractions, the detection budget and the mean detection bound, from the same rows cell_bounds gives."""
     from dataclasses import replace
 
-    from searchrl.evaluate.bound import cell_bounds, grid_bounds
+    from searchrl.evaluate.cell_bounds import cell_bounds, grid_bounds
     from searchrl.evaluate.grid import Cell, map_seed
     from searchrl.world.config import WorldConfig
 
@@ -272,7 +272,7 @@ def test_the_grids_table_summarises_each_cells_maps(tmp_path, capsys):
 def test_a_maps_digest_names_its_prior_obstacles_and_count_in_16_hex_digits():
     """Cached rows are reused by map seed and digest: the digest must change with anything the bound reads, and keep
     its length, or the rows cached so far would never match again."""
-    from searchrl.evaluate.bound import map_digest
+    from searchrl.evaluate.cell_bounds import map_digest
 
     p, u, free = _tiny_map(1)
     digest = map_digest(p, u, free, 3)
@@ -285,7 +285,7 @@ def test_a_maps_digest_names_its_prior_obstacles_and_count_in_16_hex_digits():
 
 
 def test_cell_bounds_gives_the_detection_bound_only_when_asked(tmp_path):
-    from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds
+    from searchrl.evaluate.cell_bounds import BOUND_COLUMNS, cell_bounds
     from searchrl.evaluate.grid import Cell
     from searchrl.world.config import WorldConfig
 
@@ -295,7 +295,7 @@ def test_cell_bounds_gives_the_detection_bound_only_when_asked(tmp_path):
 
 
 def test_the_detection_bound_of_a_cell_is_its_budgets_share_of_the_same_draws():
-    from searchrl.evaluate.bound import cell_bounds, map_prior
+    from searchrl.evaluate.cell_bounds import cell_bounds, map_prior
     from searchrl.evaluate.grid import Cell
     from searchrl.evaluate.runner import cell_config
     from searchrl.world.config import WorldConfig
@@ -310,7 +310,7 @@ def test_the_detection_bound_of_a_cell_is_its_budgets_share_of_the_same_draws():
 
 
 def test_a_cache_file_of_another_layout_is_computed_afresh_and_replaced(tmp_path):
-    from searchrl.evaluate.bound import cell_bounds
+    from searchrl.evaluate.cell_bounds import cell_bounds
     from searchrl.evaluate.grid import Cell
     from searchrl.world.config import WorldConfig
 
@@ -327,7 +327,7 @@ def test_a_cached_row_is_not_reused_for_another_prior_of_the_same_seed(tmp_path,
     not reuse the row of the map it holds for the seed."""
     from dataclasses import replace
 
-    from searchrl.evaluate.bound import cell_bounds, map_prior
+    from searchrl.evaluate.cell_bounds import cell_bounds, map_prior
     from searchrl.evaluate.grid import Cell
     from searchrl.evaluate.runner import cell_config
     from searchrl.world.config import WorldConfig
@@ -342,7 +342,7 @@ def test_a_cached_row_is_not_reused_for_another_prior_of_the_same_seed(tmp_path,
 
 
 def test_rows_cached_without_the_detection_bound_are_computed_again_when_it_is_asked(tmp_path):
-    from searchrl.evaluate.bound import cell_bounds
+    from searchrl.evaluate.cell_bounds import cell_bounds
     from searchrl.evaluate.grid import Cell
     from searchrl.world.config import WorldConfig
 
@@ -357,7 +357,7 @@ def test_rows_cached_without_the_detection_bound_are_computed_again_when_it_is_a
 def test_a_cache_without_a_cells_file_starts_from_the_shipped_rows(tmp_path, monkeypatch):
     """A first evaluation reads the shipped bounds of its maps and writes them, with those it computes beside them,
     to its own cache; the shipped file is only read."""
-    from searchrl.evaluate import bound as bound_module
+    from searchrl.evaluate import cell_bounds as bound_module
     from searchrl.evaluate.grid import Cell
     from searchrl.world.config import WorldConfig
 
@@ -375,7 +375,7 @@ def test_a_cache_without_a_cells_file_starts_from_the_shipped_rows(tmp_path, mon
 
 
 def test_map_prior_is_the_worlds_n_by_n_maps_without_the_halo(tmp_path):
-    from searchrl.evaluate.bound import cell_bounds, map_prior
+    from searchrl.evaluate.cell_bounds import cell_bounds, map_prior
     from searchrl.evaluate.grid import Cell
     from searchrl.evaluate.runner import cell_config
     from searchrl.world.config import WorldConfig
@@ -391,7 +391,7 @@ def test_map_prior_is_the_worlds_n_by_n_maps_without_the_halo(tmp_path):
 @pytest.mark.parametrize("obstacles", [None, "rooms", "primal"])
 def test_map_prior_is_what_a_world_reset_from_the_seed_holds(obstacles):
     """Drawn alone, the map is the one a world's reset writes: p and u as its float32 arrays, free its free cells."""
-    from searchrl.evaluate.bound import map_prior
+    from searchrl.evaluate.cell_bounds import map_prior
     from searchrl.evaluate.grid import Cell
     from searchrl.evaluate.runner import cell_config
     from searchrl.world.config import WorldConfig

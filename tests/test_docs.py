@@ -212,7 +212,7 @@ def test_the_docs_name_only_group_options_that_exist():
 
 def test_the_trainable_models_are_the_files_of_conf_model():
     from searchrl.paths import group_options
-    from searchrl.schema import TRAINABLE_MODELS
+    from searchrl.shared_schema import TRAINABLE_MODELS
 
     assert group_options("model") == sorted(TRAINABLE_MODELS)
 

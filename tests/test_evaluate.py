@@ -13,7 +13,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 from searchrl.evaluate.app import evaluate
-from searchrl.evaluate.bound import BOUND_COLUMNS
+from searchrl.evaluate.cell_bounds import BOUND_COLUMNS
 from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import COLUMNS

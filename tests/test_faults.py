@@ -30,7 +30,7 @@ from searchrl.evaluate.results import load
 from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
 from searchrl.policies.checkpoint import REBUILT, load_checkpoint
-from searchrl.schema import check_group_choices
+from searchrl.shared_schema import check_group_choices
 from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld

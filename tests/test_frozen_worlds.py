@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from searchrl.evaluate.suite import suite_scenarios
-from searchrl.schema import group_option
+from searchrl.shared_schema import group_option
 from searchrl.world.config import WorldConfig
 from searchrl.world.reset import reset_worlds
 from searchrl.world.scenario import Scenario

@@ -115,7 +115,7 @@ def _plan(*overrides: str):
     (["network.extractor=own_map"], "network.extractor='own_map' is not registered .did you mean 'own_map_cnn'"),
     (["critic=true_state", "algo=a2c"], "critic.name='true_state' needs algo=recurrent_ppo"),
     (["critic=true_state", "critic.grid=3"], "critic.grid=3 is not allowed"),
-    (["critic=true_state", "teacher=greedy_target"], "imitation.epochs=.* is not allowed: 0 with"),
+    (["critic=true_state", "imitation=greedy_target"], "imitation.epochs=.* is not allowed: 0 with"),
 ])  # fmt: skip
 def test_the_plan_refuses_what_cannot_be_built(overrides, message):
     with pytest.raises(ConfigError, match=message):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from searchrl.schema import group_option
+from searchrl.shared_schema import group_option
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.prior import MisweightedPrior, MixturePrior, UninformedPrior
 from searchrl.world.reset import reset_world

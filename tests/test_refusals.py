@@ -14,7 +14,7 @@ from hydra import compose, initialize_config_dir
 
 from searchrl.evaluate.app import evaluate
 from searchrl.paths import CONF_DIR, recipes
-from searchrl.schema import unknown_keys
+from searchrl.shared_schema import unknown_keys
 from searchrl.train.app import train
 from searchrl.world.obstacles import MazeObstacles
 from tests.test_faults import _refused

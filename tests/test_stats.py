@@ -1,4 +1,4 @@
-"""searchrl/analysis/stats.py in process, value by value: efficiency beside the bound, the bounds joined from the
+"""searchrl/reporting/stats.py in process, value by value: efficiency beside the bound, the bounds joined from the
 grid's table, Table 3 layouts, the tidy training curves, and the pipe tables every results file is written with.
 (The verdicts' boundaries are in test_verdicts.py; the notebooks that call these in test_analysis.py.)"""
 
@@ -10,7 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from searchrl.analysis.stats import (
+from searchrl.reporting.stats import (
     beside_paper,
     bootstrap_mean_ci,
     markdown,
@@ -203,7 +203,7 @@ def test_paired_margins_rows_name_their_cell_and_use_the_draws_asked_for():
 
 
 def test_the_papers_table_is_read_with_the_grids_column_names(tmp_path):
-    from searchrl.analysis.stats import paper_table3
+    from searchrl.reporting.stats import paper_table3
 
     (tmp_path / "t.csv").write_text("model,world_size,n_agents,found_fraction\nB,20,1,0.5\n")
     assert paper_table3(tmp_path / "t.csv").to_dict("records") == [{"model": "B", "n": 20, "N": 1,
@@ -231,8 +231,8 @@ def test_outputs_keep_every_row_and_a_plain_index():
 
 
 def test_the_aggregates_match_their_definitions_on_known_scores():
-    """rliable's statistics (searchrl/analysis/aggregate.py) on scores with known answers."""
-    from searchrl.analysis.aggregate import (
+    """rliable's statistics (searchrl/reporting/aggregate.py) on scores with known answers."""
+    from searchrl.reporting.aggregate import (
         bootstrap,
         common_tasks,
         interquartile_mean,

@@ -16,7 +16,7 @@ MODULES = {
 }
 # Allowed to end the process: multirun.exits (how every entry point turns Refused/Stopped into an exit status) and the
 # notebooks' command line (a notebook is a script; its refusal is its last line).
-ENDS_THE_PROCESS = {"searchrl.multirun", "searchrl.analysis.cli"}
+ENDS_THE_PROCESS = {"searchrl.multirun", "searchrl.reporting.cli"}
 
 
 def _is_entry_point(path: Path) -> bool:
@@ -184,8 +184,8 @@ def top(n):
 # Research code and user packages plug in through the registries and `extensions=` (docs/extending.md): nothing
 # replaces a searchrl module's or class's attribute at run time, and no behaviour is switched by the environment.
 # The one reader of the environment is the notebooks' command line (a notebook kernel takes no arguments, so its
-# inputs may come from SEARCHRL_* variables, searchrl/analysis/cli.py `setting`).
-ENVIRONMENT_READERS = {"searchrl/analysis/cli.py"}
+# inputs may come from SEARCHRL_* variables, searchrl/reporting/cli.py `setting`).
+ENVIRONMENT_READERS = {"searchrl/reporting/cli.py"}
 SOURCES = sorted([*PACKAGE.rglob("*.py"), *(ROOT / "analysis").rglob("*.py"), *(ROOT / "conf").rglob("*.py"),
                   *(ROOT / "tests" / "extension_example").rglob("*.py")])  # fmt: skip
 

@@ -15,7 +15,7 @@ from searchrl.evaluate.results import load
 from searchrl.evaluate.suite import SuiteConfig, evaluate_suite, suite_scenarios
 from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
-from searchrl.schema import group_option
+from searchrl.shared_schema import group_option
 from searchrl.world.scenario import PAPER
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)

@@ -15,8 +15,8 @@ import pytest
 import yaml
 from PIL import Image
 
-from searchrl.analysis.sweep import load_jobs, mean_ci, score_table, setting_keys, validation_curves
 from searchrl.multirun import exits
+from searchrl.reporting.sweep import load_jobs, mean_ci, score_table, setting_keys, validation_curves
 from searchrl.train.score import run_score, write_score
 from tests.scripts import run_script
 

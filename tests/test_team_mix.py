@@ -58,10 +58,13 @@ def test_attribute_access_by_slot_and_bad_groups():
     assert mix.get_attr("n_agents") == [2] * 6 + [5] * 10
     assert mix.get_attr("n_agents", indices=[5, 6]) == [2, 5]
     assert mix.env_method("get_attr", "n_agents", indices=[0, 15]) == [[2] * 6, [5] * 10]
-    mix.set_attr("render_mode", None)
-    with pytest.raises(ValueError, match="subset of slots"):
+    mix.set_attr("label", "mine")  # every group's, read back by each slot
+    assert mix.get_attr("label", indices=[0, 15]) == ["mine", "mine"]
+    with pytest.raises(ValueError, match=r"^set_attr\('render_mode'\) on a subset of slots is not possible: slots "
+                       r"share worlds; pass indices=None$"):  # fmt: skip
         mix.set_attr("render_mode", None, indices=[0])
-    assert mix.env_is_wrapped(VecMonitor) == [False] * 16
+    assert mix.env_method("get_attr", attr_name="n_agents", indices=[6]) == [[5] * 10]  # keyword arguments too
+    assert mix.env_is_wrapped(VecMonitor) == [False] * 16 and mix.env_is_wrapped(VecMonitor, indices=[3]) == [False]
     with pytest.raises(ValueError, match="at least one"):
         TeamMixVecEnv([])
     with pytest.raises(ValueError, match=r"envs\[1\]"):

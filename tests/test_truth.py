@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from searchrl.schema import group_option
+from searchrl.shared_schema import group_option
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.scenario import Scenario
 from searchrl.world.truth import (

@@ -89,15 +89,20 @@ def test_attribute_access_render_and_wrappers():
     env.reset()
     assert env.get_attr("render_mode") == ["rgb_array"] * 12
     assert env.get_attr("n_agents", indices=[0, 5]) == [3, 3]
-    env.set_attr("render_mode", "rgb_array")
-    with pytest.raises(ValueError, match="share one world"):
+    env.set_attr("label", "mine")  # set for every slot, read back by each
+    assert env.get_attr("label", indices=[3]) == ["mine"]
+    with pytest.raises(ValueError, match=r"^set_attr\('render_mode'\) on a subset of slots is not possible: all 12 "
+                       r"slots share one world; pass indices=None$"):  # fmt: skip
         env.set_attr("render_mode", None, indices=[0])
     assert env.env_method("get_attr", "n_agents", indices=[1, 2]) == [[3] * 12, [3] * 12]
-    assert env.env_is_wrapped(VecMonitor) == [False] * 12
+    assert env.env_method("get_attr", attr_name="n_agents", indices=[4]) == [[3] * 12]  # keyword arguments too
+    assert env.env_is_wrapped(VecMonitor) == [False] * 12 and env.env_is_wrapped(VecMonitor, indices=[2]) == [False]
     frame = env.render()
     assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
     with pytest.raises(ValueError, match="render_mode"):
         SearchVecEnv(CONFIG, 1, render_mode="human")
+    with pytest.raises(ValueError, match=r"^render_mode is None; create the env with render_mode='rgb_array'$"):
+        _env().get_images()
 
 
 def test_step_wait_without_actions_is_an_error():

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from searchrl.analysis.stats import (
+from searchrl.reporting.stats import (
     HARD_CELLS,
     bootstrap_mean_ci,
     efficiency_summary,

@@ -17,7 +17,7 @@ from searchrl.envs.spaces import action_space, observation_space
 from searchrl.world.coarse import ObservationPart
 from searchrl.world.config import WorldConfig, check_seed, is_int
 from searchrl.world.engine import SearchWorld
-from searchrl.world.render import world_frame
+from searchrl.world.frames import world_frame
 from searchrl.world.scenario import PAPER, Scenario
 from searchrl.world.state import WorldState
 

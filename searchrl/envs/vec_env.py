@@ -23,7 +23,7 @@ from searchrl.envs.spaces import action_space, observation_space
 from searchrl.world.coarse import ObservationPart
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
-from searchrl.world.render import world_frames
+from searchrl.world.frames import world_frames
 from searchrl.world.scenario import PAPER, Scenario
 
 

@@ -22,7 +22,7 @@ from searchrl.evaluate.schema import register_configs  # noqa: E402
 from searchrl.evaluate.suite import evaluate_suite  # noqa: E402
 from searchrl.multirun import exits, in_sweep  # noqa: E402
 from searchrl.paths import CONF_DIR  # noqa: E402
-from searchrl.schema import check_group_choices  # noqa: E402
+from searchrl.shared_schema import check_group_choices  # noqa: E402
 
 
 @hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="evaluate")

@@ -7,7 +7,7 @@ Runs a controller on the Table 2/3 grid and writes one parquet file per cell, `<
 run with; a run with other settings into the same folder stops before any work (`searchrl/evaluate/record.py`).
 Every setting and every grid cell is checked before the folder is claimed; a job runs a cell only while it holds
 that cell's lock (`<out_dir>/.locks/`), so jobs sharing a folder never write one cell twice (docs/files.md).
-Each row carries its map's search bound (`bound`, `bound_stderr`, `bound_fraction`; searchrl/evaluate/bound.py).
+Each row carries its map's search bound (`bound`, `bound_stderr`, `bound_fraction`; searchrl/evaluate/cell_bounds.py).
 Load the results with `searchrl.evaluate.results.load`.
 """
 
@@ -27,7 +27,7 @@ from searchrl import extensions
 from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, storage_message, write_atomic
 from searchrl.controllers.factory import heuristic_factory, policy_factory
 from searchrl.controllers.registry import heuristic
-from searchrl.evaluate.bound import BOUND_COLUMNS, cell_bounds, map_prior
+from searchrl.evaluate.cell_bounds import BOUND_COLUMNS, cell_bounds, map_prior
 from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import CELL_SETTINGS, claim_folder, evaluation_settings, option_defaults
 from searchrl.evaluate.results import cell_table, coverage, paired_table
@@ -36,7 +36,7 @@ from searchrl.evaluate.schema import EvaluateConfig, register_configs
 from searchrl.multirun import Stopped, refuse
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor, training_scenario
 from searchrl.policies.device import check_device, resolve_device
-from searchrl.schema import MAX_THREADS, check_known_keys, override_keys
+from searchrl.shared_schema import MAX_THREADS, check_known_keys, override_keys
 from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.obstacles import IidObstacles
 from searchrl.world.scenario import Scenario, ScenarioMix

@@ -16,10 +16,10 @@ from PIL import Image, ImageDraw
 from searchrl.atomic import write_atomic
 from searchrl.controllers.episodes import ControllerFactory, episode_streams, play
 from searchrl.controllers.factory import heuristic_factory, policy_factory
-from searchrl.schema import group_option, model_world
+from searchrl.shared_schema import group_option, model_world
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
-from searchrl.world.render import world_frame
+from searchrl.world.frames import world_frame
 from searchrl.world.scenario import Scenario
 from searchrl.world.state import WorldState
 

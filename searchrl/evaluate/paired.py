@@ -2,7 +2,7 @@
 percentile-bootstrap 95 % CI over maps, and a verdict. Evaluations with the same seed and grid play the same maps (a
 map's seed depends only on the cell's index in the grid and the map's), so their per-map differences pair.
 
-The evaluation app prints these against a `baseline=` folder at its end; the notebooks (searchrl/analysis/stats.py)
+The evaluation app prints these against a `baseline=` folder at its end; the notebooks (searchrl/reporting/stats.py)
 use the same functions.
 """
 

@@ -34,7 +34,7 @@ def world_of(out_dir: str | Path) -> str:
     return config.sensing_label if config else "unknown"
 
 
-# What a result row is grouped under in every table (searchrl/analysis/stats.py): two folders sharing it are named
+# What a result row is grouped under in every table (searchrl/reporting/stats.py): two folders sharing it are named
 # apart, whatever else differs between them (the world, the scenario, the settings).
 LABEL = ["controller", "model"]
 

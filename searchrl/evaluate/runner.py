@@ -19,7 +19,7 @@ from searchrl.world.state import WorldState
 # `scenario` what their resets drew (Scenario.label: "paper", "iid0.2c", "var1+off_prior1", …), `family` its
 # family of prior error ("paper" when the prior is right), `severity` that family's, `variance_scale` the prior's
 # sharpness (the variance scale of p's Gaussians: the world's 10 unless the scenario sets it). The evaluation app
-# (__main__) adds the map's search bound, searchrl/evaluate/bound.py's BOUND_COLUMNS.
+# (__main__) adds the map's search bound, searchrl/evaluate/cell_bounds.py's BOUND_COLUMNS.
 # `prior_quality` is how well the prior the agents start from points at the episode's targets (MapScore-like: 0 no
 # better than uniform, 1 every target on the prior's best cell; searchrl/world/truth.py). `blocked` is the share of
 # the team's moves that a wall or another agent stopped (the world's collisions per agent-step of the episode),

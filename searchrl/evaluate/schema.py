@@ -12,7 +12,7 @@ from omegaconf import MISSING
 from searchrl.controllers.registry import HEURISTICS
 from searchrl.evaluate.runner import BATCH_MB
 from searchrl.paths import CONF_DIR
-from searchrl.schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
+from searchrl.shared_schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
 
 
 @dataclass
@@ -45,7 +45,7 @@ class EvaluateConfig:
     num_shards: int = 1
     out_dir: str | None = None  # default runs/eval/<controller> or runs/eval/policy/<run path under runs/>
     batch_mb: float = BATCH_MB  # memory budget of one batch of worlds
-    bound_draws: int = 1000  # placements per map for the search bound columns (searchrl/evaluate/bound.py)
+    bound_draws: int = 1000  # placements per map for the search bound columns (searchrl/evaluate/cell_bounds.py)
     bound_cache: str | None = "runs/bounds"  # bounds computed once per map, shared by evaluations; null: no cache
     threads: int = 2
     # torch device of a checkpoint's network: cpu, cuda, cuda:<index>, mps or auto (heuristics run on the CPU).

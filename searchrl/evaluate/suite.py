@@ -22,7 +22,7 @@ from omegaconf.errors import OmegaConfBaseException
 from searchrl.atomic import FolderBusy, storage_message, write_text_atomic
 from searchrl.evaluate.app import claim_evaluation, fail, given_out_dir, plan_evaluation, run_evaluation
 from searchrl.evaluate.schema import EvaluateConfig, GridConfig
-from searchrl.schema import override_keys
+from searchrl.shared_schema import override_keys
 from searchrl.world.config import ConfigError, need
 from searchrl.world.scenario import Scenario, scenario_grid
 

@@ -15,7 +15,7 @@ set_wait_policy(sys.argv)
 from searchrl import extensions  # noqa: E402
 from searchrl.compose_check import check_jobs_compose  # noqa: E402
 from searchrl.multirun import exits  # noqa: E402
-from searchrl.schema import check_group_choices  # noqa: E402
+from searchrl.shared_schema import check_group_choices  # noqa: E402
 from searchrl.train.app import main  # noqa: E402  (loads torch: after the wait policy)
 from searchrl.train.command_line import check_resume_argument  # noqa: E402
 

@@ -37,7 +37,7 @@ from searchrl.atomic import (
 from searchrl.multirun import Stopped, in_sweep
 from searchrl.paths import CONF_DIR
 from searchrl.policies.checkpoint import save_model
-from searchrl.schema import override_keys
+from searchrl.shared_schema import override_keys
 from searchrl.threads import use_threads
 from searchrl.train.build import init_weights, make_algorithm, make_vec_env
 from searchrl.train.callbacks import (

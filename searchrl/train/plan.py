@@ -30,7 +30,7 @@ from searchrl.policies.checkpoint import policy_class
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
 from searchrl.policies.networks import observation_parts
-from searchrl.schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, override_keys
+from searchrl.shared_schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, override_keys
 from searchrl.train.imitation import lr_factor
 from searchrl.train.schema import A2CConfig, ImitationConfig, RecurrentPPOConfig, TrainConfig
 from searchrl.train.teacher_term import TEACHER_ALGORITHMS, check_settings

@@ -1,7 +1,7 @@
 """Hydra schemas: one dataclass per config group, registered in the ConfigStore and named by the YAML files in
 `conf/` (`defaults: [<group>_schema]`). They live outside `__main__` so submitit can unpickle them.
 
-conf/env, conf/model, conf/scenario -> searchrl/schema.py (shared with evaluation)
+conf/env, conf/model, conf/scenario -> searchrl/shared_schema.py (shared with evaluation)
 conf/algo      -> RecurrentPPOConfig | A2CConfig
 conf/network   -> NetworkConfig
 conf/critic    -> CriticConfig
@@ -18,7 +18,7 @@ from typing import Any
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from searchrl.paths import repository_root
-from searchrl.schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
+from searchrl.shared_schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
 from searchrl.world.config import ANY, RETIRED_FIELDS, drop_retired
 
 

@@ -51,7 +51,7 @@ def worst_tenth(episodes: pd.DataFrame) -> float:
 def summarize(episodes: pd.DataFrame, metric: str = "found_fraction", n_boot: int = 2000) -> pd.DataFrame:
     """One row per (controller, model, n, N): mean of `metric` with a 95 % CI. Repeats of a map are averaged
     first, so the bootstrap resamples maps, the independent units. Where episodes have their map's search bound
-    (`bound_fraction`, searchrl/evaluate/bound.py), also `bound` (its mean over the cell's maps) and `efficiency`
+    (`bound_fraction`, searchrl/evaluate/cell_bounds.py), also `bound` (its mean over the cell's maps) and `efficiency`
     = mean / bound with its CI (`efficiency_low`, `efficiency_high`: the found fraction's CI over the same bound,
     whose own Monte Carlo error is far smaller)."""
     values = [metric, "bound_fraction"] if "bound_fraction" in episodes else [metric]

@@ -3,7 +3,7 @@
 An episode's map (p, u, obstacles, target count) is a function of the cell and its map seed (runner.run_cell resets
 each world from `np.random.default_rng(map_seed)`), so the bound is computed from the same seed. `bound_fraction` =
 bound / targets sits beside an episode's `found_fraction`; a cell's efficiency is its mean found fraction over its
-mean bound fraction (`searchrl.analysis.stats.summarize`).
+mean bound fraction (`searchrl.reporting.stats.summarize`).
 
 Bounds are kept in a cache folder (`runs/bounds/` by default), one file per cell and draw count, each row keyed by
 its map seed, the digest of the map it was computed on, and the team's reach: the maps do not depend on the model
