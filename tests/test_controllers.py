@@ -123,3 +123,44 @@ def test_coverage_agents_meeting_head_on_pass_each_other():
         reached[0] |= tuple(state.pos[0, 0]) == (5, 8)
         reached[1] |= tuple(state.pos[0, 1]) == (5, 1)
     assert all(reached), state.pos[0].tolist()
+
+
+def test_the_switch_that_never_switches_is_bs_teacher_move_for_move():
+    """threshold=0 never leaves the prior: every move is target-greedy's with reach 2 and the same seed (the shipped
+    policies' teacher), so the rule's greedy half is that teacher and no other setting of it."""
+    from searchrl.controllers.registry import make_controller
+    from searchrl.controllers.switch import EvidenceSwitch
+
+    config = WorldConfig(world_size=(20, 30), n_agents=4, n_targets=(4, 8))
+    worlds = [SearchWorld(config, n_worlds=6, seed=3) for _ in range(2)]
+    rules = [EvidenceSwitch(config, threshold=0.0), make_controller("greedy_target", config, 0, {"reach": 2.0})]
+    observations = [world.reset() for world in worlds]
+    for world, rule in zip(worlds, rules, strict=True):
+        rule.reset(world.state, np.ones(6, bool))
+    for _ in range(24):
+        moves = [rule.act(world.state, *obs) for world, rule, obs in zip(worlds, rules, observations, strict=True)]
+        np.testing.assert_array_equal(moves[0], moves[1])
+        steps = [world.step(m) for world, m in zip(worlds, moves, strict=True)]
+        observations = [(tr.maps, tr.vector) for tr in steps]
+    for threshold in (0.0, 1.0):
+        EvidenceSwitch(config, threshold=threshold)  # both ends allowed
+    for bad in (-0.1, 1.5):
+        with pytest.raises(ValueError, match=rf"^threshold={bad} is not allowed: 0 <= threshold <= 1 \(0: never"):
+            EvidenceSwitch(config, threshold=bad)
+
+
+def test_the_switch_moves_at_random_as_its_seed_says_where_nothing_is_left_to_sense():
+    from searchrl.controllers.registry import make_controller
+    from searchrl.controllers.switch import EvidenceSwitch
+
+    config = WorldConfig(world_size=(30, 30), n_agents=3, n_targets=(1, 1))
+    state = _world(30, [(5, 5), (15, 15), (25, 25)], config)  # beliefs all zero: greedy falls back to random moves
+    state.p[0], state.u[0] = 1.0, 0.5  # the prior the switch weighs its evidence by; the agents' beliefs stay 0
+    state.u[0, 0, 0] = 1.0  # in the wall around the world: the free cells' density p·(1 − u/max u) is 0.5
+    teacher = make_controller("greedy_target", config, 0, {"reach": 2.0})  # seed 0, the switch's default
+    switch = EvidenceSwitch(config, threshold=0.0)
+    for rule in (teacher, switch):
+        rule.reset(state, np.ones(1, bool))
+    moves = [[rule.act(state, *observe(config, state)) for _ in range(8)] for rule in (teacher, switch)]
+    np.testing.assert_array_equal(moves[0], moves[1])
+    assert len({tuple(m.ravel()) for m in moves[0]}) > 1  # random moves, drawn from the seed's stream
