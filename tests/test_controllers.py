@@ -71,6 +71,10 @@ def test_partition_tiles_the_domain():
         for r0, r1, c0, c1 in blocks:
             cover[r0:r1, c0:c1] += 1
         assert (cover == 1).all()
+    # ceil(√N) rows of blocks, the first N mod rows rows one block longer
+    assert partition(10, 2) == [(0, 5, 0, 10), (5, 10, 0, 10)]
+    assert partition(12, 3) == [(0, 6, 0, 6), (0, 6, 6, 12), (6, 12, 0, 12)]
+    assert [len({b[0] for b in partition(30, n)}) for n in (1, 2, 4, 5, 9, 10)] == [1, 2, 2, 3, 3, 4]
 
 
 @pytest.mark.parametrize("n, agents, radius", [(12, 1, 1), (16, 4, 1), (20, 3, 2), (15, 2, 0)])
@@ -164,3 +168,52 @@ def test_the_switch_moves_at_random_as_its_seed_says_where_nothing_is_left_to_se
     moves = [[rule.act(state, *observe(config, state)) for _ in range(8)] for rule in (teacher, switch)]
     np.testing.assert_array_equal(moves[0], moves[1])
     assert len({tuple(m.ravel()) for m in moves[0]}) > 1  # random moves, drawn from the seed's stream
+
+
+@pytest.mark.parametrize(
+    "block, start, radius, waypoints",
+    [
+        ((0, 10, 0, 8), (0, 0), 2, [(2, 0), (2, 7), (7, 7), (7, 0)]),  # lanes 2 apart from the edges, 5 apart
+        ((0, 10, 0, 8), (9, 7), 2, [(7, 7), (7, 0), (2, 0), (2, 7)]),  # from the far corner: both orders reversed
+        ((0, 12, 0, 6), (0, 0), 2, [(2, 0), (2, 5), (7, 5), (7, 0), (9, 0), (9, 5)]),  # one more lane for the rest
+        ((0, 3, 0, 5), (0, 4), 2, [(1, 4), (1, 0)]),  # thinner than two lanes' reach: one lane through the middle
+        ((0, 9, 0, 9), (4, 4), 1, [(1, 0), (1, 8), (4, 8), (4, 0), (7, 0), (7, 8)]),  # ties keep the first lane, left
+        ((10, 19, 20, 29), (18, 28), 1, [(17, 28), (17, 20), (14, 20), (14, 28), (11, 28), (11, 20)]),  # offset
+    ],
+)
+def test_a_sweep_is_a_boustrophedon_from_the_nearest_corner(block, start, radius, waypoints):
+    np.testing.assert_array_equal(sweep(block, start, radius), np.array(waypoints, np.int64).reshape(-1, 2))
+
+
+def test_one_coverage_controller_serves_worlds_of_another_batch_and_moves_diagonally_in_the_diagonal_model():
+    ctrl = GeometricCoverage(WorldConfig(world_size=(20, 20), n_targets=(1, 1)))
+    for k, n in ((1, 2), (3, 3), (2, 1)):  # batches of other K and N: each reset plans for the worlds it is given
+        config = WorldConfig(world_size=(20, 20), n_agents=n, n_targets=(1, 1))
+        world = SearchWorld(config, n_worlds=k, seed=k)
+        world.reset()
+        ctrl.reset(world.state, np.ones(k, bool))
+        fresh = GeometricCoverage(config)
+        fresh.reset(world.state, np.ones(k, bool))
+        np.testing.assert_array_equal(
+            ctrl.act(world.state, *world.observation), fresh.act(world.state, *world.observation)
+        )
+        assert ctrl.waypoints.dtype == ctrl.n_points.dtype == ctrl.index.dtype == np.int64  # the kernel's signature
+    diagonal = WorldConfig(world_size=(20, 20), n_agents=1, n_targets=(1, 1), diagonal=True)
+    state = _world(20, [(10, 10)], diagonal)  # its block is the whole world: the plan starts at the corner (1, 1)
+    ctrl = GeometricCoverage(diagonal)
+    ctrl.reset(state, np.ones(1, bool))
+    assert ctrl.act(state, *observe(diagonal, state))[0, 0] >= 5  # a diagonal move (actions 5-8) toward it
+
+
+def test_the_switch_weighs_the_prior_by_where_targets_are_kept():
+    """density t = p·(1 − u/max u) on free cells, 0 on walls, summing to 1 per world (§4.1.4's placement)."""
+    from searchrl.controllers.switch import EvidenceSwitch
+
+    config = WorldConfig(world_size=(12, 12), n_agents=1, n_targets=(1, 1))
+    state = _world(12, [(3, 3)], config)
+    rng = np.random.default_rng(0)
+    state.p[0], state.u[0] = rng.random(state.p.shape[1:]), rng.random(state.u.shape[1:])
+    switch = EvidenceSwitch(config)
+    switch.reset(state, np.ones(1, bool))
+    t = np.where(state.blocked[0], 0.0, state.p[0] * (1.0 - state.u[0] / state.u[0].max()))
+    np.testing.assert_allclose(switch.density[0], t / t.sum(), rtol=1e-6)

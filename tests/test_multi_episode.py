@@ -315,3 +315,25 @@ def test_a_planted_missed_reset_of_a_part_is_caught(planted, monkeypatch):
 
         monkeypatch.setattr(engine, "reset_parts", all_worlds_only)
     assert _part_memory_errors()
+
+
+def test_each_groups_teacher_draws_from_its_own_seed_and_a_rule_with_memory_labels_a_team_mix():
+    """Group j's teacher is seeded with seed + j: the same seed labels the same random moves (greedy moves at random
+    where nothing is left to sense, soon in worlds this small), another seed others. A rule with memory (the
+    evidence switch, coverage's plan) is reset on each world's start as it is in evaluation."""
+    tiny = replace(CONFIG, world_size=(6, 6), n_agents=2, n_targets=(1, 1), n_distributions=(1, 1), max_steps=40)
+
+    def labels(teacher: str, args: dict, seed: int) -> np.ndarray:
+        groups = [SearchVecEnv(tiny, 2, seed=1), SearchVecEnv(replace(tiny, n_agents=3), 1, seed=2)]
+        env = TeacherLabels(TeamMixVecEnv(groups), teacher, args, seed=seed)
+        env.reset()
+        rng = np.random.default_rng(0)
+        for _ in range(50):  # past the first episode's end
+            env.step(rng.integers(0, 5, size=env.num_envs))
+        return env.rollout_labels(50)
+
+    same, other = labels("greedy_target", {}, 5), labels("greedy_target", {}, 6)
+    np.testing.assert_array_equal(same, labels("greedy_target", {}, 5))
+    assert (same != other).any()
+    for rule, args in (("switch", {"threshold": 1.0}), ("coverage", {})):
+        assert labels(rule, args, 0).shape == (50, 7)

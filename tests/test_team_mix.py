@@ -65,10 +65,24 @@ def test_attribute_access_by_slot_and_bad_groups():
         mix.set_attr("render_mode", None, indices=[0])
     assert mix.env_method("get_attr", attr_name="n_agents", indices=[6]) == [[5] * 10]  # keyword arguments too
     assert mix.env_is_wrapped(VecMonitor) == [False] * 16 and mix.env_is_wrapped(VecMonitor, indices=[3]) == [False]
-    with pytest.raises(ValueError, match="at least one"):
+    with pytest.raises(ValueError, match=r"^envs=\[\] is not allowed: give at least one SearchVecEnv$"):
         TeamMixVecEnv([])
-    with pytest.raises(ValueError, match=r"envs\[1\]"):
+    with pytest.raises(ValueError, match=r"^envs\[1\] has other observation or action spaces than envs\[0\]: same Φ, "
+                       r"fov and action set needed$"):  # fmt: skip
         TeamMixVecEnv([SearchVecEnv(CONFIG, 1), SearchVecEnv(replace(CONFIG, diagonal=True), 1)])
+
+
+def test_a_mix_of_one_group_is_that_group():
+    one, alone = (
+        TeamMixVecEnv([SearchVecEnv(CONFIG, 3, seed=4, render_mode="rgb_array")]),
+        SearchVecEnv(CONFIG, 3, seed=4),
+    )
+    assert one.render_mode == "rgb_array" and one.num_envs == 6
+    obs, expected = one.reset(), alone.reset()
+    assert one.reset_infos == [{}] * 6
+    assert np.array_equal(obs["map"], expected["map"]) and np.array_equal(obs["vector"], expected["vector"])
+    actions = np.random.default_rng(1).integers(0, 5, size=6)
+    assert np.array_equal(one.step(actions)[1], alone.step(actions)[1])
 
 
 SMALL = WorldConfig(world_size=(6, 9), n_targets=(1, 2), n_agents=2, max_steps=12)
