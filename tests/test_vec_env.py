@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
+from gymnasium.error import ResetNeeded
 from stable_baselines3.common.vec_env import VecMonitor
 
 from searchrl.envs.vec_env import SearchVecEnv
@@ -107,6 +110,33 @@ def test_attribute_access_render_and_wrappers():
 
 def test_step_wait_without_actions_is_an_error():
     env = _env()
+    with pytest.raises(ResetNeeded, match=r"^Cannot call env\.step\(\) before calling env\.reset\(\)$"):  # gymnasium's
+        env.step_async(np.zeros(12, np.int64))
     env.reset()
-    with pytest.raises(RuntimeError, match="step_async"):
+    with pytest.raises(RuntimeError, match=r"^step_wait\(\) called before step_async\(\)$"):
         env.step_wait()
+    with pytest.raises(ValueError, match=r"^actions have shape \(11,\): one action per slot, \(12,\)$"):
+        env.step_async(np.zeros(11, np.int64))
+    env.step(np.zeros(12, np.int64))
+    with pytest.raises(RuntimeError, match="before step_async"):  # each step_async serves one step_wait
+        env.step_wait()
+
+
+def test_a_world_that_finds_its_last_target_on_its_last_step_has_terminated_not_truncated():
+    """TimeLimit.truncated (SB3 bootstraps from the terminal observation) only where the time ran out with targets
+    left; a team that finds the last one on the last step has ended its task. The episode's `t` is the seconds since
+    the env was made, as SB3's Monitor writes it."""
+    start = time.time()
+    env = SearchVecEnv(WorldConfig(world_size=(10, 10), n_targets=(1, 1), n_agents=3, max_steps=3), 64, seed=0)
+    env.reset()
+    rng, both = np.random.default_rng(0), 0
+    for _ in range(9):
+        infos = env.step(rng.integers(0, 5, size=env.num_envs))[3]
+        for info in infos[::3]:
+            if "team_metrics" in info:
+                found_all, last_step = info["team_metrics"]["found_fraction"] == 1, info["team_metrics"]["L"] == 3
+                assert info["TimeLimit.truncated"] == (not found_all)
+                both += found_all and last_step
+                t = info["episode"]["t"]
+                assert isinstance(t, float) and 0 <= t <= time.time() - start and t == round(t, 6)
+    assert both > 0  # the case this test is for occurred
