@@ -337,3 +337,50 @@ def test_each_groups_teacher_draws_from_its_own_seed_and_a_rule_with_memory_labe
     assert (same != other).any()
     for rule, args in (("switch", {"threshold": 1.0}), ("coverage", {})):
         assert labels(rule, args, 0).shape == (50, 7)
+
+
+def _slot_code(maps: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """(…,) an action of each slot's own observation: both its window and its 3-vector move it."""
+    return (np.floor(maps[..., 0, :, :].sum(axis=(-1, -2)) * 7 + vector[..., 0] * 13) % 5).astype(np.int64)
+
+
+class _Observer:
+    """A rule that reads the observations (as a learned policy does), not the world state."""
+
+    def __init__(self, config, seed=0) -> None:
+        self.config = config
+
+    def reset(self, state, mask) -> None:
+        pass
+
+    def act(self, state, maps, vector, active=None) -> np.ndarray:
+        k, n = state.n_worlds, state.n_agents
+        assert maps.shape == (k, n, 5, 11, 11) and vector.shape == (k, n, 3)  # per world, per agent
+        return _slot_code(maps, vector).astype(np.int32)  # a rule may answer in any integer type
+
+
+def test_a_teacher_reads_the_observations_of_its_own_slots():
+    from dataclasses import dataclass
+
+    from searchrl.controllers.base import ControllerConfig
+    from tests.registries import isolated_registries
+
+    @dataclass
+    class ObserverConfig(ControllerConfig):
+        name: str = "observer"
+
+    with isolated_registries():
+        registry.register("observer", _Observer, ObserverConfig)
+        groups = [SearchVecEnv(CONFIG, 2, seed=1), SearchVecEnv(replace(CONFIG, n_agents=2), 3, seed=2)]
+        env = TeacherLabels(TeamMixVecEnv(groups), "observer", {}, seed=0)
+        with pytest.raises(RuntimeError, match=r"^TeacherLabels: reset\(\) before the first step$"):
+            env.step_async(np.zeros(env.num_envs, np.int64))
+        obs, rng = env.reset(), np.random.default_rng(0)
+        with pytest.raises(RuntimeError, match=r"^TeacherLabels holds 0 labelled steps, fewer than n_steps=1$"):
+            env.rollout_labels(1)
+        for _ in range(5):
+            expected = _slot_code(obs["map"], obs["vector"])
+            obs = env.step(rng.integers(0, 5, size=env.num_envs))[0]
+            labels = env.rollout_labels(1)[0]
+            assert labels.dtype == np.int64  # what the teacher term's cross-entropy indexes with
+            np.testing.assert_array_equal(labels, expected)
