@@ -179,6 +179,9 @@ def test_the_switch_moves_at_random_as_its_seed_says_where_nothing_is_left_to_se
         ((0, 3, 0, 5), (0, 4), 2, [(1, 4), (1, 0)]),  # thinner than two lanes' reach: one lane through the middle
         ((0, 9, 0, 9), (4, 4), 1, [(1, 0), (1, 8), (4, 8), (4, 0), (7, 0), (7, 8)]),  # ties keep the first lane, left
         ((10, 19, 20, 29), (18, 28), 1, [(17, 28), (17, 20), (14, 20), (14, 28), (11, 28), (11, 20)]),  # offset
+        ((10, 19, 20, 29), (10, 20), 1, [(11, 20), (11, 28), (14, 28), (14, 20), (17, 20), (17, 28)]),  # its corner
+        ((0, 10, 0, 8), (9, 0), 2, [(7, 0), (7, 7), (2, 7), (2, 0)]),  # the bottom lane first, from the left
+        ((5, 6, 0, 4), (5, 0), 1, [(5, 0), (5, 3)]),  # a block one row high: one lane, on it
     ],
 )
 def test_a_sweep_is_a_boustrophedon_from_the_nearest_corner(block, start, radius, waypoints):
