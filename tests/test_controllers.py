@@ -161,13 +161,14 @@ def test_the_switch_moves_at_random_as_its_seed_says_where_nothing_is_left_to_se
     state = _world(30, [(5, 5), (15, 15), (25, 25)], config)  # beliefs all zero: greedy falls back to random moves
     state.p[0], state.u[0] = 1.0, 0.5  # the prior the switch weighs its evidence by; the agents' beliefs stay 0
     state.u[0, 0, 0] = 1.0  # in the wall around the world: the free cells' density p·(1 − u/max u) is 0.5
-    teacher = make_controller("greedy_target", config, 0, {"reach": 2.0})  # seed 0, the switch's default
-    switch = EvidenceSwitch(config, threshold=0.0)
-    for rule in (teacher, switch):
-        rule.reset(state, np.ones(1, bool))
-    moves = [[rule.act(state, *observe(config, state)) for _ in range(8)] for rule in (teacher, switch)]
-    np.testing.assert_array_equal(moves[0], moves[1])
-    assert len({tuple(m.ravel()) for m in moves[0]}) > 1  # random moves, drawn from the seed's stream
+    for seed in (None, 5):  # the switch's default seed (0), and one given
+        teacher = make_controller("greedy_target", config, seed or 0, {"reach": 2.0})
+        switch = EvidenceSwitch(config, threshold=0.0) if seed is None else EvidenceSwitch(config, 0.0, seed=seed)
+        for rule in (teacher, switch):
+            rule.reset(state, np.ones(1, bool))
+        moves = [[rule.act(state, *observe(config, state)) for _ in range(8)] for rule in (teacher, switch)]
+        np.testing.assert_array_equal(moves[0], moves[1])
+        assert len({tuple(m.ravel()) for m in moves[0]}) > 1  # random moves, drawn from the seed's stream
 
 
 @pytest.mark.parametrize(
@@ -220,3 +221,51 @@ def test_the_switch_weighs_the_prior_by_where_targets_are_kept():
     switch.reset(state, np.ones(1, bool))
     t = np.where(state.blocked[0], 0.0, state.p[0] * (1.0 - state.u[0] / state.u[0].max()))
     np.testing.assert_allclose(switch.density[0], t / t.sum(), rtol=1e-6)
+
+
+def test_the_switch_counts_what_the_footprints_swept_and_then_sweeps_by_coverage():
+    """expected = Σ density·(1 − left): one footprint in a world of uniform density sweeps ΣΓ / (free cells) of it.
+    With the prior promising 1,000 targets and none found, the switch leaves the prior at once and its agents take
+    coverage's moves from the plan made at the world's start, in a first episode and after a reset."""
+    from searchrl.controllers.switch import EvidenceSwitch
+    from searchrl.world.footprint import SUPPORT_G
+
+    config = WorldConfig(world_size=(12, 12), n_agents=1, n_targets=(1, 1))
+    state = _world(12, [(6, 6)], config)
+    state.p[0], state.u[0], state.u[0, 0, 0] = 1.0, 0.5, 1.0  # uniform density over the 144 free cells
+    switch = EvidenceSwitch(config, threshold=0.0)  # never switches: the count alone
+    switch.reset(state, np.ones(1, bool))
+    switch.act(state, *observe(config, state))
+    np.testing.assert_allclose(switch.expected(), [SUPPORT_G.sum() / 144])
+    state.n_targets[0] = 1000
+    switch = EvidenceSwitch(config, threshold=1.0)
+    for start in ((6, 6), (2, 9)):
+        state.occupant[0] = -1
+        state.pos[0, 0] = start
+        state.occupant[0, start[0] + state.halo, start[1] + state.halo] = 0
+        switch.reset(state, np.ones(1, bool))
+        coverage = GeometricCoverage(config)
+        coverage.reset(state, np.ones(1, bool))
+        moves = switch.act(state, *observe(config, state))
+        assert switch.switched.all()
+        np.testing.assert_array_equal(moves, coverage.act(state, *observe(config, state)))
+
+
+def test_the_switch_weighs_each_world_by_its_own_prior():
+    from searchrl.controllers.switch import EvidenceSwitch
+
+    config = WorldConfig(world_size=(12, 12), n_agents=1, n_targets=(1, 1))
+    state = allocate(config, 2)
+    h = state.halo
+    state.size[:] = 12
+    state.blocked[:] = True
+    state.blocked[:, h : h + 12, h : h + 12] = False
+    rng = np.random.default_rng(1)
+    state.p[:], state.u[:] = rng.random(state.p.shape), rng.random(state.u.shape)
+    state.p[1] *= 5.0
+    state.u[1] *= 3.0  # another scale of p and u in world 1: each world's density is its own
+    switch = EvidenceSwitch(config)
+    switch.reset(state, np.ones(2, bool))
+    for k in range(2):
+        t = np.where(state.blocked[k], 0.0, state.p[k] * (1.0 - state.u[k] / state.u[k].max()))
+        np.testing.assert_allclose(switch.density[k], t / t.sum(), rtol=1e-6)
