@@ -259,3 +259,13 @@ def test_every_figure_the_readme_embeds_is_written_by_a_notebook_it_names():
         scripts = re.findall(r"analysis/\w+\.py", caption)
         assert scripts, f"README's {path}: its caption names no analysis script"
         assert any(Path(path).name in (ROOT / script).read_text() for script in scripts), (path, scripts)
+
+
+def test_the_product_docs_stay_a_reference_and_the_lab_notebook_holds_the_rest():
+    """README a user guide (<= 250 lines), the product docs (README and docs/*.md, not docs/lab/) <= 1,600 lines, and
+    results.md a reference of about 300."""
+    lines = {
+        path.name: len(path.read_text().splitlines()) for path in [ROOT / "README.md", *(ROOT / "docs").glob("*.md")]
+    }
+    assert lines["README.md"] <= 250 and lines["results.md"] <= 330, lines
+    assert sum(lines.values()) <= 1600, lines
