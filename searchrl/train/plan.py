@@ -50,8 +50,6 @@ class Plan:
     settings: TrainConfig
     groups: tuple[tuple[WorldConfig, int], ...]  # (world config, K worlds) per group
     scenario: Scenario
-    teacher: str | None  # imitation.teacher: a heuristic of the registry, or None
-    teacher_args: dict[str, Any]  # its settings (imitation.teacher_args)
     algorithm: type[BaseAlgorithm]  # SB3's class, or its teacher-term subclass (searchrl/train/teacher_term.py)
     teacher_term: bool  # RL with the teacher term or critic warm-up
     rollout: int  # agent-steps of one rollout: algo.n_steps × every group's K·N
@@ -60,6 +58,16 @@ class Plan:
     @property
     def world(self) -> WorldConfig:
         return self.groups[0][0]
+
+    @property
+    def teacher(self) -> str | None:
+        """imitation.teacher: a heuristic of the registry, or None."""
+        return self.settings.imitation.teacher
+
+    @property
+    def teacher_args(self) -> dict[str, Any]:
+        """A copy of its settings (imitation.teacher_args)."""
+        return dict(self.settings.imitation.teacher_args)
 
     @property
     def clones(self) -> bool:
@@ -110,7 +118,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     notes = unused_settings(s, list(overrides), groups) + round_to_rollouts(s, rollout)
     algorithm = TEACHER_ALGORITHMS.get(s.algo.name, algorithm)  # the term off (w = 0) where a recipe has none
     s.device = str(get_device(s.device))  # recorded as used (device=auto becomes cpu or cuda)
-    return Plan(s, groups, scenario, im.teacher, dict(im.teacher_args), algorithm, teacher_term, rollout, tuple(notes))
+    return Plan(s, groups, scenario, algorithm, teacher_term, rollout, tuple(notes))
 
 
 def draw_walls(scenario: Scenario | ScenarioMix, groups: Sequence[tuple[WorldConfig, int]], draws: int = 4) -> None:
