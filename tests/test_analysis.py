@@ -34,9 +34,10 @@ NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 # guided_b.py (an extension module: parts, networks, teachers) by tests/test_guided.py; compile_time.py,
 # label_speed.py, module_trace.py, one_world.py and world_profile.py are benchmarks and traces, run by hand like
 # `python -m searchrl.bench` (their kernels' results are the golden slice's and tests/test_threads.py's;
-# compile_time.py's one signature a function is tests/test_structure.py's)
-EXPERIMENTS = ("compile_time.py", "context_probe.py", "guided_b.py", "label_speed.py", "module_trace.py",
-               "one_world.py", "world_profile.py")  # fmt: skip
+# compile_time.py's one signature a function is tests/test_structure.py's); carry_runs.py and team_reward.py (the
+# lab's long trainings: a carry and a reward) by tests/test_lab_parts.py
+EXPERIMENTS = ("carry_runs.py", "compile_time.py", "context_probe.py", "guided_b.py", "label_speed.py",
+               "module_trace.py", "one_world.py", "team_reward.py", "world_profile.py")  # fmt: skip
 
 
 @pytest.fixture(scope="module")

@@ -27,6 +27,7 @@ from searchrl.policies.actor import Actor
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.networks import chosen, observation_parts, policy_kwargs
 from searchrl.policies.recurrent import OwnCriticLstmPolicy
+from searchrl.policies.slim import ROLLOUT_STATE
 from searchrl.world.config import WorldConfig
 
 
@@ -161,7 +162,7 @@ def save_model(model: BaseAlgorithm, path: str | Path, run: dict[str, Any], log:
     identity = {"step": int(model.num_timesteps), "run": run, "log": log}
 
     def write(tmp: Path) -> None:
-        model.save(tmp)
+        model.save(tmp, exclude=list(ROLLOUT_STATE))  # no load reads the rollout in progress (LEFT_EMPTY)
         with zipfile.ZipFile(tmp, "a") as archive:
             archive.writestr(IDENTITY, json.dumps(identity, sort_keys=True))
 

@@ -1,0 +1,89 @@
+"""Carry long trainings from one machine to the next through the repository: each run folder's record and newest
+checkpoint, copied into `runs/lab/<name>/` (tracked by git), where `resume=` continues it on any machine:
+
+    python analysis/carry_runs.py runs/train/research/team_b [RUN ...]      # -> runs/lab/team_b, ...
+    cp -r runs/lab/team_b runs/train/research/                              # on the next machine
+    python -m searchrl.train resume=runs/train/research/team_b threads=1
+
+A run folder keeps, beside its config, log and record (config.yaml, progress.csv, train.log, .hydra/), one
+checkpoint per `checkpoint_every`; a resume needs only the newest (it drops the log's rows past that step itself),
+with its optimiser's moments, so the training goes on as if it had not stopped. The checkpoint is copied without the
+rollout in progress (`_last_obs`, which no load reads: searchrl/policies/checkpoint.py's LEFT_EMPTY); its weights,
+and so their digest, are the same bytes. An older carried checkpoint of the same run is removed, and the copy is
+atomic file by file, so an interrupted carry leaves the previous one whole.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import zipfile
+from pathlib import Path
+
+from searchrl.atomic import write_atomic
+from searchrl.policies.slim import ROLLOUT_STATE, weights_sha256
+
+RECORD = ("config.yaml", "progress.csv", "train.log", "score.json")
+LAB = Path("runs/lab")
+
+
+def newest_checkpoint(run: Path) -> Path:
+    """The checkpoint of the most agent-steps in run/checkpoints (step_<n>.zip)."""
+    found = sorted((run / "checkpoints").glob("step_*.zip"), key=lambda p: int(p.stem.split("_")[1]))
+    if not found:
+        raise SystemExit(f"carry_runs: {str(run)!r} holds no checkpoints/step_<n>.zip (expected a training run folder)")
+    return found[-1]
+
+
+def copy_without_rollout(src: Path, dst: Path) -> None:
+    """Copy the SB3 zip `src` to `dst` atomically, its `data` member without the rollout in progress."""
+    with zipfile.ZipFile(src) as archive:
+        members = [(info, archive.read(info.filename)) for info in archive.infolist()]
+
+    def write(tmp: Path) -> None:
+        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as out:
+            for info, content in members:
+                if info.filename == "data":
+                    data = json.loads(content)
+                    content = json.dumps({k: v for k, v in data.items() if k not in ROLLOUT_STATE}, indent=4).encode()
+                out.writestr(info, content)
+
+    write_atomic(dst, write)
+    assert weights_sha256(dst) == weights_sha256(src), f"{dst}: the weights changed in the copy"
+
+
+def carry(run: Path, lab: Path = LAB) -> Path:
+    """Copy `run`'s record and newest checkpoint into lab/<run's name>; return that folder."""
+    if not (run / "config.yaml").is_file():
+        raise SystemExit(f"carry_runs: {str(run)!r} has no config.yaml (expected a training run folder)")
+    checkpoint = newest_checkpoint(run)
+    dest = lab / run.name
+    if dest.resolve() == run.resolve():
+        raise SystemExit(f"carry_runs: {str(run)!r} is already under {lab}")
+    (dest / "checkpoints").mkdir(parents=True, exist_ok=True)
+    copy_without_rollout(checkpoint, dest / "checkpoints" / checkpoint.name)
+    for name in RECORD:
+        if (run / name).is_file():
+            write_atomic(dest / name, lambda tmp, src=run / name: shutil.copyfile(src, tmp))
+    if (run / ".hydra").is_dir():
+        shutil.copytree(run / ".hydra", dest / ".hydra", dirs_exist_ok=True)
+    for old in (dest / "checkpoints").glob("step_*.zip"):
+        if old.name != checkpoint.name:
+            old.unlink()
+    return dest
+
+
+def main(argv: list[str]) -> int:
+    if not argv:
+        print("usage: python analysis/carry_runs.py RUN_DIR [RUN_DIR ...]  (into runs/lab/<name>)", file=sys.stderr)
+        return 2
+    for run in map(Path, argv):
+        dest = carry(run)
+        size = sum(p.stat().st_size for p in dest.rglob("*") if p.is_file())
+        print(f"{run} -> {dest} ({newest_checkpoint(dest).name}, {size / 1e6:.1f} MB)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
