@@ -93,23 +93,20 @@ def test_a_checkpoints_folder_holds_results_of_one_kind_of_device(tmp_path):
         claim_folder(tmp_path, settings, option_defaults(cfg))
 
 
-def test_a_record_made_before_scenarios_and_removed_options_still_matches_the_paper(tmp_path):
+def test_a_record_made_before_scenarios_matches_the_paper_and_one_with_an_unknown_setting_is_refused(tmp_path):
     """A record without `scenario` ran the paper's and takes a rerun of it, not of another scenario; one holding a
-    removed option at the value whose behaviour stayed (greedy's far=false, the world's context 0) matches, one at
-    another value is refused, naming it."""
+    setting searchrl does not have (a removed option: greedy's `far`) is refused, naming it."""
     cfg = _cfg("controller=greedy")
     settings = evaluation_settings(cfg, "greedy", "b")
     old = {key: value for key, value in settings.items() if key != "scenario"}
-    old["controller_args"] = {**old["controller_args"], "far": False}
-    old["world"] = {**old["world"], "context": 0, "info_reward": "information", "obstacle_density": 0.0}
     (tmp_path / RECORD).write_text(OmegaConf.to_yaml(OmegaConf.create(old)))
     claim_folder(tmp_path, settings, option_defaults(cfg))
     walls = _cfg("controller=greedy", "scenario=walls")
     with pytest.raises(ConfigError, match=r"scenario.obstacles.density: '\(absent\)' there, 0.2 here"):
         claim_folder(tmp_path, evaluation_settings(walls, "greedy", "b"), option_defaults(walls))
-    old["controller_args"]["far"] = True
+    old["controller_args"] = {**old["controller_args"], "far": False}
     (tmp_path / RECORD).write_text(OmegaConf.to_yaml(OmegaConf.create(old)))
-    with pytest.raises(ConfigError, match=r"of a removed setting: controller_args.far=True is not allowed"):
+    with pytest.raises(ConfigError, match=r"controller_args.far: False there, '\(absent\)' here"):
         claim_folder(tmp_path, settings, option_defaults(cfg))
 
 

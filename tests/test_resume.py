@@ -175,11 +175,11 @@ def test_a_run_resumed_from_its_clone_does_not_validate_step_0_again(tmp_path):
     assert _steps(run) == [0, 256, 256]
 
 
-def test_a_run_folder_made_before_scenarios_and_removed_options_resumes(tmp_path):
+def test_a_run_folder_made_before_scenarios_resumes(tmp_path):
     """tests/golden/run_05d7673: a tiny teacher-term run killed after its checkpoint at 1024 agent-steps, made at
-    05d7673 (its config.yaml holds the world's context, info_reward and obstacle_density, the network's context
-    widths and imitation.dagger_rounds; its checkpoint's policy_kwargs the context widths). It resumes to 2048
-    under the paper's scenario and its checkpoint evaluates."""
+    05d7673 (its config.yaml migrated once: the settings removed since taken out; its checkpoint's policy_kwargs
+    still name the network's old context widths, which no load reads). It resumes to 2048 under the paper's scenario
+    and its checkpoint evaluates."""
     from searchrl.policies.checkpoint import load_actor
     from searchrl.world.config import WorldConfig
     from searchrl.world.scenario import PAPER
@@ -187,11 +187,10 @@ def test_a_run_folder_made_before_scenarios_and_removed_options_resumes(tmp_path
     run = tmp_path / "run"
     shutil.copytree(Path(__file__).resolve().parent / "golden" / "run_05d7673", run)
     old = OmegaConf.load(run / "config.yaml")
-    assert old.env.world.context == 0 and old.network.context_size == 64 and old.imitation.dagger_rounds == 0
+    assert "scenario" not in old
     model = _run(run, [f"resume={run}", "total_timesteps=2048"])
     assert RecurrentPPO.load(model).num_timesteps == 2048
     saved = OmegaConf.load(run / "config.yaml")
-    assert "context" not in saved.env.world and "context_size" not in saved.network
     assert saved.scenario == PAPER.to_dict()  # the paper's, every part written out
     world = WorldConfig.from_dict(OmegaConf.to_container(old.env.world))
     assert load_actor(run / "checkpoints" / "step_1024.zip", world).n_actions == 5

@@ -24,7 +24,7 @@ from omegaconf import OmegaConf
 
 from searchrl.atomic import write_text_atomic
 from searchrl.policies.device import resolve_device
-from searchrl.world.config import RETIRED_FIELDS, ConfigError, WorldConfig, drop_retired
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.scenario import PAPER, Scenario
 
 if TYPE_CHECKING:
@@ -32,14 +32,6 @@ if TYPE_CHECKING:
 
 RECORD = "evaluation.yaml"
 GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents", "agents", "maps_per_cell", "repeats")
-# Settings removed since records were written, with the one value a record may hold (what the code does now): a
-# record holding them at that value describes the same episodes. `git log -S <name>` finds the last commit with each.
-RETIRED_SETTINGS: dict[str, object] = {
-    **{f"world.{name}": value for name, value in RETIRED_FIELDS.items()},
-    "controller_args.far": False,  # footprint-greedy reading the belief beyond its view
-}
-
-
 def file_sha256(path: str | Path) -> str:
     digest = hashlib.sha256()
     with open(path, "rb") as f:
@@ -123,16 +115,14 @@ def setting_differences(theirs: dict[str, Any], ours: dict[str, Any], defaults: 
 
 
 def _read_record(out_dir: Path, cells: dict[Path, dict[str, Any] | None]) -> dict[str, Any] | None:
-    """The folder's record, retired settings dropped; ConfigError if it cannot say what the cells hold. A damaged
+    """The folder's record; ConfigError if it cannot say what the cells hold. A damaged
     record (empty, not YAML, not a mapping) of a folder whose cells record their settings is set aside as
     `<record>.unreadable` and None returned: it is rebuilt from them."""
     try:
         record = OmegaConf.to_container(OmegaConf.load(out_dir / RECORD))
         if not isinstance(record, dict) or "controller" not in record:
             raise ValueError("no controller recorded")
-        return drop_retired(record, RETIRED_SETTINGS)
-    except ConfigError as err:
-        raise ConfigError(f"out_dir={str(out_dir)!r} holds results of a removed setting: {err}") from None
+        return record
     except Exception as err:  # empty, not YAML, not a mapping: the record cannot say what the cells hold
         if any(settings is not None for settings in cells.values()):
             aside = out_dir / f"{RECORD}.unreadable"

@@ -57,7 +57,7 @@ def _leaves(node: Any, prefix: str = "") -> dict[str, Any]:
 def foreign_checkpoint(path: Path, step: int, settings: TrainConfig) -> str | None:
     """Why the checkpoint `path`, named for `step`, cannot be this run's (of `settings`), or None: the step
     it was saved at is another, or a setting it records differs from the run's config.yaml. Settings one side lacks
-    are not compared (a later version adds settings at their defaults; retired ones are dropped). A file saved
+    are not compared (a later version adds settings at their defaults). A file saved
     before models carried an identity is checked by its step alone."""
     saved = saved_step(path)
     if saved != step:

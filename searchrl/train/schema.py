@@ -19,7 +19,6 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 from searchrl.paths import repository_root
 from searchrl.shared_schema import EnvConfig, ModelConfig, override_keys, register_shared_configs, scenario_default
-from searchrl.world.config import ANY, RETIRED_FIELDS, drop_retired
 
 
 @dataclass
@@ -143,29 +142,16 @@ class TrainConfig:
     reward: str = "paper"  # what the env pays per step, by name (searchrl/envs/rewards.py); paper: the world's
 
 
-# Settings removed from training, each with the one value a saved run may hold (ANY: inert at every value): a run
-# saved before is read without them (`resume=`, the recipes' tests). `git log -S <name>` finds the last commit with
-# each.
-RETIRED_SETTINGS: dict[str, object] = {
-    **{f"env.world.{name}": value for name, value in RETIRED_FIELDS.items()},
-    "network.context_channels": ANY,  # the context stream's widths: no stream was built without env.world.context
-    "network.context_size": ANY,
-    "imitation.dagger_rounds": 0,
-    "model.trainable": True,  # false only in the heuristic presets conf/model/{surfing,coverage,random}, never trained
-}
-
-
 # What `resume=` (and a multirun continued into its folder) may change; every other setting is the run's own.
 RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints", "logger")
 
 
 def saved_config(path: str | Path) -> DictConfig:
-    """A run's saved config.yaml without its retired settings (RETIRED_SETTINGS); ConfigError for one saved at a
-    value whose behaviour is gone, ValueError if the file is no mapping."""
+    """A run's saved config.yaml; ValueError if the file is no mapping."""
     loaded = OmegaConf.to_container(OmegaConf.load(path))
     if not isinstance(loaded, dict):
         raise ValueError(f"{path} holds no mapping")
-    return OmegaConf.create(drop_retired(loaded, RETIRED_SETTINGS))
+    return OmegaConf.create(loaded)
 
 
 def run_dir(resume: str | None, model: str, seed: int, now: str) -> str:

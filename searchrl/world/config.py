@@ -35,36 +35,6 @@ def check_seed(seed: object, name: str = "seed") -> None:
     need(seed is None or (is_int(seed) and seed >= 0), name, seed, "None or an integer >= 0")
 
 
-ANY = "any value"  # a retired setting that did nothing at any value (RETIRED_FIELDS, drop_retired)
-# Fields removed from WorldConfig, each with the one value a saved config may hold: the behaviour every run that
-# recorded it had, which is what the world does now. `git log -S <name>` finds the last commit that had each.
-# obstacle_density moved to the scenario (scenario.obstacles.density, searchrl/world/scenario.py).
-RETIRED_FIELDS: dict[str, object] = {"context": 0, "info_reward": "information", "obstacle_density": 0.0}
-
-
-def drop_retired(values: dict, retired: dict[str, object], prefix: str = "") -> dict:
-    """A copy of the nested mapping `values` without the `retired` settings (dotted keys -> the one value they may
-    hold, or ANY): what a run, checkpoint or record saved before a setting was removed is read as. ConfigError
-    naming a retired setting saved at another value, whose behaviour the code no longer has."""
-    values = dict(values)
-    for key, only in retired.items():
-        head, _, rest = key.partition(".")
-        if head not in values:
-            continue
-        if rest:
-            if isinstance(values[head], dict):
-                values[head] = drop_retired(values[head], {rest: only}, f"{prefix}{head}.")
-            continue
-        value = values.pop(head)
-        need(
-            only is ANY or value == only,
-            prefix + key,
-            value,
-            f"{only!r} only: the setting was removed from searchrl (`git log -S <name>` finds the last commit with it)",
-        )
-    return values
-
-
 def _is_number(value: object) -> bool:
     return (is_int(value) or isinstance(value, (float, np.floating))) and math.isfinite(value)
 
@@ -263,9 +233,7 @@ class WorldConfig:
 
     @classmethod
     def from_dict(cls, values: dict) -> WorldConfig:
-        """Build from a plain mapping (Hydra, JSON, a saved run); unknown keys are an error naming them; retired
-        fields at the value they had are dropped (RETIRED_FIELDS)."""
-        values = drop_retired(values, RETIRED_FIELDS)
+        """Build from a plain mapping (Hydra, JSON, a saved run); unknown keys are an error naming them."""
         known = {f.name for f in fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
