@@ -72,7 +72,8 @@ table = pd.DataFrame(rows).sort_values("agent_steps", na_position="first").reset
 write_atomic(OUT / "beyond.csv", lambda tmp: table.to_csv(tmp, index=False))
 text = (f"Each policy minus {teacher} over {coverage_line(EVAL_DIRS[0])}: the mean over cells of the per-cell "
         "paired difference in found fraction, 95 % CI over maps stratified by cell, and the per-cell verdicts.\n\n"
-        + markdown(table))  # fmt: skip
+        + markdown(table.assign(agent_steps=[f"{s / 1e6:.2f}M" if pd.notna(s) else "–" for s in table.agent_steps])
+                   .set_index("policy")))  # fmt: skip
 write_text_atomic(OUT / "beyond.md", text + "\n")
 print(text)
 

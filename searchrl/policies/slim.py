@@ -1,10 +1,9 @@
 """Shipped checkpoints without what only a resumed training needs.
 
 A `model.zip` holds, beside the weights (`policy.pth`), the optimiser's moments (twice the weights), which only a
-resumed training reads; a run's own checkpoints keep them. A file saved by SB3's own `save` also holds the rollout in
-progress (`_last_obs`: 1.3 MB for 384 slots), which no load reads (searchrl's `save_model` leaves it out).
-`slim_checkpoint` empties the optimiser's state (its parameter groups kept, so SB3 loads the file as it is), drops the
-last rollout and copies every other member byte for byte: `weights_sha256`, the digest of `policy.pth`, is unchanged.
+resumed training reads, and where SB3's `save` wrote it the rollout in progress (`_last_obs`), which no load reads.
+`slim_checkpoint` empties the optimiser's state (its parameter groups kept, so SB3 loads the file as it is), drops
+the rollout and copies every other member byte for byte: `weights_sha256`, the digest of `policy.pth`, is unchanged.
 
     python -m searchrl.policies.slim runs/reference      # every model.zip below, in place
 """
