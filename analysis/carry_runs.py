@@ -1,18 +1,27 @@
-"""Carry long trainings from one machine to the next through the repository: each run folder's record and newest
-checkpoint, copied into `runs/lab/<name>/` (tracked by git), where `resume=` continues it on any machine:
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
 
-    python analysis/carry_runs.py runs/train/research/team_b [RUN ...]      # -> runs/lab/team_b, ...
-    cp -r runs/lab/team_b runs/train/research/                              # on the next machine
-    python -m searchrl.train resume=runs/train/research/team_b threads=1
+# %% [markdown]
+# # Carrying long trainings to the next machine
+#
+# Carry long trainings from one machine to the next through the repository: each run folder's record and newest
+# checkpoint, copied into `runs/lab/<name>/` (tracked by git), where `resume=` continues it on any machine:
+#
+#     python analysis/carry_runs.py runs/train/research/team_b [RUN ...]      # -> runs/lab/team_b, ...
+#     cp -r runs/lab/team_b runs/train/research/                              # on the next machine
+#     python -m searchrl.train resume=runs/train/research/team_b threads=1
+#
+# A run folder keeps, beside its config, log and record (config.yaml, progress.csv, train.log, .hydra/), one
+# checkpoint per `checkpoint_every`; a resume needs only the newest (it drops the log's rows past that step itself),
+# with its optimiser's moments, so the training goes on as if it had not stopped. The checkpoint is copied without the
+# rollout in progress (`_last_obs`, which no load reads: searchrl/policies/checkpoint.py's LEFT_EMPTY); its weights,
+# and so their digest, are the same bytes. An older carried checkpoint of the same run is removed, and the copy is
+# atomic file by file, so an interrupted carry leaves the previous one whole.
 
-A run folder keeps, beside its config, log and record (config.yaml, progress.csv, train.log, .hydra/), one
-checkpoint per `checkpoint_every`; a resume needs only the newest (it drops the log's rows past that step itself),
-with its optimiser's moments, so the training goes on as if it had not stopped. The checkpoint is copied without the
-rollout in progress (`_last_obs`, which no load reads: searchrl/policies/checkpoint.py's LEFT_EMPTY); its weights,
-and so their digest, are the same bytes. An older carried checkpoint of the same run is removed, and the copy is
-atomic file by file, so an interrupted carry leaves the previous one whole.
-"""
-
+# %%
 from __future__ import annotations
 
 import json
@@ -28,6 +37,7 @@ RECORD = ("config.yaml", "progress.csv", "train.log", "score.json")
 LAB = Path("runs/lab")
 
 
+# %%
 def newest_checkpoint(run: Path) -> Path:
     """The checkpoint of the most agent-steps in run/checkpoints (step_<n>.zip)."""
     found = sorted((run / "checkpoints").glob("step_*.zip"), key=lambda p: int(p.stem.split("_")[1]))
@@ -53,6 +63,7 @@ def copy_without_rollout(src: Path, dst: Path) -> None:
     assert weights_sha256(dst) == weights_sha256(src), f"{dst}: the weights changed in the copy"
 
 
+# %%
 def carry(run: Path, lab: Path = LAB) -> Path:
     """Copy `run`'s record and newest checkpoint into lab/<run's name>; return that folder."""
     if not (run / "config.yaml").is_file():
@@ -74,6 +85,7 @@ def carry(run: Path, lab: Path = LAB) -> Path:
     return dest
 
 
+# %%
 def main(argv: list[str]) -> int:
     if not argv:
         print("usage: python analysis/carry_runs.py RUN_DIR [RUN_DIR ...]  (into runs/lab/<name>)", file=sys.stderr)

@@ -1,14 +1,23 @@
-"""A research reward, registered through the library's extension point (`extensions=[analysis.team_reward]`).
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
 
-`team_found`: every agent of a world is paid the number of targets its whole team found this step, and nothing
-else. Summed over an episode it is the team's found count, the quantity the evaluation scores (found fraction =
-found / targets), so with `algo.gamma=1` PPO's objective is the metric itself. This is MAPPO's shared team reward
-(Yu et al., "The Surprising Effectiveness of PPO in Cooperative Multi-Agent Games"): it removes the paper's
-per-agent credit (an agent is paid for the targets it finds, and for information, which the team's score does not
-count), at the price of a noisier signal per agent, which a critic of the true state (`critic=true_state`, which
-sees every agent, the targets left and the time left) is there to absorb.
-"""
+# %% [markdown]
+# # A team reward (an extension module)
+#
+# A research reward, registered through the library's extension point (`extensions=[analysis.team_reward]`).
+#
+# `team_found`: every agent of a world is paid the number of targets its whole team found this step, and nothing
+# else. Summed over an episode it is the team's found count, the quantity the evaluation scores (found fraction =
+# found / targets), so with `algo.gamma=1` PPO's objective is the metric itself. This is MAPPO's shared team reward
+# (Yu et al., "The Surprising Effectiveness of PPO in Cooperative Multi-Agent Games"): it removes the paper's
+# per-agent credit (an agent is paid for the targets it finds, and for information, which the team's score does not
+# count), at the price of a noisier signal per agent, which a critic of the true state (`critic=true_state`, which
+# sees every agent, the targets left and the time left) is there to absorb.
 
+# %%
 from __future__ import annotations
 
 import numpy as np
@@ -17,7 +26,10 @@ from searchrl.envs.rewards import register_reward
 from searchrl.world.config import WorldConfig
 from searchrl.world.step import StepResult
 
+# %% [markdown]
+# Each step's reward, per agent: its world's finds, the same for the whole team.
 
+# %%
 @register_reward("team_found")
 class TeamFound:
     """(K, N) float32: each agent gets its world's targets found this step (the sum over the team)."""
