@@ -24,14 +24,12 @@
 # %%
 from __future__ import annotations
 
-import json
 import shutil
 import sys
-import zipfile
 from pathlib import Path
 
 from searchrl.atomic import write_atomic
-from searchrl.policies.slim import ROLLOUT_STATE, weights_sha256
+from searchrl.policies.slim import slim_checkpoint
 
 RECORD = ("config.yaml", "progress.csv", "train.log", "score.json")
 LAB = Path("runs/lab")
@@ -46,23 +44,6 @@ def newest_checkpoint(run: Path) -> Path:
     return found[-1]
 
 
-def copy_without_rollout(src: Path, dst: Path) -> None:
-    """Copy the SB3 zip `src` to `dst` atomically, its `data` member without the rollout in progress."""
-    with zipfile.ZipFile(src) as archive:
-        members = [(info, archive.read(info.filename)) for info in archive.infolist()]
-
-    def write(tmp: Path) -> None:
-        with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as out:
-            for info, content in members:
-                if info.filename == "data":
-                    data = json.loads(content)
-                    content = json.dumps({k: v for k, v in data.items() if k not in ROLLOUT_STATE}, indent=4).encode()
-                out.writestr(info, content)
-
-    write_atomic(dst, write)
-    assert weights_sha256(dst) == weights_sha256(src), f"{dst}: the weights changed in the copy"
-
-
 # %%
 def carry(run: Path, lab: Path = LAB) -> Path:
     """Copy `run`'s record and newest checkpoint into lab/<run's name>; return that folder."""
@@ -73,7 +54,7 @@ def carry(run: Path, lab: Path = LAB) -> Path:
     if dest.resolve() == run.resolve():
         raise SystemExit(f"carry_runs: {str(run)!r} is already under {lab}")
     (dest / "checkpoints").mkdir(parents=True, exist_ok=True)
-    copy_without_rollout(checkpoint, dest / "checkpoints" / checkpoint.name)
+    slim_checkpoint(checkpoint, dest / "checkpoints" / checkpoint.name, keep_moments=True)  # the rollout dropped
     for name in RECORD:
         if (run / name).is_file():
             write_atomic(dest / name, lambda tmp, src=run / name: shutil.copyfile(src, tmp))

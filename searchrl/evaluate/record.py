@@ -32,6 +32,8 @@ if TYPE_CHECKING:
 
 RECORD = "evaluation.yaml"
 GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents", "agents", "maps_per_cell", "repeats")
+
+
 def file_sha256(path: str | Path) -> str:
     digest = hashlib.sha256()
     with open(path, "rb") as f:

@@ -39,8 +39,8 @@ def is_slim(path: str | Path) -> bool:
     return not optimizer["state"] and all(data.get(key) is None for key in ROLLOUT_STATE)
 
 
-def slim_checkpoint(path: str | Path, out: str | Path | None = None) -> Path:
-    """Write `path` without optimiser moments and last rollout to `out` (default: in place, atomically)."""
+def slim_checkpoint(path: str | Path, out: str | Path | None = None, keep_moments: bool = False) -> Path:
+    """Write `path` without its rollout and (unless `keep_moments`) moments to `out` (default: in place, atomically)."""
     with zipfile.ZipFile(path) as archive:
         members = [(info, archive.read(info.filename)) for info in archive.infolist()]
     slimmed = []
@@ -48,7 +48,7 @@ def slim_checkpoint(path: str | Path, out: str | Path | None = None) -> Path:
         if info.filename == "data":
             data = json.loads(content)
             content = json.dumps(data | {key: None for key in ROLLOUT_STATE if key in data}, indent=4).encode()
-        elif info.filename == "policy.optimizer.pth":
+        elif info.filename == "policy.optimizer.pth" and not keep_moments:
             buffer = io.BytesIO()  # Adam's moments and step counts emptied; the parameter groups (rates, ids) stay
             torch.save(torch.load(io.BytesIO(content), weights_only=True) | {"state": {}}, buffer)
             content = buffer.getvalue()
