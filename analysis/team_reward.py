@@ -5,9 +5,9 @@
 # ---
 
 # %% [markdown]
-# # A team reward (an extension module)
+# # A team reward and an own reward (an extension module)
 #
-# A research reward, registered through the library's extension point (`extensions=[analysis.team_reward]`).
+# Two research rewards, registered through the library's extension point (`extensions=[analysis.team_reward]`).
 #
 # `team_found`: every agent of a world is paid the number of targets its whole team found this step, and nothing
 # else. Summed over an episode it is the team's found count, the quantity the evaluation scores (found fraction =
@@ -37,3 +37,18 @@ class TeamFound:
     def __call__(self, config: WorldConfig, result: StepResult) -> np.ndarray:
         found = result.targets_found.sum(axis=1, keepdims=True)  # (K, 1)
         return np.repeat(found, result.targets_found.shape[1], axis=1).astype(np.float32)
+
+
+# %% [markdown]
+# `own_found`: each agent is paid the targets credited to it this step, and nothing else (no information, sharing,
+# step or collision terms). Summed over the team and an episode it is the same found count, so with `algo.gamma=1`
+# the team's objective is still the metric, while each agent's return is its own finds: the per-agent credit that
+# `team_found` gives up, without the paper's terms that the score does not count.
+
+# %%
+@register_reward("own_found")
+class OwnFound:
+    """(K, N) float32: the targets credited to each agent this step."""
+
+    def __call__(self, config: WorldConfig, result: StepResult) -> np.ndarray:
+        return result.targets_found.astype(np.float32)

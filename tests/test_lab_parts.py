@@ -22,7 +22,7 @@ from tests.test_train import TINY, _compose, _run
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "analysis"))
 import carry_runs  # noqa: E402  (analysis/ is no package)
-import team_reward  # noqa: E402,F401  (registers `team_found`)
+import team_reward  # noqa: E402,F401  (registers `team_found` and `own_found`)
 
 
 def _result(found: np.ndarray) -> StepResult:
@@ -39,6 +39,12 @@ def test_the_team_reward_pays_every_agent_its_worlds_finds_and_nothing_else():
     assert reward.dtype == np.float32 and reward.shape == (3, 3)
     assert reward.tolist() == [[2, 2, 2], [0, 0, 0], [5, 5, 5]]  # the paper's reward (7), information, ignored
     assert reward.flags.writeable  # a fresh array, not a read-only broadcast view
+
+
+def test_the_own_reward_pays_each_agent_its_own_finds_and_nothing_else():
+    found = np.array([[0, 2, 0], [1, 1, 3]], np.int64)
+    reward = make_reward("own_found")(WorldConfig(), _result(found))
+    assert reward.dtype == np.float32 and reward.tolist() == [[0, 2, 0], [1, 1, 3]]
 
 
 @pytest.mark.app
