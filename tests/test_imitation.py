@@ -104,3 +104,34 @@ def test_linear_schedule_takes_each_phase_down_to_zero():
     assert len(clone(model.policy, demos, 1, 0, 2, 1e-3, seed=0, lr_schedule="linear")) == 1  # no value phase
     with pytest.raises(ValueError, match="lr_schedule='cosine'"):
         lr_factor("cosine", 0, 4)
+
+
+def test_linear_rate_reaches_zero_where_a_phase_ends():
+    """1 − step/steps at step == steps (where LambdaLR leaves a phase after its last minibatch) is 0, one minibatch or
+    many."""
+    assert [lr_factor("linear", s, s) for s in (1, 2, 7)] == [0.0, 0.0, 0.0]
+    assert lr_factor("linear", 0, 0) == 1.0  # a phase of 0 epochs: no division by zero
+
+
+def test_clone_redraws_the_head_at_unit_gain_and_its_minibatch_order_follows_the_seed():
+    """The action head is re-drawn orthogonal with gain 1 and zero bias before fitting (the docstring's reason: SB3's
+    gain 0.01 starves the extractor); two clones from the same weights and seed end equal, another seed apart."""
+    demos = collect([(WORLD, 4)], "surfing", episodes=1, gamma=0.9, seed=0)
+    env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
+    kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
+    model = PPO("MultiInputPolicy", env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
+    start = {k: v.clone() for k, v in model.policy.state_dict().items()}
+    clone(model.policy, demos, 0, 0, 2, 1e-3, seed=0)  # no epochs: only the head's re-draw
+    weight = model.policy.action_net.weight.detach()  # (5 actions, features): orthonormal rows at gain 1
+    torch.testing.assert_close(weight @ weight.T, torch.eye(weight.shape[0]), atol=1e-5, rtol=0)
+    assert not model.policy.action_net.bias.detach().any()
+
+    def fitted(seed: int) -> list[torch.Tensor]:
+        model.policy.load_state_dict(start)
+        torch.manual_seed(0)  # the head's re-draw: the same in every call
+        clone(model.policy, demos, 2, 0, 2, 1e-3, seed=seed)
+        return [p.detach().clone() for p in model.policy.parameters()]
+
+    same, again, other = fitted(0), fitted(0), fitted(1)
+    assert all(torch.equal(a, b) for a, b in zip(same, again, strict=True))
+    assert not all(torch.equal(a, b) for a, b in zip(same, other, strict=True))

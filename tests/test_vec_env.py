@@ -140,3 +140,14 @@ def test_a_world_that_finds_its_last_target_on_its_last_step_has_terminated_not_
                 t = info["episode"]["t"]
                 assert isinstance(t, float) and 0 <= t <= time.time() - start and t == round(t, 6)
     assert both > 0  # the case this test is for occurred
+
+
+@pytest.mark.parametrize(("n_worlds", "n_agents"), [(1, 1), (4, 3)])
+def test_seed_is_the_worlds_seed_whatever_the_slot_count(n_worlds, n_agents):
+    """SB3's `seed(s)` gives slot i the seed s + i; the worlds take slot 0's, s itself: the same worlds as an env built
+    with seed=s. One slot (one world of one agent) has no slot 1 to read."""
+    config = WorldConfig(world_size=(10, 16), n_targets=(2, 4), n_agents=n_agents, max_steps=6)
+    seeded = SearchVecEnv(config, n_worlds=n_worlds, seed=99)
+    seeded.seed(5)
+    built = SearchVecEnv(config, n_worlds=n_worlds, seed=5)
+    np.testing.assert_array_equal(seeded.reset()["map"], built.reset()["map"])
