@@ -269,3 +269,55 @@ def test_the_switch_weighs_each_world_by_its_own_prior():
     for k in range(2):
         t = np.where(state.blocked[k], 0.0, state.p[k] * (1.0 - state.u[k] / state.u[k].max()))
         np.testing.assert_allclose(switch.density[k], t / t.sum(), rtol=1e-6)
+
+
+def test_the_switch_judges_at_its_threshold_once_two_detections_were_due_and_keeps_its_verdict():
+    """A world switches once expected ≥ 2 and (found + 1) / (expected + 1) < threshold, expected being the targets
+    the prior promised times the share of its density the team swept, and stays switched when the finds catch up.
+    The density sits on one cell, half swept and out of the agent's way: 4 targets promised make expected 2 exactly."""
+    from searchrl.controllers.switch import EvidenceSwitch
+
+    config = WorldConfig(world_size=(12, 12), n_agents=1, n_targets=(1, 1))
+    state = _world(12, [(2, 2)], config)
+    state.p[0], state.u[0], state.u[0, 0, 0] = 1.0, 0.5, 1.0  # a density the test then replaces
+    cell = (state.halo + 9, state.halo + 9)  # 7 cells from the agent: no footprint of it reaches there
+
+    def judged(threshold: float, promised: int, found: int) -> EvidenceSwitch:
+        switch = EvidenceSwitch(config, threshold)
+        switch.reset(state, np.ones(1, bool))
+        switch.density[0], switch.left[0][cell] = 0.0, 0.5
+        switch.density[0][cell] = 1.0
+        state.n_targets[0], state.n_found[0] = promised, found
+        switch.act(state, *observe(config, state))
+        return switch
+
+    # (threshold, promised, found) -> switched: 1/3 against 0.3 and 0.5; 1/2 but only one detection due; 1/4 exactly
+    cases = {(0.3, 4, 0): False, (0.5, 4, 0): True, (1.0, 2, 0): False, (0.25, 6, 0): False, (0.26, 6, 0): True}
+    for (threshold, promised, found), switched in cases.items():
+        assert judged(threshold, promised, found).switched[0] == switched, (threshold, promised, found)
+    switch = judged(0.5, 4, 0)
+    state.n_found[0] = 3  # (3 + 1) / (2 + 1): no longer behind, but a verdict is for good
+    switch.act(state, *observe(config, state))
+    assert switch.switched[0]
+
+
+def test_the_switch_acts_before_a_reset_as_after_one_and_only_switched_worlds_take_coverage():
+    from searchrl.controllers.registry import make_controller
+    from searchrl.controllers.switch import EvidenceSwitch
+
+    config = WorldConfig(world_size=(20, 20), n_agents=3, n_targets=(4, 6))
+    world = SearchWorld(config, n_worlds=2, seed=4)
+    maps, vector = world.reset()
+    fresh, reset_first = EvidenceSwitch(config, 0.5, seed=2), EvidenceSwitch(config, 0.5, seed=2)
+    reset_first.reset(world.state, np.ones(2, bool))
+    np.testing.assert_array_equal(fresh.act(world.state, maps, vector), reset_first.act(world.state, maps, vector))
+
+    switch, teacher = EvidenceSwitch(config, 0.5, seed=2), make_controller("greedy_target", config, 2, {"reach": 2.0})
+    coverage = GeometricCoverage(config)
+    for rule in (switch, teacher, coverage):
+        rule.reset(world.state, np.ones(2, bool))
+    switch.switched[0] = True  # world 0 has left the prior; world 1's first footprints promise less than 2 finds
+    moves = switch.act(world.state, maps, vector)
+    np.testing.assert_array_equal(moves[0], coverage.act(world.state, maps, vector)[0])
+    np.testing.assert_array_equal(moves[1], teacher.act(world.state, maps, vector)[1])
+    assert moves.dtype == np.int64 and not switch.switched[1]
