@@ -14,7 +14,9 @@ from searchrl.controllers.registry import make_teacher
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.policies.extractor import SearchCNN
-from searchrl.train.imitation import clone, collect, discounted_returns, lr_factor
+from searchrl.policies.recurrent import SequenceLstmPolicy
+from searchrl.train.imitation import _evaluate, clone, collect, discounted_returns, lr_factor
+from searchrl.train.teacher_term import value_parameters
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 
@@ -36,6 +38,7 @@ def test_demonstrations_are_the_teachers_and_the_same_per_seed():
     demos = collect([(WORLD, 2), (replace(WORLD, n_agents=5), 1)], "surfing", episodes=2, gamma=0.9, seed=3)
     assert demos.maps.shape == (2 * (2 * 3 + 5), 24, 5, 11, 11) and demos.actions.shape == (22, 24)
     assert demos.starts[:, 0].sum() == 0  # every sequence starts a fresh episode: the LSTM starts from zeros
+    assert (demos.maps.dtype, demos.vector.dtype, demos.actions.dtype) == (np.float16, np.float32, np.int64)
     again = collect([(WORLD, 2), (replace(WORLD, n_agents=5), 1)], "surfing", episodes=2, gamma=0.9, seed=3)
     for name in ("maps", "vector", "actions", "starts", "returns"):
         np.testing.assert_array_equal(getattr(demos, name), getattr(again, name))
@@ -47,6 +50,42 @@ def test_demonstrations_are_the_teachers_and_the_same_per_seed():
     teacher = InformationSurfing(WORLD, seed=3)
     np.testing.assert_array_equal(teacher.act(world.state, maps, vector).reshape(-1), demos.actions[:6, 0])
     np.testing.assert_array_equal(maps.reshape(6, 5, 11, 11).astype(np.float16), demos.maps[:6, 0])
+
+
+def test_demonstrations_are_played_in_the_scenario_given():
+    from searchrl.world.obstacles import IidObstacles
+    from searchrl.world.scenario import Scenario
+
+    walls = Scenario(IidObstacles(0.3, connected=True))
+    demos = collect([(WORLD, 2)], "surfing", episodes=1, gamma=0.9, seed=3, scenario=walls)
+    world, open_grid = SearchWorld(WORLD, 2, scenario=walls), SearchWorld(WORLD, 2)
+    seed = int(np.random.SeedSequence([3, 0, 0]).generate_state(1)[0])
+    (maps, _), (open_maps, _) = world.reset(seed=seed), open_grid.reset(seed=seed)
+    np.testing.assert_array_equal(maps.reshape(6, 5, 11, 11).astype(np.float16), demos.maps[:, 0])
+    assert not np.array_equal(open_maps.reshape(6, 5, 11, 11).astype(np.float16), demos.maps[:, 0])
+
+
+def test_a_later_groups_demonstration_is_its_teachers_whole_episode_replayed():
+    """Group 1's demonstration is its teacher (seeded seed + 1) playing its world (seeded (seed, 1, 0)) step by step,
+    reset where the episode ends."""
+    groups = [(WORLD, 2), (replace(WORLD, n_agents=5), 1)]
+    demos = collect(groups, "surfing", episodes=1, gamma=0.9, seed=3)
+    config = groups[1][0]
+
+    def replay(teacher_seed: int) -> np.ndarray:
+        world, teacher = SearchWorld(config, 1), make_teacher("surfing", config, teacher_seed)
+        maps, vector = world.reset(seed=int(np.random.SeedSequence([3, 1, 0]).generate_state(1)[0]))
+        teacher.reset(world.state, np.ones(1, bool))
+        moves = []
+        for _ in range(config.max_steps):
+            moves.append(teacher.act(world.state, maps, vector))
+            tr = world.step(moves[-1])
+            if tr.result.done.any():
+                teacher.reset(world.state, tr.result.done)
+            maps, vector = tr.maps, tr.vector
+        return np.concatenate(moves).T  # (5 agents, T)
+
+    np.testing.assert_array_equal(replay(3 + 1), demos.actions[6:])
 
 
 def test_unknown_teacher_is_named():
@@ -73,7 +112,7 @@ def test_cloning_fits_the_teacher(algo):
     torch.manual_seed(0)
     demos = collect([(WORLD, 4)], "surfing", episodes=2, gamma=0.9, seed=0)
     env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
-    policy = "MultiInputLstmPolicy" if algo is RecurrentPPO else "MultiInputPolicy"
+    policy = SequenceLstmPolicy if algo is RecurrentPPO else "MultiInputPolicy"  # the policy a training builds
     kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
     if algo is RecurrentPPO:
         kwargs["lstm_hidden_size"] = 32
@@ -87,6 +126,34 @@ def test_cloning_fits_the_teacher(algo):
     assert {r["learning_rate"] for r in history} == {1e-3}  # the default schedule is constant
 
 
+def test_an_epochs_metrics_are_the_means_over_its_minibatches(monkeypatch):
+    """At learning rate 0 nothing moves, so an epoch's imitation loss, value loss and accuracy (means over equal
+    minibatches) are the policy's over all the demonstrations, phase by phase; each minibatch's gradient is clipped
+    at norm 10 over the phase's parameters."""
+    demos = collect([(WORLD, 4)], "surfing", episodes=1, gamma=0.9, seed=0)
+    env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
+    kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
+    model = PPO("MultiInputPolicy", env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
+    assert len(demos) == 12  # 4 minibatches of 3 sequences
+    clips, clip = [], torch.nn.utils.clip_grad_norm_
+    spy = lambda parameters, norm: clips.append((len(parameters), norm)) or clip(parameters, norm)  # noqa: E731
+    monkeypatch.setattr(torch.nn.utils, "clip_grad_norm_", spy)
+    rows = []
+    history = clone(model.policy, demos, 1, 1, 3, 0.0, seed=0, on_epoch=rows.append)
+    assert rows == history  # each row to the callback as its epoch ends
+    value_only = len(value_parameters(model.policy))
+    assert clips == [(len(list(model.policy.parameters())), 10.0)] * 4 + [(value_only, 10.0)] * 4
+    dist, values, actions = _evaluate(model.policy, demos, np.arange(len(demos)))
+    expected = {
+        "imitation_loss": -dist.log_prob(actions).mean().item(),
+        "value_loss": torch.nn.functional.mse_loss(values, torch.as_tensor(demos.returns).reshape(-1)).item(),
+        "accuracy": (dist.distribution.probs.argmax(dim=1) == actions).float().mean().item(),
+    }
+    assert [(row["epoch"], row["phase"]) for row in history] == [(1, "policy"), (2, "value")]  # numbered from 1
+    for row in history:
+        assert {key: row[key] for key in expected} == pytest.approx(expected, rel=1e-5)
+
+
 def test_linear_schedule_takes_each_phase_down_to_zero():
     """lr_schedule="linear": each phase starts at learning_rate and its last minibatch runs at learning_rate/steps;
     an unknown schedule is refused by name."""
@@ -96,13 +163,13 @@ def test_linear_schedule_takes_each_phase_down_to_zero():
     env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
     kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
     model = PPO("MultiInputPolicy", env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
-    history = clone(model.policy, demos, 2, 1, 2, 1e-3, seed=0, lr_schedule="linear")
+    history = clone(model.policy, demos, 2, 1, 2, 2e-3, seed=0, lr_schedule="linear")  # not Adam's default 1e-3
     rates = [r["learning_rate"] for r in history]
     # the rate of each epoch's last step: policy 2 epochs (2n steps), value 1 epoch (n steps)
-    assert rates == pytest.approx([1e-3 * (n + 1) / (2 * n), 1e-3 / (2 * n), 1e-3 / n])
+    assert rates == pytest.approx([2e-3 * (n + 1) / (2 * n), 2e-3 / (2 * n), 2e-3 / n])
     assert lr_factor("linear", 0, 4) == 1.0 and lr_factor("constant", 3, 4) == 1.0
     assert len(clone(model.policy, demos, 1, 0, 2, 1e-3, seed=0, lr_schedule="linear")) == 1  # no value phase
-    with pytest.raises(ValueError, match="lr_schedule='cosine'"):
+    with pytest.raises(ValueError, match=r"^imitation\.lr_schedule='cosine' is not allowed: one of constant, linear$"):
         lr_factor("cosine", 0, 4)
 
 

@@ -151,3 +151,28 @@ def test_seed_is_the_worlds_seed_whatever_the_slot_count(n_worlds, n_agents):
     seeded.seed(5)
     built = SearchVecEnv(config, n_worlds=n_worlds, seed=5)
     np.testing.assert_array_equal(seeded.reset()["map"], built.reset()["map"])
+
+
+def test_what_the_env_is_given_reaches_its_world_and_a_config_of_another_kind_is_named():
+    """The scenario (its walls), an observation part (in the space and the observations) and a reward (paid in place
+    of the world's) each reach the world, as a SearchWorld built with the same settings has them."""
+    from searchrl.envs.parts import make_parts
+    from searchrl.world.engine import SearchWorld
+    from searchrl.world.obstacles import IidObstacles
+    from searchrl.world.scenario import Scenario
+
+    walls, parts = Scenario(IidObstacles(0.3, connected=True)), make_parts([("own_map", {"grid": 4})])
+    env = SearchVecEnv(CONFIG, 2, seed=0, scenario=walls, parts=parts, reward=lambda config, result: -result.reward)
+    twin = SearchWorld(CONFIG, 2, seed=0, scenario=walls, parts=parts)
+    obs, (maps, _) = env.reset(), twin.reset()
+    open_grid = SearchWorld(CONFIG, 2, seed=0)
+    open_grid.reset()
+    assert env.world.state.blocked.sum() > open_grid.state.blocked.sum()  # walls inside the grid, not only around it
+    np.testing.assert_array_equal(env.world.state.blocked, twin.state.blocked)
+    np.testing.assert_array_equal(obs["map"], maps.reshape(6, 5, 11, 11))
+    assert obs["own_map"].shape == (6, *env.observation_space["own_map"].shape)
+    actions = np.arange(6) % 5
+    paid, result = env.step(actions)[1], twin.step(actions.reshape(2, 3)).result
+    np.testing.assert_array_equal(paid, -result.reward.reshape(-1))
+    with pytest.raises(ValueError, match=r"^config=\{'n_agents': 3\} is not allowed: a searchrl\.WorldConfig$"):
+        SearchVecEnv({"n_agents": 3}, 2)
