@@ -27,6 +27,16 @@ WORLD = replace(WorldConfig(), world_size=(12, 16), n_targets=(2, 3), n_distribu
 EXTRACTOR = {"conv_channels": [8, 8, 8], "vector_size": 8, "fc_sizes": [32]}
 
 
+def _tiny_model(algo: type[PPO] | type[RecurrentPPO]) -> PPO | RecurrentPPO:
+    """A small network on WORLD, with the policy class a training builds for `algo`."""
+    env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
+    kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
+    if algo is RecurrentPPO:
+        kwargs["lstm_hidden_size"] = 32
+    policy = SequenceLstmPolicy if algo is RecurrentPPO else "MultiInputPolicy"
+    return algo(policy, env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
+
+
 def test_discounted_returns_stop_at_episode_ends():
     rewards = np.array([[1.0, 2.0, 4.0, 8.0]], np.float32)
     dones = np.array([[0.0, 1.0, 0.0, 0.0]], np.float32)
@@ -111,12 +121,7 @@ def test_cloning_fits_the_teacher(algo):
     """A few epochs on the demonstrations raise the accuracy on the teacher's actions well above chance (1/5)."""
     torch.manual_seed(0)
     demos = collect([(WORLD, 4)], "surfing", episodes=2, gamma=0.9, seed=0)
-    env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
-    policy = SequenceLstmPolicy if algo is RecurrentPPO else "MultiInputPolicy"  # the policy a training builds
-    kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
-    if algo is RecurrentPPO:
-        kwargs["lstm_hidden_size"] = 32
-    model = algo(policy, env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
+    model = _tiny_model(algo)
     history = clone(model.policy, demos, epochs=12, value_epochs=4, batch_sequences=4, learning_rate=1e-3, seed=0)
     assert [r["phase"] for r in history] == ["policy"] * 12 + ["value"] * 4
     assert history[11]["imitation_loss"] < history[0]["imitation_loss"]
@@ -131,9 +136,7 @@ def test_an_epochs_metrics_are_the_means_over_its_minibatches(monkeypatch):
     minibatches) are the policy's over all the demonstrations, phase by phase; each minibatch's gradient is clipped
     at norm 10 over the phase's parameters."""
     demos = collect([(WORLD, 4)], "surfing", episodes=1, gamma=0.9, seed=0)
-    env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
-    kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
-    model = PPO("MultiInputPolicy", env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
+    model = _tiny_model(PPO)
     assert len(demos) == 12  # 4 minibatches of 3 sequences
     clips, clip = [], torch.nn.utils.clip_grad_norm_
     spy = lambda parameters, norm: clips.append((len(parameters), norm)) or clip(parameters, norm)  # noqa: E731
@@ -160,9 +163,7 @@ def test_linear_schedule_takes_each_phase_down_to_zero():
     torch.manual_seed(0)
     demos = collect([(WORLD, 4)], "surfing", episodes=1, gamma=0.9, seed=0)
     n = -(-len(demos) // 2)  # minibatches of 2 sequences per epoch
-    env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
-    kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
-    model = PPO("MultiInputPolicy", env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
+    model = _tiny_model(PPO)
     history = clone(model.policy, demos, 2, 1, 2, 2e-3, seed=0, lr_schedule="linear")  # not Adam's default 1e-3
     rates = [r["learning_rate"] for r in history]
     # the rate of each epoch's last step: policy 2 epochs (2n steps), value 1 epoch (n steps)
@@ -184,9 +185,7 @@ def test_clone_redraws_the_head_at_unit_gain_and_its_minibatch_order_follows_the
     """The action head is re-drawn orthogonal with gain 1 and zero bias before fitting (the docstring's reason: SB3's
     gain 0.01 starves the extractor); two clones from the same weights and seed end equal, another seed apart."""
     demos = collect([(WORLD, 4)], "surfing", episodes=1, gamma=0.9, seed=0)
-    env = SearchVecEnv(WORLD, n_worlds=1, seed=0)
-    kwargs = {"features_extractor_class": SearchCNN, "features_extractor_kwargs": EXTRACTOR, "net_arch": []}
-    model = PPO("MultiInputPolicy", env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
+    model = _tiny_model(PPO)
     start = {k: v.clone() for k, v in model.policy.state_dict().items()}
     clone(model.policy, demos, 0, 0, 2, 1e-3, seed=0)  # no epochs: only the head's re-draw
     weight = model.policy.action_net.weight.detach()  # (5 actions, features): orthonormal rows at gain 1
