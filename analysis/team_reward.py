@@ -29,6 +29,7 @@ from searchrl.world.step import StepResult
 # %% [markdown]
 # Each step's reward, per agent: its world's finds, the same for the whole team.
 
+
 # %%
 @register_reward("team_found")
 class TeamFound:
@@ -44,6 +45,7 @@ class TeamFound:
 # step or collision terms). Summed over the team and an episode it is the same found count, so with `algo.gamma=1`
 # the team's objective is still the metric, while each agent's return is its own finds: the per-agent credit that
 # `team_found` gives up, without the paper's terms that the score does not count.
+
 
 # %%
 @register_reward("own_found")
