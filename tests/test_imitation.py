@@ -44,6 +44,21 @@ def test_discounted_returns_stop_at_episode_ends():
     np.testing.assert_allclose(discounted_returns(rewards, dones, 0.5)[0], expected)
 
 
+def test_discounted_returns_accumulate_in_the_rewards_dtype():
+    """float32 rewards give the float32 recursion's returns bit for bit (a float64 running sum rounds otherwise)."""
+    rng = np.random.default_rng(0)
+    rewards, dones = rng.random((3, 50), np.float32), (rng.random((3, 50)) < 0.1).astype(np.float32)
+    expected = np.zeros_like(rewards)
+    for s in range(3):
+        running = np.float32(0.0)
+        for t in range(49, -1, -1):
+            running = rewards[s, t] + 0.9 * running * (np.float32(1.0) - dones[s, t])
+            expected[s, t] = running
+    returns = discounted_returns(rewards, dones, 0.9)
+    assert returns.dtype == np.float32
+    np.testing.assert_array_equal(returns, expected)
+
+
 def test_demonstrations_are_the_teachers_and_the_same_per_seed():
     demos = collect([(WORLD, 2), (replace(WORLD, n_agents=5), 1)], "surfing", episodes=2, gamma=0.9, seed=3)
     assert demos.maps.shape == (2 * (2 * 3 + 5), 24, 5, 11, 11) and demos.actions.shape == (22, 24)
@@ -76,26 +91,37 @@ def test_demonstrations_are_played_in_the_scenario_given():
 
 
 def test_a_later_groups_demonstration_is_its_teachers_whole_episode_replayed():
-    """Group 1's demonstration is its teacher (seeded seed + 1) playing its world (seeded (seed, 1, 0)) step by step,
-    reset where the episode ends."""
+    """Group j's demonstration is its teacher (seeded seed + j) playing its worlds (seeded (seed, j, 0)) step by step,
+    reset where an episode ends: the moves, the episode starts and the returns of its rewards are the replay's, and
+    the found fraction is the mean over both groups' ended episodes."""
     groups = [(WORLD, 2), (replace(WORLD, n_agents=5), 1)]
     demos = collect(groups, "surfing", episodes=1, gamma=0.9, seed=3)
-    config = groups[1][0]
 
-    def replay(teacher_seed: int) -> np.ndarray:
-        world, teacher = SearchWorld(config, 1), make_teacher("surfing", config, teacher_seed)
-        maps, vector = world.reset(seed=int(np.random.SeedSequence([3, 1, 0]).generate_state(1)[0]))
-        teacher.reset(world.state, np.ones(1, bool))
-        moves = []
+    def replay(j: int, teacher_seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float]]:
+        """(moves, rewards, dones) as (slots, T), and the found fraction of each episode that ended."""
+        config, n_worlds = groups[j]
+        world, teacher = SearchWorld(config, n_worlds), make_teacher("surfing", config, teacher_seed)
+        maps, vector = world.reset(seed=int(np.random.SeedSequence([3, j, 0]).generate_state(1)[0]))
+        teacher.reset(world.state, np.ones(n_worlds, bool))
+        moves, rewards, dones, found = [], [], [], []
         for _ in range(config.max_steps):
-            moves.append(teacher.act(world.state, maps, vector))
-            tr = world.step(moves[-1])
-            if tr.result.done.any():
-                teacher.reset(world.state, tr.result.done)
+            moves.append(teacher.act(world.state, maps, vector).reshape(-1))
+            tr = world.step(moves[-1].reshape(n_worlds, -1))
+            done = tr.result.done
+            rewards.append(tr.result.reward.reshape(-1))
+            dones.append(np.repeat(done, config.n_agents).astype(np.float32))
+            if done.any():
+                teacher.reset(world.state, done)
+                found += tr.metrics["found_fraction"][done].tolist()
             maps, vector = tr.maps, tr.vector
-        return np.concatenate(moves).T  # (5 agents, T)
+        return np.stack(moves, 1), np.stack(rewards, 1), np.stack(dones, 1), found
 
-    np.testing.assert_array_equal(replay(3 + 1), demos.actions[6:])
+    moves, rewards, dones, found = replay(1, 3 + 1)
+    np.testing.assert_array_equal(moves, demos.actions[6:])
+    np.testing.assert_array_equal(discounted_returns(rewards, dones, 0.9), demos.returns[6:])
+    np.testing.assert_array_equal(np.concatenate([np.zeros((5, 1)), dones[:, :-1]], 1), demos.starts[6:])
+    assert demos.starts.dtype == demos.returns.dtype == np.float32
+    assert found and demos.found_fraction == pytest.approx(np.mean(replay(0, 3)[3] + found), abs=1e-12)
 
 
 def test_unknown_teacher_is_named():
