@@ -124,6 +124,45 @@ def test_a_later_groups_demonstration_is_its_teachers_whole_episode_replayed():
     assert found and demos.found_fraction == pytest.approx(np.mean(replay(0, 3)[3] + found), abs=1e-12)
 
 
+def test_each_round_starts_its_teacher_afresh():
+    """Round 1 of a teacher with memory (B's teacher: target-greedy with reach 2 keeps per-world reach weights) is
+    what a new teacher plays in that round's world: collect resets it with a boolean mask of all worlds."""
+    demos = collect([(WORLD, 2)], "greedy_target", episodes=2, gamma=0.9, seed=3, teacher_args={"reach": 2})
+    world, teacher = SearchWorld(WORLD, 2), make_teacher("greedy_target", WORLD, 3, {"reach": 2})
+    maps, vector = world.reset(seed=int(np.random.SeedSequence([3, 0, 1]).generate_state(1)[0]))
+    teacher.reset(world.state, np.ones(2, bool))
+    moves = []
+    for _ in range(WORLD.max_steps):
+        moves.append(teacher.act(world.state, maps, vector).reshape(-1))
+        tr = world.step(moves[-1].reshape(2, -1))
+        if tr.result.done.any():
+            teacher.reset(world.state, tr.result.done)
+        maps, vector = tr.maps, tr.vector
+    np.testing.assert_array_equal(np.stack(moves, 1), demos.actions[6:])
+
+
+def test_a_teacher_is_given_the_observations_recorded(monkeypatch):
+    """A registered teacher may act on the agents' observations (a learned or map-reading rule): each step it is given
+    the maps and vectors the demonstration records."""
+    from searchrl.controllers import registry
+    from searchrl.controllers.base import ControllerConfig, RandomWalk
+
+    seen = []
+
+    class Spy(RandomWalk):
+        def act(self, state, maps, vector, active=None):
+            seen.append((maps.copy(), vector.copy()))
+            return super().act(state, maps, vector, active)
+
+    monkeypatch.setitem(registry.HEURISTICS, "spy", registry.Heuristic(Spy, ControllerConfig, "spy"))
+    monkeypatch.setattr(registry, "TEACHERS", (*registry.TEACHERS, "spy"))
+    demos = collect([(WORLD, 2)], "spy", episodes=1, gamma=0.9, seed=3)
+    assert len(seen) == WORLD.max_steps
+    maps = np.stack([m.reshape(6, 5, 11, 11) for m, _ in seen], 1).astype(np.float16)
+    np.testing.assert_array_equal(maps, demos.maps)
+    np.testing.assert_array_equal(np.stack([v.reshape(6, 3) for _, v in seen], 1), demos.vector)
+
+
 def test_unknown_teacher_is_named():
     with pytest.raises(ValueError, match=r"imitation\.teacher='planner'"):
         collect([(WORLD, 1)], "planner", episodes=1, gamma=0.9, seed=0)
