@@ -124,6 +124,14 @@ def test_a_later_groups_demonstration_is_its_teachers_whole_episode_replayed():
     assert found and demos.found_fraction == pytest.approx(np.mean(replay(0, 3)[3] + found), abs=1e-12)
 
 
+def test_an_episode_that_ends_on_a_rounds_second_last_step_marks_a_start_on_its_last():
+    """World 0 of this round finds its targets at step 38 of 0-39 and starts anew at 39, where its agents' LSTMs
+    reset."""
+    small = replace(WORLD, world_size=(12, 12), n_targets=(1, 2), max_steps=40)
+    demos = collect([(small, 2)], "surfing", episodes=1, gamma=0.9, seed=0)
+    assert demos.starts[:3, -1].tolist() == [1.0] * 3 and not demos.starts[3:, -1].any()
+
+
 def test_each_round_starts_its_teacher_afresh():
     """Round 1 of a teacher with memory (B's teacher: target-greedy with reach 2 keeps per-world reach weights) is
     what a new teacher plays in that round's world: collect resets it with a boolean mask of all worlds."""
