@@ -37,6 +37,27 @@ def _tiny_model(algo: type[PPO] | type[RecurrentPPO]) -> PPO | RecurrentPPO:
     return algo(policy, env, n_steps=8, batch_size=24, policy_kwargs=kwargs, seed=0)
 
 
+def _replay(config: WorldConfig, n_worlds: int, teacher: str, teacher_seed: int, world_seed: list[int],
+            teacher_args: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float]]:  # fmt: skip
+    """A fresh `teacher` playing `n_worlds` worlds of `config` seeded as collect seeds round `world_seed` = (seed, j,
+    e), reset where an episode ends: (moves, rewards, dones) as (slots, T), and each ended episode's found fraction."""
+    world, rule = SearchWorld(config, n_worlds), make_teacher(teacher, config, teacher_seed, teacher_args)
+    maps, vector = world.reset(seed=int(np.random.SeedSequence(world_seed).generate_state(1)[0]))
+    rule.reset(world.state, np.ones(n_worlds, bool))
+    moves, rewards, dones, found = [], [], [], []
+    for _ in range(config.max_steps):
+        moves.append(rule.act(world.state, maps, vector).reshape(-1))
+        tr = world.step(moves[-1].reshape(n_worlds, -1))
+        done = tr.result.done
+        rewards.append(tr.result.reward.reshape(-1))
+        dones.append(np.repeat(done, config.n_agents).astype(np.float32))
+        if done.any():
+            rule.reset(world.state, done)
+            found += tr.metrics["found_fraction"][done].tolist()
+        maps, vector = tr.maps, tr.vector
+    return np.stack(moves, 1), np.stack(rewards, 1), np.stack(dones, 1), found
+
+
 def test_discounted_returns_stop_at_episode_ends():
     rewards = np.array([[1.0, 2.0, 4.0, 8.0]], np.float32)
     dones = np.array([[0.0, 1.0, 0.0, 0.0]], np.float32)
@@ -96,32 +117,13 @@ def test_a_later_groups_demonstration_is_its_teachers_whole_episode_replayed():
     the found fraction is the mean over both groups' ended episodes."""
     groups = [(WORLD, 2), (replace(WORLD, n_agents=5), 1)]
     demos = collect(groups, "surfing", episodes=1, gamma=0.9, seed=3)
-
-    def replay(j: int, teacher_seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float]]:
-        """(moves, rewards, dones) as (slots, T), and the found fraction of each episode that ended."""
-        config, n_worlds = groups[j]
-        world, teacher = SearchWorld(config, n_worlds), make_teacher("surfing", config, teacher_seed)
-        maps, vector = world.reset(seed=int(np.random.SeedSequence([3, j, 0]).generate_state(1)[0]))
-        teacher.reset(world.state, np.ones(n_worlds, bool))
-        moves, rewards, dones, found = [], [], [], []
-        for _ in range(config.max_steps):
-            moves.append(teacher.act(world.state, maps, vector).reshape(-1))
-            tr = world.step(moves[-1].reshape(n_worlds, -1))
-            done = tr.result.done
-            rewards.append(tr.result.reward.reshape(-1))
-            dones.append(np.repeat(done, config.n_agents).astype(np.float32))
-            if done.any():
-                teacher.reset(world.state, done)
-                found += tr.metrics["found_fraction"][done].tolist()
-            maps, vector = tr.maps, tr.vector
-        return np.stack(moves, 1), np.stack(rewards, 1), np.stack(dones, 1), found
-
-    moves, rewards, dones, found = replay(1, 3 + 1)
+    moves, rewards, dones, found = _replay(*groups[1], "surfing", 3 + 1, [3, 1, 0])
     np.testing.assert_array_equal(moves, demos.actions[6:])
     np.testing.assert_array_equal(discounted_returns(rewards, dones, 0.9), demos.returns[6:])
     np.testing.assert_array_equal(np.concatenate([np.zeros((5, 1)), dones[:, :-1]], 1), demos.starts[6:])
     assert demos.starts.dtype == demos.returns.dtype == np.float32
-    assert found and demos.found_fraction == pytest.approx(np.mean(replay(0, 3)[3] + found), abs=1e-12)
+    found_first = _replay(*groups[0], "surfing", 3, [3, 0, 0])[3]
+    assert found and demos.found_fraction == pytest.approx(np.mean(found_first + found), abs=1e-12)
 
 
 def test_an_episode_that_ends_on_a_rounds_second_last_step_marks_a_start_on_its_last():
@@ -136,17 +138,8 @@ def test_each_round_starts_its_teacher_afresh():
     """Round 1 of a teacher with memory (B's teacher: target-greedy with reach 2 keeps per-world reach weights) is
     what a new teacher plays in that round's world: collect resets it with a boolean mask of all worlds."""
     demos = collect([(WORLD, 2)], "greedy_target", episodes=2, gamma=0.9, seed=3, teacher_args={"reach": 2})
-    world, teacher = SearchWorld(WORLD, 2), make_teacher("greedy_target", WORLD, 3, {"reach": 2})
-    maps, vector = world.reset(seed=int(np.random.SeedSequence([3, 0, 1]).generate_state(1)[0]))
-    teacher.reset(world.state, np.ones(2, bool))
-    moves = []
-    for _ in range(WORLD.max_steps):
-        moves.append(teacher.act(world.state, maps, vector).reshape(-1))
-        tr = world.step(moves[-1].reshape(2, -1))
-        if tr.result.done.any():
-            teacher.reset(world.state, tr.result.done)
-        maps, vector = tr.maps, tr.vector
-    np.testing.assert_array_equal(np.stack(moves, 1), demos.actions[6:])
+    moves = _replay(WORLD, 2, "greedy_target", 3, [3, 0, 1], {"reach": 2})[0]
+    np.testing.assert_array_equal(moves, demos.actions[6:])
 
 
 def test_a_teacher_is_given_the_observations_recorded(monkeypatch):
