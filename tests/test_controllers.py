@@ -63,6 +63,67 @@ def test_surfing_does_not_step_into_a_visible_agent():
     assert action != E and action != 0
 
 
+def test_surfing_weighs_probability_and_uncertainty_as_told():
+    """p rises east and u rises west: w_u = 0 (allowed) climbs p, w_p = 0 climbs u."""
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(30, [(15, 15)], config)
+    h, ramp = state.halo, np.linspace(0.0, 1.0, 30, dtype=np.float32)
+    state.belief[0, 0, 0, h : h + 30, h : h + 30] = ramp[None, :]
+    state.belief[0, 0, 1, h : h + 30, h : h + 30] = ramp[::-1][None, :]
+    for w_p, w_u, action in [(1.0, 0.0, E), (0.0, 1.0, W)]:
+        assert InformationSurfing(config, w_p=w_p, w_u=w_u).act(state, *observe(config, state))[0, 0] == action
+
+
+def test_surfing_follows_information_beyond_its_view_only_at_wider_scales():
+    """Information only 16-40 cells west: the default scales (1, 3) see no gradient and move at random (as on an
+    empty belief), scales (27,) head west."""
+    config = WorldConfig(world_size=(60, 60), n_agents=1, n_targets=(1, 1))
+    state, empty = _world(60, [(30, 45)], config), _world(60, [(30, 45)], config)
+    h = state.halo
+    state.belief[0, 0, :, h + 20 : h + 41, h + 5 : h + 30] = 1.0
+    assert InformationSurfing(config, scales=(27,)).act(state, *observe(config, state))[0, 0] == W
+    draws = [InformationSurfing(config, seed=5).act(s, *observe(config, s))[0, 0] for s in (state, empty)]
+    assert draws[0] == draws[1]
+
+
+@pytest.mark.parametrize("where, action", [((15, 10), E), ((15, 20), W), ((10, 15), S), ((20, 15), N_)])
+def test_surfing_is_pushed_by_a_neighbour_at_the_edge_of_its_view(where, action):
+    config = WorldConfig(world_size=(30, 30), n_agents=2, n_targets=(1, 1))  # view 11×11: 5 cells each way
+    state = _world(30, [(15, 15), where], config)
+    assert InformationSurfing(config).act(state, *observe(config, state))[0, 0] == action
+
+
+def test_surfing_moves_at_random_with_nothing_to_follow_and_repeats_with_its_seed():
+    """The default seed is 0, as every controller's."""
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    state = _world(30, [(15, 15)], config)
+    draws = [[c.act(state, *observe(config, state))[0, 0] for _ in range(40)]
+             for c in (InformationSurfing(config), InformationSurfing(config, seed=0),
+                       InformationSurfing(config, seed=1))]  # fmt: skip
+    assert draws[0] == draws[1] != draws[2]
+    assert set(draws[0]) == {N_, E, S, W}
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"scales": []}, "scales=[] is not allowed: one or more positive block sizes"),
+    ({"scales": [1, 0]}, "scales=[1, 0] is not allowed: one or more positive block sizes"),
+    ({"w_p": -0.1}, "w_p=-0.1, w_u=0.4, repulsion=0.4 are not allowed: finite, >= 0, w_p + w_u > 0"),
+    ({"w_u": float("inf")}, "w_p=0.6, w_u=inf, repulsion=0.4 are not allowed: finite, >= 0, w_p + w_u > 0"),
+    ({"repulsion": -1.0}, "w_p=0.6, w_u=0.4, repulsion=-1.0 are not allowed: finite, >= 0, w_p + w_u > 0"),
+    ({"w_p": float("inf")}, "w_p=inf, w_u=0.4, repulsion=0.4 are not allowed: finite, >= 0, w_p + w_u > 0"),
+    ({"repulsion": float("inf")}, "w_p=0.6, w_u=0.4, repulsion=inf are not allowed: finite, >= 0, w_p + w_u > 0"),
+    ({"w_p": 0.0, "w_u": 0.0}, "w_p=0.0, w_u=0.0, repulsion=0.4 are not allowed: finite, >= 0, w_p + w_u > 0"),
+])  # fmt: skip
+def test_surfings_bad_parameters_are_refused_in_one_line(kwargs, message):
+    with pytest.raises(ValueError) as error:
+        InformationSurfing(WorldConfig(), **kwargs)
+    assert str(error.value) == message
+
+
+def test_surfing_takes_equal_weights_and_no_repulsion():
+    InformationSurfing(WorldConfig(), w_p=0.5, w_u=0.5, repulsion=0.0)
+
+
 def test_partition_tiles_the_domain():
     for n, agents in [(20, 1), (20, 3), (40, 7), (160, 256)]:
         blocks = partition(n, agents)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -132,6 +134,69 @@ def test_reach_draws_to_the_edge_what_passing_agents_would_barely_sense():
     assert _act(FootprintGreedy(config, reach=1.0), state)[0] == W
 
 
+def test_prior_information_is_the_mean_information_of_the_free_cells():
+    """What `hedge` mixes in: I = w_p·p̂ + w_u·û + w_t·p̂·max(0, 1 − û) of the prior, as the observation scales it,
+    averaged over the free cells (an obstacle's prior does not count)."""
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    rng = np.random.default_rng(2)
+    p, u = rng.uniform(0.1, 1.0, (30, 30)), rng.uniform(0.1, 1.5, (30, 30))
+    state = make_world(config, 30, [(15, 15)], [(0, 0)], obstacles=((3, 4), (20, 7)), p=p, u=u)
+    state.obs_scale[0] = (2.0, 0.5)
+    free = np.ones((30, 30), bool)
+    free[3, 4] = free[20, 7] = False
+    p_hat, u_hat = p * 2.0, u * 0.5
+    info = 0.2 * p_hat + 0.3 * u_hat + 0.5 * p_hat * np.maximum(0.0, 1.0 - u_hat)
+    got = FootprintGreedy(config, w_p=0.2, w_u=0.3, w_t=0.5).prior_information(state)
+    np.testing.assert_allclose(got, [info[free].mean()], rtol=1e-6)
+
+
+@pytest.mark.parametrize("bulk, action", [(0.05, W), (0.5, E)])
+def test_hedge_weighs_what_sensing_left_by_the_priors_mean_information(bulk, action):
+    """With hedge ε a cell counts (1 − ε)·I + ε·flat·p/prior_p, flat the prior's mean I per free cell. West: belief
+    1 of prior 1; east: belief 0.5 of prior 0.1; elsewhere belief 0 of prior `bulk`, which sets flat. At ε = 0.5
+    west scores 0.5 + 0.5·flat, east 0.25 + 2.5·flat: west below flat ≈ 0.125, east above (seeds 0-7 alike)."""
+    config = WorldConfig(world_size=(30, 30), n_agents=1, n_targets=(1, 1))
+    prior = np.full((30, 30), bulk)
+    prior[15, 12], prior[15, 18] = 1.0, 0.1
+    state = make_world(config, 30, [(15, 15)], [(0, 0)], p=prior)
+    h = state.halo
+    state.belief[0, 0, 0] = 0.0
+    state.belief[0, 0, 0, 15 + h, 12 + h], state.belief[0, 0, 0, 15 + h, 18 + h] = 1.0, 0.5
+    assert [_act(FootprintGreedy(config, w_p=1.0, w_u=0.0, seed=s), state)[0] for s in range(8)] == [W] * 8
+    hedged = [_act(FootprintGreedy(config, w_p=1.0, w_u=0.0, hedge=0.5, seed=s), state)[0] for s in range(8)]
+    assert hedged == [action] * 8
+
+
+def test_greedy_follows_a_team_of_another_size_without_a_reset():
+    """A controller that acted on a team of two and then meets a team of four on the same ground sizes its
+    memory again and acts as a fresh one (information everywhere, so nobody moves at random)."""
+    ramp = np.linspace(0.1, 1.0, 30)[None, :] * np.linspace(0.5, 1.0, 30)[:, None]
+    config2 = WorldConfig(world_size=(30, 30), n_agents=2, n_targets=(1, 1))
+    config4 = WorldConfig(world_size=(30, 30), n_agents=4, n_targets=(1, 1))
+    two = make_world(config2, 30, [(5, 5), (20, 20)], [(0, 0)], p=ramp, u=ramp)
+    four = make_world(config4, 30, [(5, 5), (20, 20), (10, 25), (25, 3)], [(0, 0)], p=ramp, u=ramp)
+    kwargs = {"w_t": 1.0, "reach": 1.0, "seen": True}
+    used = FootprintGreedy(config2, **kwargs)
+    used.act(two, *observe(config2, two))
+    fresh = FootprintGreedy(config4, **kwargs)
+    assert (used.act(four, *observe(config4, four)) == fresh.act(four, *observe(config4, four))).all()
+
+
+def test_a_smaller_team_after_a_larger_one_forgets_what_the_larger_saw():
+    """Agent 0 of a team of four sees agent 2 three cells east and remembers its footprint there; a team of two on
+    the same ground, without a reset, acts as a fresh controller: east (1.0) over west (0.9), not the remembered
+    lowering."""
+    config4 = WorldConfig(world_size=(30, 30), n_agents=4, n_targets=(1, 1))
+    config2 = WorldConfig(world_size=(30, 30), n_agents=2, n_targets=(1, 1))
+    four = make_world(config4, 30, [(15, 15), (5, 5), (15, 18), (25, 25)], [(0, 0)])
+    two = make_world(config2, 30, [(15, 15), (5, 5)], [(0, 0)])
+    _put(two, 0, 15, 18, 1.0)
+    _put(two, 0, 15, 12, 0.9)
+    used = FootprintGreedy(config4, seen=True)
+    used.act(four, *observe(config4, four))
+    assert used.act(two, *observe(config2, two))[0, 0] == _act(FootprintGreedy(config2, seen=True), two)[0] == E
+
+
 def test_seen_lowers_the_belief_under_a_neighbours_footprint_and_remembers_it():
     """Information 1.0 three cells east, on the cell where a neighbour stands, and 0.9 three west. Greedy goes east;
     with `seen` the neighbour's footprint clears that cell in what agent 0 believes, so it goes west, and it still
@@ -199,13 +264,36 @@ def test_the_worlds_belief_seen_shows_what_greedy_with_age_and_seen_scores():
 BAD = [({"horizon": 0}, "horizon"), ({"horizon": 6}, "horizon"), ({"discount": 0.0}, "discount"),
        ({"w_p": 0.0, "w_u": 0.0}, "w_p"), ({"w_t": -1.0}, "w_t"), ({"contested": 1.5}, "contested"),
        ({"contested": -0.1}, "contested"), ({"reach": -1.0}, "reach"), ({"reach": 5.0}, "reach"),
-       ({"age": -0.5}, "age"), ({"age": 5.0}, "age")]  # fmt: skip
+       ({"age": -0.5}, "age"), ({"age": 5.0}, "age"), ({"discount": 1.5}, "discount"), ({"hedge": -0.1}, "hedge"),
+       ({"hedge": 1.5}, "hedge"), ({"w_u": math.inf}, "w_u")]  # fmt: skip
 
 
 @pytest.mark.parametrize("kwargs, name", BAD)
 def test_bad_parameters_are_named(kwargs, name):
     with pytest.raises(ValueError, match=name):
         FootprintGreedy(WorldConfig(), **kwargs)
+
+
+EDGES = [{"horizon": 5}, {"discount": 1.0}, {"reach": 4.0}, {"age": 4.0}, {"hedge": 1.0},
+         {"w_p": 0.0, "w_u": 1.0, "w_t": 1.0}, {"w_p": 1.0, "w_u": 1.0, "w_t": 0.0}]  # fmt: skip
+
+
+@pytest.mark.parametrize("kwargs", [{"seen": True}, {"age": 0.5}])
+def test_seen_and_age_are_refused_where_sensing_is_not_bayesian(kwargs):
+    config = WorldConfig(k=500.0)  # lam·k = 0.5: sensing no longer scales p by (1 − Γ)
+    FootprintGreedy(config)  # the plain rule is fine there
+    seen, age = kwargs.get("seen", False), kwargs.get("age", 0.0)
+    with pytest.raises(ValueError) as error:
+        FootprintGreedy(config, **kwargs)
+    assert str(error.value) == (
+        f"seen={seen!r}, age={age!r} are not allowed in this world: both model sensing as p·(1 − Γ), so they need "
+        f"lam * k = 1 and k_per_n = 0 (here k={config.k}, k_per_n={config.k_per_n})"
+    )
+
+
+@pytest.mark.parametrize("kwargs", EDGES)
+def test_the_edges_of_each_range_are_allowed(kwargs):
+    FootprintGreedy(WorldConfig(), **kwargs)  # 11×11 view: horizon up to 5
 
 
 def _seen_without_age(state, seen: np.ndarray, view: int) -> None:

@@ -16,6 +16,7 @@ from searchrl.evaluate.suite import SuiteConfig, evaluate_suite, suite_scenarios
 from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
 from searchrl.shared_schema import group_option
+from searchrl.world.config import ConfigError
 from searchrl.world.scenario import PAPER
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -56,6 +57,20 @@ def test_the_shipped_suites_pose_every_family_at_every_severity(name, scale):
         assert right == PAPER  # the broad suite's right prior is the paper's scenario, bit for bit
 
 
+def test_a_suites_obstacles_reach_its_grid_and_its_own_scenarios_follow():
+    suite = {"families": {"uninformed": {"prior": {"kind": "uninformed"}}}, "severities": [1.0],
+             "variance_scales": [None], "obstacles": {"kind": "iid", "density": 0.1, "connected": True},
+             "scenarios": [{"obstacles": {"kind": "maze", "corridor": 3, "loops": 0.1}}]}  # fmt: skip
+    assert [s.label for s in suite_scenarios(suite)] == ["iid0.1c", "iid0.1c+uninformed1", "maze3l0.1"]
+    twice = {"families": {}, "severities": [], "variance_scales": [None], "scenarios": [{}]}  # the paper's, twice
+    with pytest.raises(ConfigError) as error:
+        suite_scenarios(twice)
+    assert (
+        str(error.value)
+        == "suite.scenarios=['paper', 'paper'] is not allowed: scenarios that differ (each its own label)"
+    )
+
+
 def test_a_suite_runs_from_one_command_into_a_folder_per_scenario_and_resumes(tmp_path, capsys):
     folders = _run(tmp_path, "controller=coverage")
     assert [f.name for f in folders] == ["var1", "var1+off_prior1", "var1+uninformed1"]
@@ -92,6 +107,15 @@ def test_a_suite_is_frozen(tmp_path, override, capsys):
     err = capsys.readouterr().err
     assert exit_.value.code == 2 and override in err and "frozen" in err, err[-1500:]
     assert not any(tmp_path.iterdir())
+
+
+def test_a_suites_refusal_names_every_frozen_override_in_one_line(tmp_path, capsys):
+    with pytest.raises(SystemExit), exits():
+        _run(tmp_path, "controller=coverage", "seed=1", "grid.repeats=2")
+    assert capsys.readouterr().err.endswith(
+        "error: seed=1, grid.repeats=2 cannot apply to suite=tiny: a suite is frozen (its grid, seed and scenarios are "
+        "conf/suite/); remove them, or evaluate with grid.* and scenario=… without suite=\n"
+    )
 
 
 def test_an_empty_out_dir_is_refused_not_taken_for_the_default(tmp_path, capsys, monkeypatch):
