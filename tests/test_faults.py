@@ -33,7 +33,6 @@ from searchrl.policies.checkpoint import REBUILT, load_checkpoint
 from searchrl.shared_schema import check_group_choices
 from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
-from searchrl.world.engine import SearchWorld
 from tests.test_untrusted_checkpoints import SHIPPED, poisoned
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -560,40 +559,7 @@ def test_unreadable_run_files_get_one_line(tmp_path, tiny_run, capsys):
     assert not gif.exists() and not (tmp_path / "eval" / "evaluation.yaml").exists()
 
 
-# 7. The PettingZoo env checks types and names.
-def test_parallel_env_refuses_wrong_types_and_names():
-    env = SearchParallelEnv(WorldConfig(world_size=(10, 10), n_targets=(2, 2), n_agents=2, max_steps=5))
-    for seed in (-1, 1.5, "7"):
-        with pytest.raises(ValueError, match=f"seed={seed!r} is not allowed"):
-            env.reset(seed=seed)
-    env.reset(seed=np.int64(3))
-    for action in (1.0, "1", True, 5, np.float32(2)):
-        with pytest.raises(ValueError, match=r"actions\['agent_0'\]=.* is not allowed: an integer in \[0, 5\)"):
-            env.step({"agent_0": action, "agent_1": 0})
-    with pytest.raises(ValueError, match=r"actions for \['agent_7'\] are not allowed"):
-        env.step({"agent_0": 0, "agent_1": 0, "agent_7": 1})
-    env.step({"agent_0": np.int32(4), "agent_1": np.array(2)})  # numpy integers are integers
-    with pytest.raises(ValueError, match="seed=-1 is not allowed"):
-        SearchWorld(env.config, 2, seed=-1)  # the engine under the VecEnv and the env checks its seed the same way
-
-
-def test_envs_stepped_before_their_reset_say_so_as_gymnasium_and_pettingzoo_do():
-    """Out of order: the VecEnv raises gymnasium's ResetNeeded, the world a one-line RuntimeError, the PettingZoo env
-    its own line; none reaches the kernels (which raised numba's SystemError on the empty state)."""
-    from gymnasium.error import ResetNeeded
-
-    from searchrl.envs.vec_env import SearchVecEnv
-
-    config = WorldConfig(world_size=(10, 10), n_targets=(2, 2), n_agents=2, max_steps=5)
-    env = SearchVecEnv(config, n_worlds=2, seed=0)
-    with pytest.raises(ResetNeeded, match=r"Cannot call env.step\(\) before calling env.reset\(\)"):
-        env.step(np.zeros(env.num_envs, np.int64))
-    env.reset()
-    env.step(np.zeros(env.num_envs, np.int64))
-    with pytest.raises(RuntimeError, match=r"step\(\) called before reset\(\)"):
-        SearchWorld(config, 2, seed=0).step(np.zeros((2, 2), np.int64))
-    with pytest.raises(RuntimeError, match=r"step\(\) called before reset\(\)"):
-        SearchParallelEnv(config).step({"agent_0": 0, "agent_1": 0})
+# 7. The PettingZoo env checks types and names: tests/test_marl_envs.py.
 
 
 @pytest.mark.parametrize(

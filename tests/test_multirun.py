@@ -58,11 +58,11 @@ def test_the_summary_names_each_failed_job_in_job_order(tmp_path, capsys):
     summarize(tmp_path)  # none failed: nothing
     assert capsys.readouterr().err == ""
     (tmp_path / "10.txt").write_text("seed=10\trefused:\tX \n")  # the line as filed, tabs and all
-    (tmp_path / "2.txt").write_text("seed=2 algo.n_epochs=0\tnot allowed: y\n")
+    (tmp_path / "2.txt").write_text("seed=2 algo.n_epochs=0\tnot allowed: X\n")  # only the newline goes
     summarize(tmp_path)
     assert capsys.readouterr().err == (
         "error: 2 job(s) of the multirun failed; the others ran:\n"
-        "  #2 [seed=2 algo.n_epochs=0]: not allowed: y\n"
+        "  #2 [seed=2 algo.n_epochs=0]: not allowed: X\n"
         "  #10 [seed=10]: refused:\tX \n"
     )
 

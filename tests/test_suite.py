@@ -4,6 +4,7 @@ a suite that refuses to be changed from the command line."""
 
 from __future__ import annotations
 
+import errno
 from pathlib import Path
 
 import pandas as pd
@@ -11,8 +12,9 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
+import searchrl.evaluate.suite as suite_module
 from searchrl.evaluate.results import load
-from searchrl.evaluate.suite import SuiteConfig, evaluate_suite, suite_scenarios
+from searchrl.evaluate.suite import SUITE_RECORD, SuiteConfig, evaluate_suite, suite_scenarios
 from searchrl.multirun import exits
 from searchrl.paths import CONF_DIR
 from searchrl.shared_schema import group_option
@@ -71,9 +73,17 @@ def test_a_suites_obstacles_reach_its_grid_and_its_own_scenarios_follow():
     )
 
 
-def test_a_suite_runs_from_one_command_into_a_folder_per_scenario_and_resumes(tmp_path, capsys):
-    folders = _run(tmp_path, "controller=coverage")
-    assert [f.name for f in folders] == ["var1", "var1+off_prior1", "var1+uninformed1"]
+def test_a_suite_runs_from_one_command_into_a_folder_per_scenario_and_resumes(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # without out_dir: runs/suite/<suite>/<controller> under it, and its record beside
+    # a suite's yaml may leave out what the schema sets (the seed) and use interpolations: folders and record hold
+    # the values
+    suite = {**{k: v for k, v in TINY.items() if k != "seed"}, "name": "${oc.decode:tiny}"}
+    labels = ["var1", "var1+off_prior1", "var1+uninformed1"]
+    folders = _run(tmp_path, "controller=coverage", "out_dir=null", suite=suite)
+    base = tmp_path / "runs" / "suite" / "tiny" / "coverage"
+    assert [f.resolve() for f in folders] == [base / label for label in labels]
+    record = OmegaConf.to_container(OmegaConf.load(base / SUITE_RECORD))
+    assert record == {"suite": "tiny", "seed": SuiteConfig.seed, "scenarios": labels}
     frame = load(*folders)
     assert len(frame) == 3 * 4 * 2  # scenarios x cells (n 20, 40 x N 1, 4) x maps
     assert set(zip(frame["family"], frame["severity"], strict=True)) == {("paper", 0.0), ("off_prior", 1.0),
@@ -82,7 +92,7 @@ def test_a_suite_runs_from_one_command_into_a_folder_per_scenario_and_resumes(tm
     assert frame.loc[frame["family"] == "paper", "bound"].notna().all()  # the bound holds where the prior is right
     assert frame.loc[frame["family"] != "paper", "bound"].isna().all()
     capsys.readouterr()
-    _run(tmp_path, "controller=coverage")  # a rerun finds every cell done
+    _run(tmp_path, "controller=coverage", "out_dir=null", suite=suite)  # a rerun finds every cell done
     assert capsys.readouterr().err.count("0 of 4 cells to run") == 3
 
 
@@ -120,8 +130,39 @@ def test_an_empty_out_dir_is_refused_not_taken_for_the_default(tmp_path, capsys,
     monkeypatch.chdir(tmp_path)  # the default folder would be runs/suite/... under it
     with pytest.raises(SystemExit), exits():
         _run(tmp_path / "unused", "controller=coverage", "out_dir=")
-    assert "out_dir='' is not allowed: a folder" in capsys.readouterr().err
+    assert capsys.readouterr().err.endswith(
+        "error: out_dir='' is not allowed: a folder (leave it out for runs/suite/<suite>/<controller or policy>)\n"
+    )
     assert not any(tmp_path.iterdir())
+
+
+def test_each_scenario_checks_the_command_lines_overrides(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_, exits():
+        _run(tmp_path, "controller=coverage", "env.world.n_agents=4")
+    assert exit_.value.code == 2 and capsys.readouterr().err.endswith(
+        "error: env.world.n_agents cannot apply to an evaluation: the grid sets N, n, targets and Gaussians per cell "
+        "(grid.*), one team per world, and deterministic is for checkpoints; remove them\n"
+    )
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    "error, line",
+    [
+        (OSError(errno.ENOSPC, "No space left on device", "suite.yaml"),
+         "No space left on device writing suite.yaml: free space (or ask for quota) and run the same command again"),
+        (IsADirectoryError(errno.EISDIR, "Is a directory", "suite.yaml"),
+         "suite=tiny: [Errno 21] Is a directory: 'suite.yaml'"),
+    ],
+)  # fmt: skip
+def test_a_fault_writing_the_suites_record_is_one_line(tmp_path, capsys, monkeypatch, error, line):
+    def fail(*_):
+        raise error
+
+    monkeypatch.setattr(suite_module, "write_text_atomic", fail)
+    with pytest.raises(SystemExit) as exit_, exits():
+        _run(tmp_path, "controller=coverage")
+    assert exit_.value.code == 2 and capsys.readouterr().err.endswith(f"error: {line}\n")
 
 
 def test_a_bad_family_is_named_before_any_folder(tmp_path, capsys):

@@ -31,7 +31,7 @@ class SearchEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         check_seed(seed)  # a ValueError naming it, as the other envs raise
-        super().reset(seed=seed)
+        super().reset(seed=None if seed is None else int(seed))  # gymnasium's takes Python ints only
         # gymnasium seeds self.np_random; the world draws from its own generator, seeded from it.
         obs, infos = self._env.reset(seed=int(self.np_random.integers(2**63)))
         return obs[self._agent], infos[self._agent]
