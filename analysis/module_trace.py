@@ -8,9 +8,9 @@
 # # Which modules a training crosses: a trace of the calls from the command line to model.zip
 #
 # Runs `python -m searchrl.train` in this process on the command line given (a recipe with a small budget by
-# default) under `sys.setprofile`, and counts the searchrl modules whose functions were called, with their source
-# lines, and those of them that only the call path through the world's kernels reaches. Written to
-# `module_trace.md`. Run from the repository root:
+# default) under `sys.setprofile`, and counts the searchrl modules whose code was called (their import too), with
+# their source lines and how many functions of their own each ran beyond its import (the modules a reader of the run
+# follows). Written to `module_trace.md`. Run from the repository root:
 #
 #     python analysis/module_trace.py [--out DIR] [OVERRIDE ...]
 #
@@ -36,6 +36,7 @@ OVERRIDES = OVERRIDES or ["+experiment=term/b", "total_timesteps=12288", "valida
 
 # %%
 called: dict[str, int] = {}
+functions: dict[str, set[str]] = {}  # the functions of its own source a module ran, besides its import
 
 
 def profile(frame, event, arg):
@@ -43,6 +44,10 @@ def profile(frame, event, arg):
         name = frame.f_globals.get("__name__", "")
         if name.startswith("searchrl.") and name != "searchrl.reporting.cli":
             called[name] = called.get(name, 0) + 1
+            code = frame.f_code
+            # a module's body runs on import; dataclasses' generated methods have no file of their own
+            if code.co_name != "<module>" and not code.co_filename.startswith("<"):
+                functions.setdefault(name, set()).add(code.co_qualname)
 
 
 with tempfile.TemporaryDirectory() as run:
@@ -68,16 +73,20 @@ for name, calls in sorted(called.items()):
     path = ROOT / (name.replace(".", "/") + ".py")
     if not path.exists():
         path = ROOT / name.replace(".", "/") / "__init__.py"
-    rows.append({"module": name, "calls": calls, "lines": len(path.read_text().splitlines()) if path.exists() else 0})
+    lines = len(path.read_text().splitlines()) if path.exists() else 0
+    rows.append({"module": name, "calls": calls, "functions": len(functions.get(name, ())), "lines": lines})
 table = pd.DataFrame(rows).sort_values("module").set_index("module")
 # the package's layer of each module (searchrl.world, envs, policies, controllers, train, the top level)
 table.insert(0, "layer", [m.split(".")[1] if (ROOT / "searchrl" / m.split(".")[1]).is_dir() else "top level"
                            for m in table.index])  # fmt: skip
 layers = table.groupby("layer").agg(modules=("lines", "size"), lines=("lines", "sum"))
+followed = table[table.functions > 0]  # the modules a reader of the run follows: those whose own code ran
+outside = followed[followed.layer != "world"]
 report = (f"`python -m searchrl.train {' '.join(OVERRIDES)}` calls into {len(table)} searchrl modules, "
           f"{int(table.lines.sum())} lines of source ({int(layers.drop('world').modules.sum())} modules and "
-          f"{int(layers.drop('world').lines.sum())} lines outside the world):\n\n{markdown(layers)}\n"
-          f"{markdown(table)}")  # fmt: skip
+          f"{int(layers.drop('world').lines.sum())} lines outside the world). {len(followed)} of them ran a function "
+          f"of their own beyond their import ({len(outside)} modules and {int(outside.lines.sum())} lines outside "
+          f"the world):\n\n{markdown(layers)}\n{markdown(table)}")  # fmt: skip
 OUT.mkdir(parents=True, exist_ok=True)
 write_text_atomic(OUT / "module_trace.md", report)
 print(report)
