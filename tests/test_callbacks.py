@@ -29,13 +29,26 @@ from searchrl.train.schema import register_configs
 
 
 class _Logger:
-    """SB3's logger as the callbacks use it: record_mean, kept per key."""
+    """SB3's logger as the callbacks use it: means recorded per key (team metrics); values recorded, with what they
+    exclude, then dumped as one row at a step (validation, HParams)."""
 
     def __init__(self) -> None:
         self.means: dict[str, float] = {}
+        self.row: dict[str, object] = {}
+        self.excluded: dict[str, tuple[str, ...]] = {}
+        self.dumped: list[tuple[int, dict[str, object]]] = []
 
     def record_mean(self, key: str, value: float) -> None:
         self.means[key] = value
+
+    def record(self, key: str, value: object, exclude: tuple[str, ...] | None = None) -> None:
+        self.row[key] = value
+        if exclude is not None:
+            self.excluded[key] = exclude
+
+    def dump(self, step: int) -> None:
+        self.dumped.append((step, self.row))
+        self.row = {}
 
 
 def test_team_metrics_are_the_means_over_the_rollouts_ended_episodes_and_start_afresh():
@@ -138,25 +151,6 @@ def test_the_first_signal_is_kept_a_second_interrupt_ends_at_once_and_handlers_a
     assert {signum: signal.getsignal(signum) for signum in before} == before
 
 
-class _Rows:
-    """SB3's logger as the validation and HParams callbacks use it: values recorded (with what they exclude), then
-    dumped as one row at a step."""
-
-    def __init__(self) -> None:
-        self.row: dict[str, object] = {}
-        self.excluded: dict[str, tuple[str, ...]] = {}
-        self.dumped: list[tuple[int, dict[str, object]]] = []
-
-    def record(self, key: str, value: object, exclude: tuple[str, ...] | None = None) -> None:
-        self.row[key] = value
-        if exclude is not None:
-            self.excluded[key] = exclude
-
-    def dump(self, step: int) -> None:
-        self.dumped.append((step, self.row))
-        self.row = {}
-
-
 @pytest.fixture
 def episodes(monkeypatch) -> list[tuple]:
     """Validation's episodes replaced: each call's arguments kept (the policy as the step its weights are at) and a
@@ -176,7 +170,7 @@ def _validation(start: int, every: int, total: int, at_start: bool = False, pree
     callback = ValidationCallback("world", "scenario", every, n_worlds=16, seed=7, deterministic=True,
                                   at_start=at_start, preemption=preemption)  # fmt: skip
     # rollouts of 4 steps of 8 agent-steps (32 agent-steps) toward a budget of `total`
-    callback.model = SimpleNamespace(num_timesteps=start, n_steps=4, n_envs=8, _total_timesteps=total, logger=_Rows())
+    callback.model = SimpleNamespace(num_timesteps=start, n_steps=4, n_envs=8, _total_timesteps=total, logger=_Logger())
     callback.num_timesteps = start
     callback._init_callback()
     callback._on_training_start()
@@ -239,7 +233,7 @@ def test_a_stopped_run_leaves_the_final_validation_to_its_real_end(episodes):
 def test_hparams_are_written_to_tensorboard_alone_linked_to_the_found_fractions():
     hparams = {"algo.gamma": 0.99, "model": "b"}
     callback = HParamsCallback(hparams)
-    callback.model = SimpleNamespace(logger=_Rows())
+    callback.model = SimpleNamespace(logger=_Logger())
     callback._on_training_start()
     value = callback.model.logger.row["hparams"]
     assert value.hparam_dict == hparams

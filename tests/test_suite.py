@@ -43,6 +43,14 @@ def _run(out: Path, *overrides: str, suite: dict = TINY) -> list[Path]:
     return evaluate_suite(cfg, ["suite=prior_error", *overrides])
 
 
+def _refusal(out: Path, capsys, *overrides: str, suite: dict = TINY) -> str:
+    """The suite refused: exit status 2; its standard error."""
+    with pytest.raises(SystemExit) as exit_, exits():
+        _run(out, *overrides, suite=suite)
+    assert exit_.value.code == 2
+    return capsys.readouterr().err
+
+
 @pytest.mark.parametrize("name, scale", [("prior_error", 1.0), ("prior_error_broad", None)])
 def test_the_shipped_suites_pose_every_family_at_every_severity(name, scale):
     suite = _suite(name)
@@ -116,10 +124,8 @@ def test_shards_split_the_suites_scenario_cells_once(tmp_path):
 )
 def test_a_suite_is_frozen(tmp_path, overrides, capsys):
     """Every frozen override is named in the one line of the refusal, before anything is written."""
-    with pytest.raises(SystemExit) as exit_, exits():
-        _run(tmp_path, "controller=coverage", *overrides)
-    err = capsys.readouterr().err
-    assert exit_.value.code == 2 and err.endswith(
+    err = _refusal(tmp_path, capsys, "controller=coverage", *overrides)
+    assert err.endswith(
         f"error: {', '.join(overrides)} cannot apply to suite=tiny: a suite is frozen (its grid, seed and scenarios "
         "are conf/suite/); remove them, or evaluate with grid.* and scenario=… without suite=\n"
     ), err[-1500:]
@@ -128,18 +134,14 @@ def test_a_suite_is_frozen(tmp_path, overrides, capsys):
 
 def test_an_empty_out_dir_is_refused_not_taken_for_the_default(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)  # the default folder would be runs/suite/... under it
-    with pytest.raises(SystemExit), exits():
-        _run(tmp_path / "unused", "controller=coverage", "out_dir=")
-    assert capsys.readouterr().err.endswith(
+    assert _refusal(tmp_path / "unused", capsys, "controller=coverage", "out_dir=").endswith(
         "error: out_dir='' is not allowed: a folder (leave it out for runs/suite/<suite>/<controller or policy>)\n"
     )
     assert not any(tmp_path.iterdir())
 
 
 def test_each_scenario_checks_the_command_lines_overrides(tmp_path, capsys):
-    with pytest.raises(SystemExit) as exit_, exits():
-        _run(tmp_path, "controller=coverage", "env.world.n_agents=4")
-    assert exit_.value.code == 2 and capsys.readouterr().err.endswith(
+    assert _refusal(tmp_path, capsys, "controller=coverage", "env.world.n_agents=4").endswith(
         "error: env.world.n_agents cannot apply to an evaluation: the grid sets N, n, targets and Gaussians per cell "
         "(grid.*), one team per world, and deterministic is for checkpoints; remove them\n"
     )
@@ -160,16 +162,13 @@ def test_a_fault_writing_the_suites_record_is_one_line(tmp_path, capsys, monkeyp
         raise error
 
     monkeypatch.setattr(suite_module, "write_text_atomic", fail)
-    with pytest.raises(SystemExit) as exit_, exits():
-        _run(tmp_path, "controller=coverage")
-    assert exit_.value.code == 2 and capsys.readouterr().err.endswith(f"error: {line}\n")
+    assert _refusal(tmp_path, capsys, "controller=coverage").endswith(f"error: {line}\n")
 
 
 def test_a_bad_family_is_named_before_any_folder(tmp_path, capsys):
     bad = {**TINY, "families": {**TINY["families"], "psychic": {"targets": {"kind": "psychic"}}}}
-    with pytest.raises(SystemExit), exits():
-        _run(tmp_path, "controller=coverage", suite=bad)
-    assert "scenario.targets.kind='psychic' is not allowed" in capsys.readouterr().err
+    err = _refusal(tmp_path, capsys, "controller=coverage", suite=bad)
+    assert "scenario.targets.kind='psychic' is not allowed" in err
     assert not any(tmp_path.iterdir())
 
 
