@@ -45,8 +45,9 @@ def newest_checkpoint(run: Path) -> Path:
 
 
 # %%
-def carry(run: Path, lab: Path = LAB) -> Path:
-    """Copy `run`'s record and newest checkpoint into lab/<run's name>; return that folder."""
+def carry(run: Path, lab: Path = LAB, moments: bool = True) -> Path:
+    """Copy `run`'s record and newest checkpoint (without the optimiser's moments unless `moments`) into
+    lab/<run's name>; return that folder."""
     if not (run / "config.yaml").is_file():
         raise SystemExit(f"carry_runs: {str(run)!r} has no config.yaml (expected a training run folder)")
     checkpoint = newest_checkpoint(run)
@@ -54,7 +55,7 @@ def carry(run: Path, lab: Path = LAB) -> Path:
     if dest.resolve() == run.resolve():
         raise SystemExit(f"carry_runs: {str(run)!r} is already under {lab}")
     (dest / "checkpoints").mkdir(parents=True, exist_ok=True)
-    slim_checkpoint(checkpoint, dest / "checkpoints" / checkpoint.name, keep_moments=True)  # the rollout dropped
+    slim_checkpoint(checkpoint, dest / "checkpoints" / checkpoint.name, keep_moments=moments)  # the rollout dropped
     for name in RECORD:
         if (run / name).is_file():
             write_atomic(dest / name, lambda tmp, src=run / name: shutil.copyfile(src, tmp))
@@ -68,11 +69,16 @@ def carry(run: Path, lab: Path = LAB) -> Path:
 
 # %%
 def main(argv: list[str]) -> int:
-    if not argv:
-        print("usage: python analysis/carry_runs.py RUN_DIR [RUN_DIR ...]  (into runs/lab/<name>)", file=sys.stderr)
+    lab, moments = LAB, "--without-moments" not in argv  # a third of the size: for a tree that must stay small
+    argv = [arg for arg in argv if arg != "--without-moments"]
+    if argv[:1] == ["--to"] and len(argv) > 1:
+        lab, argv = Path(argv[1]), argv[2:]
+    if not argv or any(arg.startswith("--") for arg in argv):
+        print("usage: python analysis/carry_runs.py [--to DIR] [--without-moments] RUN_DIR [RUN_DIR ...]"
+              "  (into DIR/<name>, runs/lab by default)", file=sys.stderr)  # fmt: skip
         return 2
     for run in map(Path, argv):
-        dest = carry(run)
+        dest = carry(run, lab, moments)
         size = sum(p.stat().st_size for p in dest.rglob("*") if p.is_file())
         print(f"{run} -> {dest} ({newest_checkpoint(dest).name}, {size / 1e6:.1f} MB)")
     return 0

@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from searchrl.envs.rewards import make_reward
-from searchrl.policies.slim import ROLLOUT_STATE, weights_sha256
+from searchrl.policies.slim import ROLLOUT_STATE, is_slim, weights_sha256
 from searchrl.world.config import WorldConfig
 from searchrl.world.step import StepResult
 from tests.test_train import TINY, _compose, _run
@@ -78,6 +78,17 @@ def test_a_carried_run_holds_its_newest_checkpoint_and_resumes_elsewhere(tmp_pat
 
     carried_again = carry_runs.carry(elsewhere, lab)  # the newer checkpoint replaces the older
     assert sorted(p.name for p in (carried_again / "checkpoints").iterdir()) == ["step_2048.zip"]
+    assert not is_slim(carried_again / "checkpoints" / "step_2048.zip")  # Adam's moments carried
+
+    assert carry_runs.main(["--to", str(tmp_path / "gpu"), "--without-moments", str(elsewhere)]) == 0
+    light = tmp_path / "gpu" / "tiny" / "checkpoints" / "step_2048.zip"
+    assert is_slim(light) and weights_sha256(light) == weights_sha256(elsewhere / "checkpoints" / "step_2048.zip")
+
+
+@pytest.mark.parametrize("argv", [[], ["--to"], ["--to", "lab"], ["--moments", "run"]])
+def test_the_carry_command_refuses_what_it_does_not_know_in_one_line(argv, capsys):
+    assert carry_runs.main(argv) == 2
+    assert capsys.readouterr().err.count("\n") == 1
 
 
 def test_carrying_a_folder_without_checkpoints_is_refused_in_one_line(tmp_path):

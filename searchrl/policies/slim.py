@@ -35,7 +35,7 @@ def is_slim(path: str | Path) -> bool:
     """True when the checkpoint holds no optimiser moments and no last rollout."""
     with zipfile.ZipFile(path) as archive:
         data = json.loads(archive.read("data"))
-        optimizer = torch.load(io.BytesIO(archive.read("policy.optimizer.pth")), weights_only=True)
+        optimizer = torch.load(io.BytesIO(archive.read("policy.optimizer.pth")), map_location="cpu", weights_only=True)
     return not optimizer["state"] and all(data.get(key) is None for key in ROLLOUT_STATE)
 
 
@@ -50,7 +50,7 @@ def slim_checkpoint(path: str | Path, out: str | Path | None = None, keep_moment
             content = json.dumps(data | {key: None for key in ROLLOUT_STATE if key in data}, indent=4).encode()
         elif info.filename == "policy.optimizer.pth" and not keep_moments:
             buffer = io.BytesIO()  # Adam's moments and step counts emptied; the parameter groups (rates, ids) stay
-            torch.save(torch.load(io.BytesIO(content), weights_only=True) | {"state": {}}, buffer)
+            torch.save(torch.load(io.BytesIO(content), map_location="cpu", weights_only=True) | {"state": {}}, buffer)
             content = buffer.getvalue()
         slimmed.append((info, content))
 
