@@ -8,8 +8,9 @@ if TYPE_CHECKING:
     from searchrl.envs.parallel_env import SearchParallelEnv
 
 
-def parallel_env(config: Any = None, render_mode: str | None = None, scenario: Any = None, **world: Any
-                 ) -> SearchParallelEnv:  # fmt: skip
+def parallel_env(
+    config: Any = None, render_mode: str | None = None, scenario: Any = None, **world: Any
+) -> SearchParallelEnv:
     """A PettingZoo ParallelEnv over one search world: pass a `WorldConfig`, or its fields as keywords; `scenario` a
     `searchrl.world.scenario.Scenario` or its mapping ({"obstacles": {"kind": "iid", "density": 0.2}}), the paper's
     when None."""

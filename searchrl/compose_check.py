@@ -108,8 +108,11 @@ def _sweeper_storage(compose, config_name: str, overrides: list[str]) -> str | N
     from omegaconf import OmegaConf
 
     try:
-        url = OmegaConf.select(compose(config_name=config_name, overrides=overrides, return_hydra_config=True),
-                               "hydra.sweeper.storage", default=None)  # fmt: skip
+        url = OmegaConf.select(
+            compose(config_name=config_name, overrides=overrides, return_hydra_config=True),
+            "hydra.sweeper.storage",
+            default=None,
+        )
     except Exception:  # a composition error is the compose check's to name
         return None
     if not isinstance(url, str) or not url.startswith("sqlite:///"):

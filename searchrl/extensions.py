@@ -40,8 +40,10 @@ def import_modules(modules: Iterable[str]) -> None:
             importlib.import_module(str(name))
         except Exception as err:  # ModuleNotFoundError, or the module's own error while registering
             detail = str(err).splitlines()[0] if str(err) else ""
-            raise ConfigError(f"extensions: {name!r} cannot be imported ({type(err).__name__}: {detail}); give "
-                              "importable module names, e.g. extensions=[my_package.parts]") from None  # fmt: skip
+            raise ConfigError(
+                f"extensions: {name!r} cannot be imported ({type(err).__name__}: {detail}); give "
+                "importable module names, e.g. extensions=[my_package.parts]"
+            ) from None
 
 
 def import_from_command_line(argv: Iterable[str]) -> None:

@@ -21,25 +21,26 @@ SCENARIOS = CONF_DIR / "scenario"
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m searchrl.render", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    p.add_argument("--controller", choices=list(HEURISTICS),
-                   help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
+    p = argparse.ArgumentParser(
+        prog="python -m searchrl.render", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    p.add_argument(
+        "--controller", choices=list(HEURISTICS), help="a heuristic (default surfing), not with --checkpoint"
+    )
     p.add_argument("--checkpoint", help="a trained model.zip (its run's world settings are used)")
     p.add_argument("--model", choices=TRAINABLE_MODELS, help="world settings for heuristics (default b)")
     p.add_argument("--n", type=int, default=40, help="world side")
     p.add_argument("--agents", type=int, default=8)
     p.add_argument("--targets", type=int, default=8)
     p.add_argument("--distributions", type=int, default=16)
-    p.add_argument("--scenario", default="paper", choices=sorted(f.stem for f in SCENARIOS.glob("*.yaml")),
-                   help="what the reset draws besides the prior (conf/scenario/)")  # fmt: skip
+    scenarios = sorted(f.stem for f in SCENARIOS.glob("*.yaml"))  # conf/scenario/
+    p.add_argument("--scenario", default="paper", choices=scenarios, help="what the reset draws besides the prior")
     p.add_argument("--seed", type=int, default=0, help="the episode's seed (>= 0)")
     p.add_argument("--agent", type=int, default=0, help="whose belief is drawn")
     p.add_argument("--cell", type=int, default=6, help="pixels per cell (1 to 64)")
     p.add_argument("--fps", type=float, default=10.0, help="frames per second, 0.01 to 100 (whole 1/100 s)")
     p.add_argument("--out", default="runs/render/episode.gif")
-    p.add_argument("--device", default="cpu",
-                   help="torch device of a --checkpoint's network: cpu, cuda, cuda:<index>, mps or auto")  # fmt: skip
+    p.add_argument("--device", default="cpu", help="a --checkpoint's torch device: cpu, cuda, cuda:<i>, mps or auto")
     args = p.parse_args(argv)
     if args.checkpoint and (args.controller or args.model):
         given = " and ".join(f"--{k}" for k in ("controller", "model") if getattr(args, k))
@@ -65,8 +66,9 @@ def main(argv: list[str] | None = None) -> int:
     }
     try:
         check_writable(args.out, "--out")
-        config, scenario, factory = episode_setup(args.checkpoint, args.model, args.controller, sizes, args.scenario,
-                                                  args.device)  # fmt: skip
+        config, scenario, factory = episode_setup(
+            args.checkpoint, args.model, args.controller, sizes, args.scenario, args.device
+        )
     except (ConfigError, FileNotFoundError, ValueError) as err:
         p.error(str(err))
     state, frames = render_episode(config, scenario, factory, args.seed, args.agent, args.cell, args.fps, args.out)

@@ -23,9 +23,11 @@ from searchrl.world.config import ConfigError, WorldConfig
 # as well as a range `[20, 128]`. WorldConfig itself checks every value again when the run builds it.
 WorldSchema = make_dataclass(
     "WorldSchema",
-    [(f.name, Any if f.name == "world_size" else get_type_hints(WorldConfig)[f.name], field(default=f.default))
-     for f in fields(WorldConfig)],
-)  # fmt: skip
+    [
+        (f.name, Any if f.name == "world_size" else get_type_hints(WorldConfig)[f.name], field(default=f.default))
+        for f in fields(WorldConfig)
+    ],
+)
 WorldSchema.__module__ = __name__  # pickled by reference (submitit unpickles configs)
 
 
@@ -93,8 +95,10 @@ def check_group_choices(argv: list[str]) -> None:
                 continue
             listed = ", ".join(options) if len(options) <= 12 else f"the {len(options)} files of conf/{key}/"
             if key == "model" and option in HEURISTICS:
-                refuse(f"{arg} is not allowed: {option} is a heuristic controller, not a model; evaluate it with "
-                       f"`python -m searchrl.evaluate controller={option}`; models: {listed}")  # fmt: skip
+                refuse(
+                    f"{arg} is not allowed: {option} is a heuristic controller, not a model; evaluate it with "
+                    f"`python -m searchrl.evaluate controller={option}`; models: {listed}"
+                )
             hint = nearest(option, options, f"{key}=")
             refuse(f"{arg} is not allowed: conf/{key}/ has no {option!r}{hint}; options: {listed}")
 
@@ -156,8 +160,9 @@ def check_known_keys(cfg: DictConfig) -> None:
     """Raise ConfigError naming every key of `cfg` that no schema knows (`unknown_keys`), in one line."""
     unknown = unknown_keys(cfg)
     if unknown:
-        raise ConfigError(f"{'; '.join(unknown)} (docs/options.md lists the settings; Hydra adds a key given with "
-                          f"'+' without a word)")  # fmt: skip
+        raise ConfigError(
+            f"{'; '.join(unknown)} (docs/options.md lists the settings; Hydra adds a key given with '+' without a word)"
+        )
 
 
 def register_shared_configs() -> ConfigStore:
@@ -184,8 +189,9 @@ def _compose(config_name: str, group: str) -> DictConfig:
                 return compose(config_name=config_name)
         except MissingConfigException:
             options = ", ".join(group_options(group))
-            raise ConfigError(f"{group}={config_name.split('/', 1)[1]} does not exist; conf/{group}/ has "
-                              f"{options}") from None  # fmt: skip
+            raise ConfigError(
+                f"{group}={config_name.split('/', 1)[1]} does not exist; conf/{group}/ has {options}"
+            ) from None
 
     if GlobalHydra.instance().is_initialized():
         return composed()

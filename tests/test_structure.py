@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import ast
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,6 +72,24 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
         if v not in index:
             visit(v)
     return found
+
+
+def test_the_package_is_formatted_and_linted():
+    """ruff's formatter and linter on the whole package (ruff pinned to a minor release in the dev extra), with no
+    marker left that keeps the formatter off a line."""
+    for command in (["format", "--check", "--quiet"], ["check", "--quiet"]):
+        done = subprocess.run(
+            [sys.executable, "-m", "ruff", *command, "searchrl"], cwd=ROOT, capture_output=True, text=True
+        )
+        assert done.returncode == 0, f"ruff {' '.join(command)} searchrl:\n{done.stdout}{done.stderr}"
+    marker = re.compile(r"#\s*fmt:\s*(skip|off)")
+    kept = [
+        f"{p.relative_to(ROOT)}:{n}"
+        for p in MODULES.values()
+        for n, line in enumerate(p.read_text().splitlines(), 1)
+        if marker.search(line)
+    ]
+    assert not kept, f"formatter markers in the package: {kept}"
 
 
 def test_entry_points_are_short():

@@ -28,8 +28,16 @@ def main(argv: list[str] | None = None) -> int:
     elif args.suite == "eval":
         from searchrl.bench import evaluate
 
-        rows = evaluate.run(args.controller or "surfing", args.maps, args.checkpoint, args.threads, device, log=log,
-                            repeats=args.repeats, cells=args.cells)  # fmt: skip
+        rows = evaluate.run(
+            args.controller or "surfing",
+            args.maps,
+            args.checkpoint,
+            args.threads,
+            device,
+            log=log,
+            repeats=args.repeats,
+            cells=args.cells,
+        )
     elif args.suite == "policy":
         from searchrl.bench import policy
 
@@ -39,8 +47,9 @@ def main(argv: list[str] | None = None) -> int:
         from searchrl.world.config import ConfigError
 
         try:  # the recipe's settings (a missing device among them) are checked before any work
-            rows = train.run(args.updates, args.threads, args.network, args.experiment, args.device, args.machine,
-                             log=log)  # fmt: skip
+            rows = train.run(
+                args.updates, args.threads, args.network, args.experiment, args.device, args.machine, log=log
+            )
         except ConfigError as err:
             parser.error(str(err))
     if args.json:

@@ -22,9 +22,16 @@ _GRID = GridConfig()  # the evaluation's own grid: the bench's cells are its cel
 GRID = table2_cells(_GRID.world_sizes, _GRID.n_targets, _GRID.n_distributions, _GRID.max_agents)
 
 
-def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = None, threads: int = 2,
-        device: str = "cpu", log: TextIO | None = None, repeats: int = 1, cells: str | None = None,
-        ) -> list[dict]:  # fmt: skip
+def run(
+    controller: str = "surfing",
+    maps: int = 10,
+    checkpoint: str | None = None,
+    threads: int = 2,
+    device: str = "cpu",
+    log: TextIO | None = None,
+    repeats: int = 1,
+    cells: str | None = None,
+) -> list[dict]:
     """One row: agent-steps/s of `controller`, or of `checkpoint`'s policy with its network on `device` (a checked
     one, searchrl/policies/device.py), over the Table 2 cells (`cells`, comma-separated keys: all by default) with
     `maps` maps of `repeats` repeats, as the evaluation runs them (its memory budget per batch)."""
@@ -51,20 +58,31 @@ def run(controller: str = "surfing", maps: int = 10, checkpoint: str | None = No
             steps[0] += agent_steps
             world_steps[0] += slots
 
-        frame = run_cell(factory, world, cell, index, maps, repeats, 7_000_000, needs_observation=observed,
-                         on_steps=tally)  # fmt: skip
+        frame = run_cell(
+            factory, world, cell, index, maps, repeats, 7_000_000, needs_observation=observed, on_steps=tally
+        )
         episode_steps += int(frame["L"].sum())
     elapsed = time.perf_counter() - start
     rate = steps[0] / elapsed
     projected = elapsed * FULL_EPISODES_PER_CELL / (maps * repeats)
     what = "table2" if keys is None else "+".join(sorted(keys))
-    row = {"case": f"{controller}_{what}_{maps}maps_{repeats}repeats", "engine": "evaluate", "device": str(device),
-           "agent_steps_per_s": round(rate, 1), "seconds": round(elapsed, 1),
-           "projected_full_grid_s": round(projected, 1) if keys is None else None, "world_steps": world_steps[0],
-           "episode_steps": episode_steps, "busy_share": round(episode_steps / max(1, world_steps[0]), 4)}  # fmt: skip
+    row = {
+        "case": f"{controller}_{what}_{maps}maps_{repeats}repeats",
+        "engine": "evaluate",
+        "device": str(device),
+        "agent_steps_per_s": round(rate, 1),
+        "seconds": round(elapsed, 1),
+        "projected_full_grid_s": round(projected, 1) if keys is None else None,
+        "world_steps": world_steps[0],
+        "episode_steps": episode_steps,
+        "busy_share": round(episode_steps / max(1, world_steps[0]), 4),
+    }
     if log:
-        print(f"{row['case']}: {rate:,.0f} agent-steps/s over {len(GRID) if keys is None else len(keys)} cells "
-              f"({elapsed:.1f} s); {row['busy_share']:.0%} of the worlds' steps in an episode", file=log)  # fmt: skip
+        print(
+            f"{row['case']}: {rate:,.0f} agent-steps/s over {len(GRID) if keys is None else len(keys)} cells "
+            f"({elapsed:.1f} s); {row['busy_share']:.0%} of the worlds' steps in an episode",
+            file=log,
+        )
         if keys is None:
             print(f"full grid (3000 maps x 5 repeats) projected {projected / 60:.1f} min, limit 20 min", file=log)
     return [row]

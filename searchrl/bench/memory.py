@@ -29,5 +29,6 @@ def run(log: TextIO | None = None) -> list[dict]:
             f"{state_mb:,.0f} MB, ratio to limit {peak_mb / LIMIT_MB:.2f}",
             file=log,
         )
-    return [{"case": "n160_N256_K1", "engine": "batched", "peak_rss_mb": round(peak_mb, 1),
-             "state_mb": round(state_mb, 1)}]  # fmt: skip
+    return [
+        {"case": "n160_N256_K1", "engine": "batched", "peak_rss_mb": round(peak_mb, 1), "state_mb": round(state_mb, 1)}
+    ]

@@ -36,9 +36,13 @@ def parser() -> argparse.ArgumentParser:
                 default=None if name == "train" else 2,
                 help="torch threads (1 to 256)" + (": the machine's, else 2" if name == "train" else ""),
             )
-    sub["world"].add_argument("--threads", dest="world_threads", action="append", metavar="N[,N...]",
-                              help="numba threads, each measured in the same run: 2, 1,2 or repeated (default: all)"
-                              )  # fmt: skip
+    sub["world"].add_argument(
+        "--threads",
+        dest="world_threads",
+        action="append",
+        metavar="N[,N...]",
+        help="numba threads, each measured in the same run: 2, 1,2 or repeated (default: all)",
+    )
     sub["train"].add_argument("--updates", type=int, default=4, help="timed rollouts + updates (1 to 1000)")
     sub["train"].add_argument("--network", choices=["paper", "small"], default="paper", help="network config")
     sub["train"].add_argument("--experiment", help="a recipe of conf/experiment/ instead of model B with --network")
@@ -48,12 +52,14 @@ def parser() -> argparse.ArgumentParser:
         choices=sorted(p.stem for p in (CONF_DIR / "machine").glob("*.yaml")),
         help="settings for a machine (conf/machine/): slots per step, minibatch, threads, device",
     )
-    sub["eval"].add_argument("--controller", choices=list(HEURISTICS),
-                             help="a heuristic (default surfing); not with --checkpoint")  # fmt: skip
+    sub["eval"].add_argument(
+        "--controller", choices=list(HEURISTICS), help="a heuristic (default surfing); not with --checkpoint"
+    )
     sub["eval"].add_argument("--maps", type=int, default=10, help="maps per cell (1 to 1000)")
     sub["eval"].add_argument("--repeats", type=int, default=1, help="episodes per map (1 to 100; the grid's 5)")
-    sub["eval"].add_argument("--cells", metavar="KEY[,KEY...]",
-                             help="only these Table 2 cells, e.g. n160_N256,n80_N128 (default: all 30)")  # fmt: skip
+    sub["eval"].add_argument(
+        "--cells", metavar="KEY[,KEY...]", help="only these Table 2 cells, e.g. n160_N256,n80_N128 (default: all 30)"
+    )
     sub["eval"].add_argument("--checkpoint", help="a policy model.zip instead of --controller")
     sub["policy"].add_argument("--checkpoint", required=True, help="a model.zip, e.g. runs/reference/b/model.zip")
     for name in ("eval", "policy"):  # of a checkpoint's network: a heuristic runs on the CPU

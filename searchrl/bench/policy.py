@@ -31,8 +31,14 @@ def _rate(act, batch: int, seconds: float) -> float:
     return calls * batch / elapsed
 
 
-def run(checkpoint: str, threads: int = 2, worlds: int = 128, seconds: float = 3.0, device: str = "cpu",
-        log: TextIO | None = None) -> list[dict]:  # fmt: skip
+def run(
+    checkpoint: str,
+    threads: int = 2,
+    worlds: int = 128,
+    seconds: float = 3.0,
+    device: str = "cpu",
+    log: TextIO | None = None,
+) -> list[dict]:
     """Two rows, SB3's predict and the actor's controller on the same batch, each with its network on `device` (a
     checked one, searchrl/policies/device.py): agent-steps/s, and the actor's speedup."""
     use_threads(threads, network_on_cpu=str(device) == "cpu")
@@ -56,11 +62,20 @@ def run(checkpoint: str, threads: int = 2, worlds: int = 128, seconds: float = 3
     controller.reset(state, np.ones(worlds, bool))
     rows = []
     for name, act in (("sb3_predict", sb3), ("actor", lambda: controller.act(state, maps, vector))):
-        rows.append({"case": f"policy_n80_N32_batch{batch}_threads{threads}", "engine": name, "device": str(device),
-                     "agent_steps_per_s": round(_rate(act, batch, seconds), 1)})  # fmt: skip
+        rows.append(
+            {
+                "case": f"policy_n80_N32_batch{batch}_threads{threads}",
+                "engine": name,
+                "device": str(device),
+                "agent_steps_per_s": round(_rate(act, batch, seconds), 1),
+            }
+        )
     speedup = rows[1]["agent_steps_per_s"] / rows[0]["agent_steps_per_s"]
     rows[1]["speedup"] = round(speedup, 2)
     if log:
-        print(f"{rows[0]['case']}: SB3 predict {rows[0]['agent_steps_per_s']:,.0f} agent-steps/s, traced actor "
-              f"{rows[1]['agent_steps_per_s']:,.0f} ({speedup:.2f}x)", file=log)  # fmt: skip
+        print(
+            f"{rows[0]['case']}: SB3 predict {rows[0]['agent_steps_per_s']:,.0f} agent-steps/s, traced actor "
+            f"{rows[1]['agent_steps_per_s']:,.0f} ({speedup:.2f}x)",
+            file=log,
+        )
     return rows

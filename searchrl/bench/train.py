@@ -64,8 +64,15 @@ def _timed_batches(get: Callable, total: list[float], sync: Callable[[], None]) 
     return timed
 
 
-def run(updates: int = 4, threads: int | None = None, network: str = "paper", experiment: str | None = None,
-        device: str | None = None, machine: str | None = None, log: TextIO | None = None) -> list[dict]:  # fmt: skip
+def run(
+    updates: int = 4,
+    threads: int | None = None,
+    network: str = "paper",
+    experiment: str | None = None,
+    device: str | None = None,
+    machine: str | None = None,
+    log: TextIO | None = None,
+) -> list[dict]:
     """One run of `updates` rollouts (plus one warm-up rollout, not timed); `experiment` composes
     `+experiment=<name>` (its own model and network) instead of model B on the paper's recipe with `network`;
     `machine` composes `machine=<name>` (conf/machine/), whose threads and device `threads` and `device` replace."""
@@ -115,29 +122,41 @@ def run(updates: int = 4, threads: int | None = None, network: str = "paper", ex
     name = f"recurrent_ppo_{network}_model_b_K{plan.settings.env.n_worlds}_N{plan.world.n_agents}"
     name = experiment.replace("/", "_") if experiment else name  # term/b -> term_b
     slots = sum(k * world.n_agents for world, k in plan.groups)
-    row = {"case": f"{name}_{machine or torch.device(device).type}_threads{threads}", "engine": "sb3",
-           "device": device_name(device), "slots": slots, "batch_size": int(model.batch_size),
-           "agent_steps_per_s": round(fps, 1), "raw_bound_agent_steps_per_s": round(raw, 1),
-           "ratio_to_raw_bound": round(fps / raw, 3),
-           "raw_acting_agent_steps_per_s": round(rollout / acting_s, 1),
-           "raw_update_agent_steps_per_s": round(rollout / update_s, 1),
-           "acting_ratio": round(acting_s * updates / spent["acting"][0], 3),
-           "update_ratio": round(update_s * updates / in_update, 3)}  # fmt: skip
+    row = {
+        "case": f"{name}_{machine or torch.device(device).type}_threads{threads}",
+        "engine": "sb3",
+        "device": device_name(device),
+        "slots": slots,
+        "batch_size": int(model.batch_size),
+        "agent_steps_per_s": round(fps, 1),
+        "raw_bound_agent_steps_per_s": round(raw, 1),
+        "ratio_to_raw_bound": round(fps / raw, 3),
+        "raw_acting_agent_steps_per_s": round(rollout / acting_s, 1),
+        "raw_update_agent_steps_per_s": round(rollout / update_s, 1),
+        "acting_ratio": round(acting_s * updates / spent["acting"][0], 3),
+        "update_ratio": round(update_s * updates / in_update, 3),
+    }
     row.update({f"{part}_share": round(total[0] / wall, 4) for part, total in spent.items()})
     if log:
         shares = ", ".join(f"{part} {100 * row[f'{part}_share']:.1f}%" for part in spent)
-        print(f"{row['case']} on {row['device']}: {fps:,.0f} agent-steps/s over {updates} updates of {rollout} "
-              f"agent-steps ({slots} slots, minibatch {model.batch_size}); wall time: {shares}, the rest SB3's "
-              "bookkeeping", file=log)  # fmt: skip
-        print(f"  raw bound (the network alone, in plain torch, after each update: acting on its rollout, "
-              f"{model.n_epochs} epochs on its minibatches): {raw:,.0f} agent-steps/s; the recipe at {fps / raw:.2f} "
-              f"of it; its acting at {row['acting_ratio']:.2f} and its update at {row['update_ratio']:.2f} of theirs",
-              file=log)  # fmt: skip
+        print(
+            f"{row['case']} on {row['device']}: {fps:,.0f} agent-steps/s over {updates} updates of {rollout} "
+            f"agent-steps ({slots} slots, minibatch {model.batch_size}); wall time: {shares}, the rest SB3's "
+            "bookkeeping",
+            file=log,
+        )
+        print(
+            f"  raw bound (the network alone, in plain torch, after each update: acting on its rollout, "
+            f"{model.n_epochs} epochs on its minibatches): {raw:,.0f} agent-steps/s; the recipe at {fps / raw:.2f} "
+            f"of it; its acting at {row['acting_ratio']:.2f} and its update at {row['update_ratio']:.2f} of theirs",
+            file=log,
+        )
     return [row]
 
 
-def _then_bound(train: Callable, model, sync: Callable[[], None], acting: list[float], update: list[float],
-                bounding: list[float]) -> Callable:  # fmt: skip
+def _then_bound(
+    train: Callable, model, sync: Callable[[], None], acting: list[float], update: list[float], bounding: list[float]
+) -> Callable:
     """`train` followed by the raw bound on the rollout it trained on: its acting and update seconds added to
     `acting` and `update`, the wall time the bound took to `bounding`; the policy's parameters, torch's random state
     and numpy's global one (the rollout buffer's minibatch order) are put back, so the recipe trains as it would
@@ -166,8 +185,13 @@ def raw_acting_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
     policy, buffer = model.policy, model.rollout_buffer
     policy.set_training_mode(False)
     data, _ = next(_untimed_get(buffer)(None))  # every slot, sequence-major: (n_envs·n_steps, ...)
-    steps = [{key: obs.reshape(buffer.n_envs, buffer.buffer_size, *obs.shape[1:])[:, t]
-              for key, obs in data.observations.items()} for t in range(buffer.buffer_size)]  # fmt: skip
+    steps = [
+        {
+            key: obs.reshape(buffer.n_envs, buffer.buffer_size, *obs.shape[1:])[:, t]
+            for key, obs in data.observations.items()
+        }
+        for t in range(buffer.buffer_size)
+    ]
     starts = data.episode_starts.reshape(buffer.n_envs, buffer.buffer_size)
 
     def rollout() -> None:
@@ -196,8 +220,10 @@ def raw_update_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
     policy.set_training_mode(True)
     optimizer = torch.optim.Adam(policy.parameters(), lr=1e-5)
     minibatches = _untimed_get(model.rollout_buffer)(model.batch_size)
-    batches = [(data.observations, data.lstm_states, data.episode_starts, data.actions.long().flatten(),
-                data.mask > 1e-8) for data in map(_samples, minibatches)]  # fmt: skip
+    batches = [
+        (data.observations, data.lstm_states, data.episode_starts, data.actions.long().flatten(), data.mask > 1e-8)
+        for data in map(_samples, minibatches)
+    ]
 
     def step(obs, states, starts, actions, mask) -> None:
         features = policy.features_extractor(obs)  # SearchCNN itself (SB3 would only cast to float)

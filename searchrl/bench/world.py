@@ -54,12 +54,20 @@ def thread_counts(text: str) -> list[int]:
 def case_config(n: int, n_agents: int) -> WorldConfig:
     """Model B settings on a Table 2 cell (communication on, Φ = 5)."""
     targets, dists = _TABLE2[n]
-    return WorldConfig(world_size=(n, n), n_targets=(targets, targets), n_distributions=(dists, dists),
-                       n_agents=n_agents)  # fmt: skip
+    return WorldConfig(
+        world_size=(n, n), n_targets=(targets, targets), n_distributions=(dists, dists), n_agents=n_agents
+    )
 
 
-def _steps(config: WorldConfig, state: WorldState, step_fn: Callable, observe_fn: Callable, rng: np.random.Generator,
-           seconds: float, min_steps: int) -> tuple[float, dict[str, float]]:  # fmt: skip
+def _steps(
+    config: WorldConfig,
+    state: WorldState,
+    step_fn: Callable,
+    observe_fn: Callable,
+    rng: np.random.Generator,
+    seconds: float,
+    min_steps: int,
+) -> tuple[float, dict[str, float]]:
     """Agent-steps/s of one window: step + observe + reset of finished worlds, random actions (drawn
     `ACTION_BLOCK` steps at a time); and the shares of the window's wall time (`PARTS`) spent drawing the actions,
     stepping, observing and resetting. Each part runs from the end of the one before, so the shares sum to 1: the
@@ -89,9 +97,16 @@ def _steps(config: WorldConfig, state: WorldState, step_fn: Callable, observe_fn
     return steps * n_worlds * config.n_agents / wall, {part: took / wall for part, took in spent.items()}
 
 
-def measure(config: WorldConfig, n_worlds: int, step_fn: Callable, observe_fn: Callable, seconds: float,
-            min_steps: int = 1, repeats: int = 3, threads: Sequence[int] = (0,)
-            ) -> dict[int, tuple[float, dict[str, float]]]:  # fmt: skip
+def measure(
+    config: WorldConfig,
+    n_worlds: int,
+    step_fn: Callable,
+    observe_fn: Callable,
+    seconds: float,
+    min_steps: int = 1,
+    repeats: int = 3,
+    threads: Sequence[int] = (0,),
+) -> dict[int, tuple[float, dict[str, float]]]:
     """(agent-steps/s, the shares of its wall time by `PARTS`) of step + observe + reset of finished worlds, random
     actions, at each numba thread count of `threads` (0: leave numba's as it is), after one warm-up step at each.
 
@@ -132,14 +147,22 @@ def run(seconds: float = 3.0, threads: Sequence[int] | None = None, log: TextIO 
     for name, n, n_agents, n_worlds in CASES:
         config = case_config(n, n_agents)
         buffers = observation_buffers(config, n_worlds)  # reused, as SearchWorld does
-        speeds = measure(config, n_worlds, step, lambda c, s, b=buffers: observe(c, s, b), seconds, min_steps=20,
-                         threads=threads)  # fmt: skip
+        speeds = measure(
+            config, n_worlds, step, lambda c, s, b=buffers: observe(c, s, b), seconds, min_steps=20, threads=threads
+        )
         first, first_shares = speeds[threads[0]]
         parts = []
         for t in threads:
             speed, shares = speeds[t]
-            rows.append({"case": name, "engine": "batched", "threads": t, "agent_steps_per_s": round(speed, 1),
-                         **{f"{part}_share": round(share, 4) for part, share in shares.items()}})  # fmt: skip
+            rows.append(
+                {
+                    "case": name,
+                    "engine": "batched",
+                    "threads": t,
+                    "agent_steps_per_s": round(speed, 1),
+                    **{f"{part}_share": round(share, 4) for part, share in shares.items()},
+                }
+            )
             scaling = f", {speed / first:.2f}x" if t != threads[0] else ""
             parts.append(f"{speed:>12,.0f} ({t} thread{'s' if t > 1 else ''}{scaling})")
         line = f"{name:>14}: batched {' '.join(parts)} agent-steps/s"

@@ -152,8 +152,17 @@ class GeometricCoverage:
         self, state: WorldState, maps: np.ndarray, vector: np.ndarray, active: np.ndarray | None = None
     ) -> np.ndarray:
         out = np.empty((state.n_worlds, state.n_agents), np.int64)
-        coverage_actions(state.pos, state.occupant, state.blocked, state.halo, self.waypoints, self.n_points,
-                         self.index, self.config.diagonal, out)  # fmt: skip
+        coverage_actions(
+            state.pos,
+            state.occupant,
+            state.blocked,
+            state.halo,
+            self.waypoints,
+            self.n_points,
+            self.index,
+            self.config.diagonal,
+            out,
+        )
         return out
 
 

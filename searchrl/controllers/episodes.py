@@ -39,8 +39,9 @@ class EpisodeQueue:
     world whose episode ends starts the next one waiting (`start`). `playing` (K,) int64 holds the episode (an
     index into the pairs) each world plays, `quality` (episodes,) the prior quality of each episode begun."""
 
-    def __init__(self, map_seeds: Sequence[int], keys: Sequence[Sequence[int]], n_worlds: int,
-                 controller_streams: WorldStreams) -> None:  # fmt: skip
+    def __init__(
+        self, map_seeds: Sequence[int], keys: Sequence[Sequence[int]], n_worlds: int, controller_streams: WorldStreams
+    ) -> None:
         self.map_seeds, self.keys, self.controller_streams = list(map_seeds), list(keys), controller_streams
         self.playing = np.arange(n_worlds)
         self.quality = np.full(len(self.map_seeds), np.nan)

@@ -112,11 +112,21 @@ class FootprintGreedy(FallbackHeuristic):
     """Batched footprint-greedy controller; parameters are config values of `controller=greedy`."""
 
     # Defaults are GreedyConfig's (the schema `controller=greedy` composes), read from it, written once.
-    def __init__(self, config: WorldConfig, horizon: int = GreedyConfig.horizon,
-                 discount: float = GreedyConfig.discount, w_p: float = GreedyConfig.w_p, w_u: float = GreedyConfig.w_u,
-                 w_t: float = GreedyConfig.w_t, contested: float = GreedyConfig.contested,
-                 reach: float = GreedyConfig.reach, seen: bool = GreedyConfig.seen, age: float = GreedyConfig.age,
-                 hedge: float = GreedyConfig.hedge, seed: int | WorldStreams = 0) -> None:  # fmt: skip
+    def __init__(
+        self,
+        config: WorldConfig,
+        horizon: int = GreedyConfig.horizon,
+        discount: float = GreedyConfig.discount,
+        w_p: float = GreedyConfig.w_p,
+        w_u: float = GreedyConfig.w_u,
+        w_t: float = GreedyConfig.w_t,
+        contested: float = GreedyConfig.contested,
+        reach: float = GreedyConfig.reach,
+        seen: bool = GreedyConfig.seen,
+        age: float = GreedyConfig.age,
+        hedge: float = GreedyConfig.hedge,
+        seed: int | WorldStreams = 0,
+    ) -> None:
         view = config.fov // 2
         if not 1 <= horizon <= view:
             raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the view)")
@@ -144,8 +154,19 @@ class FootprintGreedy(FallbackHeuristic):
         self.reach = float(reach)
         self.seen = bool(seen)
         self.age, self.hedge = float(age), float(hedge)
-        self._params = GreedyParams(MOVES, config.n_actions, GAMMA, self.horizon, self.discount, self.w_p, self.w_u,
-                                    self.w_t, view, self.contested, self.hedge)  # fmt: skip
+        self._params = GreedyParams(
+            MOVES,
+            config.n_actions,
+            GAMMA,
+            self.horizon,
+            self.discount,
+            self.w_p,
+            self.w_u,
+            self.w_t,
+            view,
+            self.contested,
+            self.hedge,
+        )
         # GreedyMemory's arrays, sized on the first reset
         self._weights, self._seen = np.ones((0, 0, 0)), np.ones((0, 0, 0, 0), np.float32)
         self._known, self._rates, self._flat = np.zeros((0, 0, 0, 0), np.int32), np.zeros(0), np.zeros(0)
@@ -178,8 +199,17 @@ class FootprintGreedy(FallbackHeuristic):
         if self._weights.shape != state.blocked.shape or self._seen.shape[:2] != (state.n_worlds, state.n_agents):
             self.reset(state, np.ones(state.n_worlds, bool))
         if self.seen or self.age > 0:
-            remember_sightings(state.arrays(), SUPPORT, self._seen, self._known, self.config.fov // 2,
-                               self.config.explicit_area // 2, self.age > 0, 0, state.n_worlds)  # fmt: skip
+            remember_sightings(
+                state.arrays(),
+                SUPPORT,
+                self._seen,
+                self._known,
+                self.config.fov // 2,
+                self.config.explicit_area // 2,
+                self.age > 0,
+                0,
+                state.n_worlds,
+            )
         return GreedyMemory(self._weights, self._seen, self._known, self._rates, self._flat)
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:

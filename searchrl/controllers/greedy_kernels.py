@@ -73,8 +73,9 @@ def cell_information(params, belief, prior, flat, sp, su, seen, known, rate, now
     seen_factor = seen[k, i, r, c] if seen.shape[2] > 0 else 1.0
     fresh = freshness(rate, now, known[k, i, r, c]) if known.shape[2] > 0 else 1.0
     flat_k = flat[k] if params.hedge > 0.0 else 0.0
-    return information(params, belief[k, i, 0, r, c], belief[k, i, 1, r, c], prior[k, r, c], flat_k, sp, su,
-                       seen_factor, fresh)  # fmt: skip
+    return information(
+        params, belief[k, i, 0, r, c], belief[k, i, 1, r, c], prior[k, r, c], flat_k, sp, su, seen_factor, fresh
+    )
 
 
 @njit(cache=True)
@@ -113,8 +114,17 @@ def view_values(w, params, memory, k, i, r0, c0, others, n_others, values):
             # cell_information's reads, done here: a call taking the arrays would count them in and out per cell
             seen_factor = seen[k, i, rr, cc] if has_seen else 1.0
             fresh = freshness(rate, now, known[k, i, rr, cc]) if has_known else 1.0
-            values[2, vr, vc] = information(params, belief[k, i, 0, rr, cc], belief[k, i, 1, rr, cc], prior[k, rr, cc],
-                                            flat_k, sp, su, seen_factor, fresh)  # fmt: skip
+            values[2, vr, vc] = information(
+                params,
+                belief[k, i, 0, rr, cc],
+                belief[k, i, 1, rr, cc],
+                prior[k, rr, cc],
+                flat_k,
+                sp,
+                su,
+                seen_factor,
+                fresh,
+            )
 
 
 @njit(cache=True, inline="always")  # inlined: called per move and step ahead

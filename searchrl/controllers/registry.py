@@ -78,8 +78,13 @@ def heuristic(name: object, key: str = "controller") -> Heuristic:
     return HEURISTICS[name]
 
 
-def make_controller(name: str, config: WorldConfig, seed: int | WorldStreams = 0,
-                    settings: dict[str, Any] | None = None, key: str = "controller") -> Controller:  # fmt: skip
+def make_controller(
+    name: str,
+    config: WorldConfig,
+    seed: int | WorldStreams = 0,
+    settings: dict[str, Any] | None = None,
+    key: str = "controller",
+) -> Controller:
     """The controller `name` in the world `config`: its schema's defaults, overridden by `settings` (plain values
     without `name`), seeded with `seed` where it draws random moves. ConfigError for an unknown name (naming `key`)
     or setting; the class's own ValueError for a value it refuses."""

@@ -114,9 +114,15 @@ class InformationSurfing(FallbackHeuristic):
     """Batched information-surfing controller; parameters are config values of `controller=surfing`."""
 
     # Defaults are SurfingConfig's (the schema `controller=surfing` composes), read from it, written once.
-    def __init__(self, config: WorldConfig, scales: tuple[int, ...] | None = None, w_p: float = SurfingConfig.w_p,
-                 w_u: float = SurfingConfig.w_u, repulsion: float = SurfingConfig.repulsion,
-                 seed: int | WorldStreams = 0) -> None:  # fmt: skip
+    def __init__(
+        self,
+        config: WorldConfig,
+        scales: tuple[int, ...] | None = None,
+        w_p: float = SurfingConfig.w_p,
+        w_u: float = SurfingConfig.w_u,
+        repulsion: float = SurfingConfig.repulsion,
+        seed: int | WorldStreams = 0,
+    ) -> None:
         scales = SurfingConfig().scales if scales is None else scales
         if not scales or min(scales) < 1:
             raise ValueError(f"scales={list(scales)!r} is not allowed: one or more positive block sizes")
@@ -130,6 +136,14 @@ class InformationSurfing(FallbackHeuristic):
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
         surfing_actions(
-            state.arrays(), MOVES, self.config.n_actions, self.scales, self.w_p, self.w_u, self.repulsion,
-            self.config.fov // 2, fallback, out,
-        )  # fmt: skip
+            state.arrays(),
+            MOVES,
+            self.config.n_actions,
+            self.scales,
+            self.w_p,
+            self.w_u,
+            self.repulsion,
+            self.config.fov // 2,
+            fallback,
+            out,
+        )

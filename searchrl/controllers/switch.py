@@ -55,8 +55,9 @@ class EvidenceSwitch:
     """Batched evidence switch (module docstring); per world, target-greedy (reach 2, the shipped policies' teacher)
     until the evidence turns, then coverage."""
 
-    def __init__(self, config: WorldConfig, threshold: float = SwitchConfig.threshold,
-                 seed: int | WorldStreams = 0) -> None:  # fmt: skip
+    def __init__(
+        self, config: WorldConfig, threshold: float = SwitchConfig.threshold, seed: int | WorldStreams = 0
+    ) -> None:
         if not 0 <= threshold <= 1:
             raise ValueError(f"threshold={threshold!r} is not allowed: 0 <= threshold <= 1 (0: never switch)")
         self.config, self.threshold = config, float(threshold)

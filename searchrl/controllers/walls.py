@@ -122,8 +122,9 @@ def _path_greedy_span(w, params, memory, radius, floor, fallback, out, start, st
             rate = rate_all[k] if memory.known.shape[2] > 0 else 0.0
             for q in range(1, reached):
                 r, c = queue[q, 0], queue[q, 1]
-                info = cell_information(params, w.belief, w.p, memory.flat, sp, su, memory.seen, memory.known,
-                                        rate, now_all[k], k, i, r, c)  # fmt: skip
+                info = cell_information(
+                    params, w.belief, w.p, memory.flat, sp, su, memory.seen, memory.known, rate, now_all[k], k, i, r, c
+                )
                 if info > floor[k]:
                     a = first[r, c]
                     if occupant[k, r0 + MOVES[a, 0], c0 + MOVES[a, 1]] < 0:
@@ -149,9 +150,14 @@ class PathGreedyConfig(ControllerConfig):
 class PathGreedy(FootprintGreedy):
     """Batched PathGreedy (module docstring); its information is target-greedy's (w_t = 1, reach 2)."""
 
-    def __init__(self, config: WorldConfig, radius: int = PathGreedyConfig.radius,
-                 discount: float = PathGreedyConfig.discount, worth: float = PathGreedyConfig.worth,
-                 seed: int | WorldStreams = 0) -> None:  # fmt: skip
+    def __init__(
+        self,
+        config: WorldConfig,
+        radius: int = PathGreedyConfig.radius,
+        discount: float = PathGreedyConfig.discount,
+        worth: float = PathGreedyConfig.worth,
+        seed: int | WorldStreams = 0,
+    ) -> None:
         if not 1 <= radius <= config.fov // 2:
             raise ValueError(f"radius={radius!r} is not allowed: 1 <= radius <= {config.fov // 2} (half the view)")
         if not 0 < worth <= 1:
@@ -167,8 +173,9 @@ class PathGreedy(FootprintGreedy):
         self._floor[mask] = self.worth * self.prior_information(state)[mask]
 
     def fill(self, state: WorldState, fallback: np.ndarray, out: np.ndarray) -> None:
-        path_greedy_actions(state.arrays(), self._params, self.remember(state), self.radius, self._floor, fallback, out,
-                            world_threads())  # fmt: skip
+        path_greedy_actions(
+            state.arrays(), self._params, self.remember(state), self.radius, self._floor, fallback, out, world_threads()
+        )
 
 
 @njit(cache=True)
@@ -203,8 +210,7 @@ class SweepConfig(ControllerConfig):
 class SweepCoverage(FallbackHeuristic):
     """Batched wall-aware coverage (module docstring); agents with nothing left to sweep move at random."""
 
-    def __init__(self, config: WorldConfig, spacing: int = SweepConfig.spacing,
-                 seed: int | WorldStreams = 0) -> None:  # fmt: skip
+    def __init__(self, config: WorldConfig, spacing: int = SweepConfig.spacing, seed: int | WorldStreams = 0) -> None:
         if not 0 <= spacing <= 16:
             raise ValueError(f"spacing={spacing!r} is not allowed: 0 <= spacing <= 16 (cells)")
         super().__init__(config, seed)
@@ -223,7 +229,21 @@ class SweepCoverage(FallbackHeuristic):
         sweep_footprints(state.pos, state.halo, self.left, SUPPORT_DR, SUPPORT_DC, SUPPORT_G)
         side = state.blocked.shape[1]
         if self._scratch is None or self._scratch[0].shape != (side, side):
-            self._scratch = (np.full((side, side), -1, np.int32), np.zeros((side, side), np.int64),
-                             np.zeros((side * side, 2), np.int64), np.zeros((side, side), np.bool_))  # fmt: skip
-        sweep_actions(state.pos, state.occupant, state.blocked, state.halo, self.left, self.spacing,
-                      self.config.n_actions, fallback, out, *self._scratch)  # fmt: skip
+            self._scratch = (
+                np.full((side, side), -1, np.int32),
+                np.zeros((side, side), np.int64),
+                np.zeros((side * side, 2), np.int64),
+                np.zeros((side, side), np.bool_),
+            )
+        sweep_actions(
+            state.pos,
+            state.occupant,
+            state.blocked,
+            state.halo,
+            self.left,
+            self.spacing,
+            self.config.n_actions,
+            fallback,
+            out,
+            *self._scratch,
+        )

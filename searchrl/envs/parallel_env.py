@@ -30,8 +30,13 @@ class SearchParallelEnv(ParallelEnv):
 
     metadata = {"name": "searchrl_v0", "render_modes": ["rgb_array"], "is_parallelizable": True}  # noqa: RUF012
 
-    def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None, scenario: Scenario = PAPER,
-                 parts: Sequence[ObservationPart] = ()) -> None:  # fmt: skip
+    def __init__(
+        self,
+        config: WorldConfig | None = None,
+        render_mode: str | None = None,
+        scenario: Scenario = PAPER,
+        parts: Sequence[ObservationPart] = (),
+    ) -> None:
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
         if config is not None and not isinstance(config, WorldConfig):
@@ -102,9 +107,14 @@ class SearchParallelEnv(ParallelEnv):
         return obs, rewards, terminations, truncations, infos
 
     def _observations(self, maps: np.ndarray, vector: np.ndarray) -> dict[AgentID, dict[str, np.ndarray]]:
-        return {agent: {"map": maps[0, i].copy(), "vector": vector[0, i].copy(),
-                        **{key: values[0, i].copy() for key, values in self.world.parts.items()}}
-                for i, agent in enumerate(self.possible_agents)}  # fmt: skip
+        return {
+            agent: {
+                "map": maps[0, i].copy(),
+                "vector": vector[0, i].copy(),
+                **{key: values[0, i].copy() for key, values in self.world.parts.items()},
+            }
+            for i, agent in enumerate(self.possible_agents)
+        }
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":

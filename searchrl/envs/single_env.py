@@ -18,8 +18,9 @@ class SearchEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012
 
-    def __init__(self, config: WorldConfig | None = None, render_mode: str | None = None, scenario: Scenario = PAPER
-                 ) -> None:  # fmt: skip
+    def __init__(
+        self, config: WorldConfig | None = None, render_mode: str | None = None, scenario: Scenario = PAPER
+    ) -> None:
         if config is not None and not isinstance(config, WorldConfig):
             raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
         config = replace(config if config is not None else WorldConfig(), n_agents=1)

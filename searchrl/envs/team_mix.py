@@ -28,8 +28,9 @@ class TeamMixVecEnv(VecEnv):
         first = envs[0]
         for j, env in enumerate(envs[1:], start=1):
             if env.observation_space != first.observation_space or env.action_space != first.action_space:
-                raise ValueError(f"envs[{j}] has other observation or action spaces than envs[0]: same Φ, fov and "
-                                 "action set needed")  # fmt: skip
+                raise ValueError(
+                    f"envs[{j}] has other observation or action spaces than envs[0]: same Φ, fov and action set needed"
+                )
         self.envs = list(envs)
         self.render_mode = first.render_mode
         self._bounds = np.cumsum([0] + [env.num_envs for env in self.envs])  # group j owns slots [b_j, b_j+1)
@@ -76,8 +77,9 @@ class TeamMixVecEnv(VecEnv):
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         if len(list(self._get_indices(indices))) != self.num_envs:
-            raise ValueError(f"set_attr({attr_name!r}) on a subset of slots is not possible: slots share worlds; "
-                             "pass indices=None")  # fmt: skip
+            raise ValueError(
+                f"set_attr({attr_name!r}) on a subset of slots is not possible: slots share worlds; pass indices=None"
+            )
         for env in self.envs:
             env.set_attr(attr_name, value)
 

@@ -33,9 +33,16 @@ class SearchVecEnv(VecEnv):
 
     metadata = {"render_modes": ["rgb_array"]}  # noqa: RUF012 (gymnasium convention)
 
-    def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None, render_mode: str | None = None,
-                 scenario: Scenario = PAPER, parts: Sequence[ObservationPart] = (),
-                 reward: RewardFn | None = None) -> None:  # fmt: skip
+    def __init__(
+        self,
+        config: WorldConfig,
+        n_worlds: int,
+        seed: int | None = None,
+        render_mode: str | None = None,
+        scenario: Scenario = PAPER,
+        parts: Sequence[ObservationPart] = (),
+        reward: RewardFn | None = None,
+    ) -> None:
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
         if not isinstance(config, WorldConfig):

@@ -13,7 +13,6 @@ Load the results with `searchrl.evaluate.results.load`.
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 from dataclasses import asdict, dataclass
@@ -28,23 +27,20 @@ from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries
 from searchrl.controllers.factory import heuristic_factory, policy_factory
 from searchrl.controllers.registry import heuristic
 from searchrl.evaluate.cell_bounds import BOUND_COLUMNS, cell_bounds, map_prior
-from searchrl.evaluate.grid import Cell, map_seed, table2_cells
+from searchrl.evaluate.checks import LOCKS, check_evaluation, check_out_dir
+from searchrl.evaluate.grid import Cell, map_seed
 from searchrl.evaluate.record import CELL_SETTINGS, claim_folder, evaluation_settings, option_defaults
-from searchrl.evaluate.results import cell_table, coverage, paired_table
+from searchrl.evaluate.results import cell_table, paired_table
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import EvaluateConfig, register_configs
 from searchrl.multirun import Stopped, refuse
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor, training_scenario
-from searchrl.policies.device import check_device, resolve_device
-from searchrl.shared_schema import MAX_THREADS, check_known_keys, override_keys
-from searchrl.world.config import ConfigError, WorldConfig, need
+from searchrl.policies.device import resolve_device
+from searchrl.shared_schema import check_known_keys
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.obstacles import IidObstacles
 from searchrl.world.scenario import Scenario, ScenarioMix
 
-# Set per cell by the grid, or training-only: a heuristic's evaluation refuses them rather than drop them.
-SET_BY_GRID = ("env.n_worlds", "env.world.n_agents", "env.world.world_size", "env.world.n_targets",
-               "env.world.n_distributions", "env.replicas", "deterministic")  # fmt: skip
-LOCKS = ".locks"  # <out_dir>/.locks/: the folder's record lock and one lock per cell being run
 register_configs()
 
 
@@ -73,94 +69,6 @@ def make_controller_factory(cfg: EvaluateConfig) -> tuple[WorldConfig, str, str,
     except ConfigError as err:
         raise ConfigError(f"{err}, or checkpoint=<model.zip>") from None
     return world, entry.label, model_name, heuristic_factory(name, settings, check=world), False
-
-
-# With checkpoint=, the world, model and controller come from the checkpoint's run: these overrides cannot apply.
-FIXED_BY_CHECKPOINT = ("env", "world", "model", "controller")
-
-
-def check_evaluation(cfg: EvaluateConfig, overrides: list[str]) -> tuple[list[tuple[int, Cell]], Path | None, Scenario]:
-    """Every check of an evaluation's settings, before any work or file: ((grid index, cell) pairs, output folder,
-    scenario). Raises ConfigError naming the bad value and what is allowed."""
-    if cfg.checkpoint is not None:
-        fixed = [o for o, k in zip(overrides, override_keys(overrides), strict=True)
-                 if k.split(".")[0] in FIXED_BY_CHECKPOINT]  # fmt: skip
-        if fixed:
-            raise ConfigError(
-                f"{', '.join(fixed)} cannot apply with checkpoint={cfg.checkpoint!r}: a checkpoint is evaluated in "
-                "the world, model and action set of its run (its config.yaml); remove them"
-            )
-    keys = override_keys(overrides)
-    if cfg.checkpoint is None:
-        set_by_grid = [k for k in keys if k in SET_BY_GRID or k.startswith("env.extra_teams")]
-        if set_by_grid:
-            raise ConfigError(
-                f"{', '.join(set_by_grid)} cannot apply to an evaluation: the grid sets N, n, targets and Gaussians "
-                "per cell (grid.*), one team per world, and deterministic is for checkpoints; remove them"
-            )
-        for key, value in asdict(cfg.controller).items():
-            if isinstance(value, float):
-                need(math.isfinite(value), f"controller.{key}", value, "a finite number")
-    check_device(cfg.device)  # asked for and missing: refused, never run on the CPU instead
-    need(cfg.checkpoint is not None or cfg.device in ("cpu", "auto"), "device", cfg.device,
-         f"cpu: controller={cfg.controller.name} runs on the CPU (device is for checkpoint=<model.zip>)")  # fmt: skip
-    need(0 <= cfg.seed <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
-    need(1 <= cfg.threads <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
-    need(math.isfinite(cfg.batch_mb) and cfg.batch_mb > 0, "batch_mb", cfg.batch_mb, "a number of MiB > 0")
-    need(cfg.bound_draws >= 100, "bound_draws", cfg.bound_draws, "an integer >= 100 (placements per map)")
-    need(cfg.num_shards >= 1, "num_shards", cfg.num_shards, "an integer >= 1")
-    need(0 <= cfg.shard < cfg.num_shards, "shard", cfg.shard, f"0 <= shard < num_shards={cfg.num_shards}")
-    for name in ("maps_per_cell", "repeats"):
-        need(getattr(cfg.grid, name) >= 1, f"grid.{name}", getattr(cfg.grid, name), "must be >= 1")
-    scenario = Scenario.from_dict(cfg.scenario)  # ConfigError naming a bad part
-    grid = cfg.grid
-    cells = table2_cells(grid.world_sizes, grid.n_targets, grid.n_distributions, grid.max_agents)
-    # A subset of team sizes keeps each cell's index in the whole grid, so its maps are the grid's (map_seed)
-    agents = grid.agents
-    on_grid = sorted({c.n_agents for c in cells})
-    need(agents is None or (len(agents) > 0 and set(agents) <= set(on_grid)), "grid.agents", agents,
-         f"null (every N) or team sizes of the grid, from {on_grid}")  # fmt: skip
-    indexed = [(i, c) for i, c in enumerate(cells) if agents is None or c.n_agents in agents]
-    if cfg.cell is not None:  # one cell, at its index in the whole grid: the grid's maps of that cell
-        keys = [c.key for _, c in indexed]
-        need(cfg.cell in keys, "cell", cfg.cell, f"a cell of the grid: one of {', '.join(keys)}")
-        indexed = [(i, c) for i, c in indexed if c.key == cfg.cell]
-    check_baseline(cfg, scenario)
-    return indexed, given_out_dir(cfg, "runs/eval/<controller or policy>"), scenario
-
-
-def check_baseline(cfg: EvaluateConfig, scenario: Scenario) -> None:
-    """`baseline=` names an evaluation folder whose record says it played this evaluation's maps (its seed and
-    scenario); ConfigError naming what differs."""
-    if cfg.baseline is None:
-        return
-    record = coverage(cfg.baseline)
-    need(bool(record), "baseline", cfg.baseline, "an evaluation folder (one with evaluation.yaml and cells/)")
-    need(record["seed"] == cfg.seed, "baseline", cfg.baseline,
-         f"a folder of this seed ({cfg.seed}); it holds seed {record['seed']}, whose maps are others")  # fmt: skip
-    need(record["scenario"] == scenario.label, "baseline", cfg.baseline,
-         f"a folder of this scenario ({scenario.label}); it holds {record['scenario']}")  # fmt: skip
-
-
-def given_out_dir(cfg: EvaluateConfig, default: str) -> Path | None:
-    """`out_dir=` as a folder, None when left out (the app's `default`); an empty one is refused, not taken for it."""
-    need(cfg.out_dir is None or cfg.out_dir.strip() != "", "out_dir", cfg.out_dir,
-         f"a folder (leave it out for {default})")  # fmt: skip
-    return None if cfg.out_dir is None else Path(cfg.out_dir)
-
-
-def check_out_dir(out_dir: Path) -> None:
-    """ConfigError unless the evaluation can write its folder, cells and locks there."""
-    try:
-        check_writable(out_dir, "out_dir", folder=True)
-        for part in ("cells", LOCKS):
-            check_writable(out_dir / part, f"out_dir/{part}", folder=True)
-        out_dir.mkdir(parents=True, exist_ok=True)  # /proc, /sys, a full disk: refused here, in one line
-    except ValueError as err:
-        raise ConfigError(str(err)) from None
-    except OSError as err:
-        raise ConfigError(f"out_dir={str(out_dir)!r} is not allowed: its folders cannot be made there "
-                          f"({err.strerror or type(err).__name__})") from None  # fmt: skip
 
 
 @dataclass
@@ -200,8 +108,11 @@ def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | N
     if cfg.checkpoint is not None:  # a policy met outside its training distribution: said beside its results
         trained = Scenario.from_dict(training_scenario(cfg.checkpoint)).label
         if trained != scenario.label:
-            print(f"note: {checkpoint_label(cfg.checkpoint)} was trained under scenario {trained} (its run's "
-                  f"config.yaml) and is evaluated under {scenario.label}", file=sys.stderr)  # fmt: skip
+            print(
+                f"note: {checkpoint_label(cfg.checkpoint)} was trained under scenario {trained} (its run's "
+                f"config.yaml) and is evaluated under {scenario.label}",
+                file=sys.stderr,
+            )
     # Default runs/eval/<controller=…> (greedy_target's folder though its rows say greedy) or
     # runs/eval/policy/<label>: the label is the run's path under runs/, so two runs never share a folder
     default = controller_name.replace(":", "/") if cfg.checkpoint is not None else cfg.controller.name
@@ -222,8 +133,11 @@ def claim_evaluation(plan: Evaluation) -> None:
     if plan.settings.bound_cache is not None:  # the bounds are written after a cell's episodes: refused now, not then
         check_writable(plan.settings.bound_cache, "bound_cache", folder=True)
     with hold(plan.out_dir / LOCKS / "evaluation.lock", f"out_dir={str(plan.out_dir)!r}", wait_s=60):
-        plan.record = claim_folder(plan.out_dir, evaluation_settings(plan.settings, plan.controller, plan.model),
-                                   option_defaults(plan.settings))  # fmt: skip
+        plan.record = claim_folder(
+            plan.out_dir,
+            evaluation_settings(plan.settings, plan.controller, plan.model),
+            option_defaults(plan.settings),
+        )
 
 
 def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
@@ -262,12 +176,23 @@ def run_evaluation(plan: Evaluation) -> Path:
                         if target.exists():  # finished by another job since the list was made
                             continue
                         remove_temporaries(target.parent, target.name)  # left by a killed writer of this cell
-                        frame = run_cell(plan.factory, world, cell, index, maps, repeats, cfg.seed,
-                                         cfg.batch_mb, plan.needs_observation, on_steps=bar.update,
-                                         scenario=scenario)  # fmt: skip
+                        frame = run_cell(
+                            plan.factory,
+                            world,
+                            cell,
+                            index,
+                            maps,
+                            repeats,
+                            cfg.seed,
+                            cfg.batch_mb,
+                            plan.needs_observation,
+                            on_steps=bar.update,
+                            scenario=scenario,
+                        )
                         seeds = frame["map_seed"].unique().tolist()
-                        bounds = cell_bounds(world, cell, seeds, cfg.bound_draws, cfg.bound_cache,
-                                             scenario=scenario, workers=cfg.threads)  # fmt: skip
+                        bounds = cell_bounds(
+                            world, cell, seeds, cfg.bound_draws, cfg.bound_cache, scenario=scenario, workers=cfg.threads
+                        )
                         frame = frame.merge(bounds[["map_seed", *BOUND_COLUMNS]], on="map_seed", validate="many_to_one")
                         for position, (name, value) in enumerate(scenario_columns(scenario, world).items()):
                             frame.insert(position, name, value)
@@ -286,13 +211,15 @@ def run_evaluation(plan: Evaluation) -> Path:
             raise
         fail(f"{message}; the cells already written stay, and a rerun into {out_dir} does the rest")
     except KeyboardInterrupt:  # Ctrl-C: the cell under way is dropped whole (nothing of it was written)
-        print(f"interrupted: the cells already written stay, and a rerun into {out_dir} does the rest",
-              file=sys.stderr)  # fmt: skip
+        print(f"interrupted: the cells already written stay, and a rerun into {out_dir} does the rest", file=sys.stderr)
         raise Stopped(130) from None
     elapsed = time.perf_counter() - start
     if todo:
-        print(f"done in {elapsed:.1f} s; {done_steps / max(elapsed, 1e-9):,.0f} agent-steps/s "
-              f"(steps up to each episode's end)", file=sys.stderr)  # fmt: skip
+        print(
+            f"done in {elapsed:.1f} s; {done_steps / max(elapsed, 1e-9):,.0f} agent-steps/s "
+            f"(steps up to each episode's end)",
+            file=sys.stderr,
+        )
     print(cell_table(out_dir))  # what the folder holds: a number and its CI per cell
     if cfg.baseline is not None:
         print(paired_table(out_dir, cfg.baseline))
@@ -304,5 +231,9 @@ def scenario_columns(scenario: Scenario, world: WorldConfig) -> dict[str, object
     the family's severity, and the prior's sharpness (the variance scale of p's Gaussians, searchrl/world/prior.py)."""
     prior = getattr(scenario, "prior", None)  # a mix has none: its rows' scale is NaN
     scale = world.prob_variance_scale if prior is None or prior.variance_scale is None else prior.variance_scale
-    return {"scenario": scenario.label, "family": scenario.family, "severity": scenario.severity,
-            "variance_scale": float("nan") if prior is None else float(scale)}  # fmt: skip
+    return {
+        "scenario": scenario.label,
+        "family": scenario.family,
+        "severity": scenario.severity,
+        "variance_scale": float("nan") if prior is None else float(scale),
+    }

@@ -78,9 +78,15 @@ def _read_cache(path: Path) -> pd.DataFrame | None:
 
 
 def cell_bounds(
-    world: WorldConfig, cell: Cell, seeds: list[int], draws: int = BOUND_DRAWS, cache: str | Path | None = None,
-    detection: bool = False, scenario: Scenario = PAPER, workers: int = 1,
-) -> pd.DataFrame:  # fmt: skip
+    world: WorldConfig,
+    cell: Cell,
+    seeds: list[int],
+    draws: int = BOUND_DRAWS,
+    cache: str | Path | None = None,
+    detection: bool = False,
+    scenario: Scenario = PAPER,
+    workers: int = 1,
+) -> pd.DataFrame:
     """One row per map seed: `bound` (expected targets at most), `bound_stderr`, `bound_fraction`, `reach`; with
     `detection` also the detection bound of the world's moves (`detection_bound`, `detection_stderr`,
     `detection_fraction`). With `cache`, rows computed before for the same map, reach and draws are read from it
@@ -96,8 +102,14 @@ def cell_bounds(
         return frame.astype({c: np.float64 for c in columns})
     config = cell_config(world, cell)
     reach = team_reach(cell.n_agents, config.max_steps, config.n_actions)
-    budgets = [detection_budget(cell.n_agents, config.max_steps, replace(config, diagonal=d).n_actions)
-               for d in MOVE_SETS.values()] if detection else []  # fmt: skip
+    budgets = (
+        [
+            detection_budget(cell.n_agents, config.max_steps, replace(config, diagonal=d).n_actions)
+            for d in MOVE_SETS.values()
+        ]
+        if detection
+        else []
+    )
     own = "diagonal" if config.diagonal else "cardinal"
     path = Path(cache) / f"{cell.key}_draws{draws}.parquet" if cache is not None else None
     known = _known_rows(path)
@@ -121,10 +133,17 @@ def cell_bounds(
         p, u, free = maps[seed]
         rng = np.random.default_rng([seed, 29])  # the same draws with or without the detection bound
         bound = search_bound(p, u, free, cell.n_targets, reach, draws, rng, budgets)
-        hit = {"map_seed": seed, "digest": map_digest(p, u, free, cell.n_targets), "team_reach": reach,
-               "reach": bound.reach, "bound": bound.expected, "bound_stderr": bound.stderr}  # fmt: skip
-        for name, value, stderr in zip(MOVE_SETS if detection else [], bound.detection, bound.detection_stderr,
-                                       strict=True):  # fmt: skip
+        hit = {
+            "map_seed": seed,
+            "digest": map_digest(p, u, free, cell.n_targets),
+            "team_reach": reach,
+            "reach": bound.reach,
+            "bound": bound.expected,
+            "bound_stderr": bound.stderr,
+        }
+        for name, value, stderr in zip(
+            MOVE_SETS if detection else [], bound.detection, bound.detection_stderr, strict=True
+        ):
             hit |= {f"detection_bound_{name}": value, f"detection_stderr_{name}": stderr}
         return hit
 
@@ -159,12 +178,23 @@ def grid_bounds(
         fraction = per_map["bound_fraction"]
         mc = np.sqrt((per_map["bound_stderr"] ** 2).sum()) / len(per_map) / cell.n_targets
         config = cell_config(world, cell)
-        rows.append({"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "maps": len(per_map),
-                     "reach": int(per_map["reach"].iloc[0]), "bound": fraction.mean(), "mc_stderr": mc,
-                     "min": fraction.min(), "max": fraction.max(),
-                     "budget": detection_budget(cell.n_agents, config.max_steps, config.n_actions),
-                     "detection_bound": per_map["detection_fraction"].mean(),
-                     "detection_mc_stderr": np.sqrt((per_map["detection_stderr"] ** 2).sum()) / len(per_map)
-                     / cell.n_targets})  # fmt: skip
+        rows.append(
+            {
+                "n": cell.n,
+                "N": cell.n_agents,
+                "targets": cell.n_targets,
+                "maps": len(per_map),
+                "reach": int(per_map["reach"].iloc[0]),
+                "bound": fraction.mean(),
+                "mc_stderr": mc,
+                "min": fraction.min(),
+                "max": fraction.max(),
+                "budget": detection_budget(cell.n_agents, config.max_steps, config.n_actions),
+                "detection_bound": per_map["detection_fraction"].mean(),
+                "detection_mc_stderr": np.sqrt((per_map["detection_stderr"] ** 2).sum())
+                / len(per_map)
+                / cell.n_targets,
+            }
+        )
         print(f"{cell.key}: bound fraction {fraction.mean():.3f}", flush=True)
     return pd.DataFrame(rows)

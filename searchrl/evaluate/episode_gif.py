@@ -47,17 +47,26 @@ def episode_world(base: WorldConfig | str, sizes: dict[str, tuple[str, int]]) ->
     world = WorldConfig(**model_world(base)) if isinstance(base, str) else base
     values = {field: value for field, (_, value) in sizes.items()}
     try:
-        return replace(world, world_size=(values["world_size"],) * 2, n_agents=values["n_agents"],
-                       n_targets=(values["n_targets"],) * 2,
-                       n_distributions=(values["n_distributions"],) * 2)  # fmt: skip
+        return replace(
+            world,
+            world_size=(values["world_size"],) * 2,
+            n_agents=values["n_agents"],
+            n_targets=(values["n_targets"],) * 2,
+            n_distributions=(values["n_distributions"],) * 2,
+        )
     except ConfigError as err:
         field = next((f for f in sizes if str(err).startswith(f"{f}=")), None)
         raise ConfigError(f"{sizes[field][0]}={sizes[field][1]} ({err})" if field else str(err)) from None
 
 
-def episode_setup(checkpoint: str | None, model: str | None, controller: str | None,
-                  sizes: dict[str, tuple[str, int]], scenario: str,
-                  device: str) -> tuple[WorldConfig, Scenario, ControllerFactory]:  # fmt: skip
+def episode_setup(
+    checkpoint: str | None,
+    model: str | None,
+    controller: str | None,
+    sizes: dict[str, tuple[str, int]],
+    scenario: str,
+    device: str,
+) -> tuple[WorldConfig, Scenario, ControllerFactory]:
     """(world, scenario, controller factory) of an episode to draw: a `checkpoint`'s policy in its run's world on
     `device`, else the heuristic `controller` (default surfing) in `model`'s world (default b); `sizes` as
     `episode_world` takes them, `scenario` a conf/scenario/ name. Everything is checked here, before the episode:
@@ -79,16 +88,31 @@ def episode_setup(checkpoint: str | None, model: str | None, controller: str | N
     return config, drawn, heuristic_factory(controller or "surfing", check=config)
 
 
-def render_episode(config: WorldConfig, scenario: Scenario, factory: ControllerFactory, seed: int, agent: int,
-                   cell: int, fps: float, out: str | Path) -> tuple[WorldState, int]:  # fmt: skip
+def render_episode(
+    config: WorldConfig,
+    scenario: Scenario,
+    factory: ControllerFactory,
+    seed: int,
+    agent: int,
+    cell: int,
+    fps: float,
+    out: str | Path,
+) -> tuple[WorldState, int]:
     """Play the episode of `seed` with the controller `factory` makes and write its frames to `out` (a GIF,
     atomically); returns the final state and the number of frames."""
     world_streams, controller_streams = episode_streams([(seed,)])  # an episode as evaluation plays one
     world = SearchWorld.from_maps(config, [seed], world_streams, scenario)
     frames = [frame(world.state, agent, cell)]
-    play(world, factory(config, controller_streams),
-         on_step=lambda world, _: frames.append(frame(world.state, agent, cell)))  # fmt: skip
+    play(
+        world,
+        factory(config, controller_streams),
+        on_step=lambda world, _: frames.append(frame(world.state, agent, cell)),
+    )
     images = [Image.fromarray(f) for f in frames]
-    write_atomic(Path(out), lambda tmp: images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
-                                                       duration=int(1000 / fps), loop=0))  # fmt: skip
+    write_atomic(
+        Path(out),
+        lambda tmp: images[0].save(
+            tmp, format="GIF", save_all=True, append_images=images[1:], duration=int(1000 / fps), loop=0
+        ),
+    )
     return world.state, len(frames)

@@ -40,8 +40,9 @@ def table2_cells(
         if min(n, targets, dists, top) < 1:
             raise ValueError(f"grid entry n={n}, targets={targets}, m={dists}, max N={top}: all must be >= 1")
         if top & (top - 1):  # N doubles from 1: another largest team would not be run, yet be recorded
-            raise ValueError(f"grid.max_agents={max_agents} is not allowed: each a power of two (N = 1, 2, 4, … up "
-                             f"to it), not {top}")  # fmt: skip
+            raise ValueError(
+                f"grid.max_agents={max_agents} is not allowed: each a power of two (N = 1, 2, 4, … up to it), not {top}"
+            )
         agents = 1
         while agents <= top:
             cells.append(Cell(n, agents, targets, dists))

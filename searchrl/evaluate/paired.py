@@ -26,9 +26,14 @@ def bootstrap_mean_ci(
 
 
 def paired_margins(
-    episodes: pd.DataFrame, mine: str, baseline: str, metric: str = "found_fraction", n_boot: int = 2000,
-    saturated: float = 0.995, min_maps: int = 20,
-) -> pd.DataFrame:  # fmt: skip
+    episodes: pd.DataFrame,
+    mine: str,
+    baseline: str,
+    metric: str = "found_fraction",
+    n_boot: int = 2000,
+    saturated: float = 0.995,
+    min_maps: int = 20,
+) -> pd.DataFrame:
     """Controller `mine` minus controller `baseline`, cell by cell, on the maps both ran (evaluations with the
     same seed and grid share their maps: a seed depends only on the cell and map index; cells or maps only one
     side ran are left out). Repeats are averaged per map, the per-map differences bootstrapped. `verdict`:
@@ -42,8 +47,10 @@ def paired_margins(
         if side.empty:
             raise ValueError(f"no episodes of controller {name!r} to compare")
         if side.model.nunique() > 1:
-            raise ValueError(f"controller {name!r} was evaluated with several models {sorted(side.model.unique())}:"
-                             " pass episodes of one")  # fmt: skip
+            raise ValueError(
+                f"controller {name!r} was evaluated with several models {sorted(side.model.unique())}:"
+                " pass episodes of one"
+            )
         sides.append(side.drop(columns=["controller", "model"]))
     joined = sides[0].merge(sides[1], on=["n", "N", "map_seed"], suffixes=("_mine", "_base"))
     if joined.empty:
@@ -57,6 +64,19 @@ def paired_margins(
             verdict = "saturated"
         if len(group) < min_maps:
             verdict = "too few maps"
-        rows.append({"controller": mine, "baseline": baseline, "n": n, "N": agents, "mine": ours, "base": theirs,
-                     "diff": diff, "low": low, "high": high, "maps": len(group), "verdict": verdict})  # fmt: skip
+        rows.append(
+            {
+                "controller": mine,
+                "baseline": baseline,
+                "n": n,
+                "N": agents,
+                "mine": ours,
+                "base": theirs,
+                "diff": diff,
+                "low": low,
+                "high": high,
+                "maps": len(group),
+                "verdict": verdict,
+            }
+        )
     return pd.DataFrame(rows)

@@ -112,8 +112,11 @@ def setting_differences(theirs: dict[str, Any], ours: dict[str, Any], defaults: 
     theirs, ours = _flatten(theirs), _flatten(ours)
     keys = sorted(theirs.keys() | ours.keys())
     absent = {key: defaults.get(key, "(absent)") for key in keys}
-    return [f"{key}: {theirs.get(key, '(absent)')!r} there, {ours.get(key, '(absent)')!r} here"
-            for key in keys if theirs.get(key, absent[key]) != ours.get(key, absent[key])]  # fmt: skip
+    return [
+        f"{key}: {theirs.get(key, '(absent)')!r} there, {ours.get(key, '(absent)')!r} here"
+        for key in keys
+        if theirs.get(key, absent[key]) != ours.get(key, absent[key])
+    ]
 
 
 def _read_record(out_dir: Path, cells: dict[Path, dict[str, Any] | None]) -> dict[str, Any] | None:
@@ -129,8 +132,10 @@ def _read_record(out_dir: Path, cells: dict[Path, dict[str, Any] | None]) -> dic
         if any(settings is not None for settings in cells.values()):
             aside = out_dir / f"{RECORD}.unreadable"
             (out_dir / RECORD).rename(aside)
-            print(f"warning: {out_dir / RECORD} cannot be read ({type(err).__name__}); set aside as {aside.name}",
-                  file=sys.stderr)  # fmt: skip
+            print(
+                f"warning: {out_dir / RECORD} cannot be read ({type(err).__name__}); set aside as {aside.name}",
+                file=sys.stderr,
+            )
             return None
         raise ConfigError(
             f"out_dir={str(out_dir)!r}: its {RECORD} cannot be read ({type(err).__name__}); restore it, or "
@@ -154,8 +159,9 @@ def _cells_settings(out_dir: Path) -> dict[Path, dict[str, Any] | None]:
     return found
 
 
-def claim_folder(out_dir: str | Path, settings: dict[str, Any], defaults: dict[str, Any] | None = None
-                 ) -> dict[str, Any]:  # fmt: skip
+def claim_folder(
+    out_dir: str | Path, settings: dict[str, Any], defaults: dict[str, Any] | None = None
+) -> dict[str, Any]:
     """Record `settings` in `out_dir`, or check them against the record there; ConfigError naming the folder and
     every setting that differs. Every finished cell is checked against the record too: one of other settings (a
     file copied in, a run that wrote into the folder before its record) is refused, naming it; one that cannot be
@@ -175,9 +181,11 @@ def claim_folder(out_dir: str | Path, settings: dict[str, Any], defaults: dict[s
     for path, theirs in cells.items():
         differ = [] if theirs is None else setting_differences(theirs, record, defaults)
         if differ:
-            raise ConfigError(f"out_dir={str(out_dir)!r}: cells/{path.name} holds results of other settings than "
-                              f"the folder's ({'; '.join(differ)}): remove that cell, or the folder to start it "
-                              "afresh")  # fmt: skip
+            raise ConfigError(
+                f"out_dir={str(out_dir)!r}: cells/{path.name} holds results of other settings than "
+                f"the folder's ({'; '.join(differ)}): remove that cell, or the folder to start it "
+                "afresh"
+            )
     if not (out_dir / RECORD).exists() and record is not mine:  # the folder's own record again, whatever comes
         write_text_atomic(out_dir / RECORD, OmegaConf.to_yaml(OmegaConf.create(record)))
         print(f"note: {out_dir} had lost its {RECORD}: rebuilt from the settings its cells record", file=sys.stderr)

@@ -53,14 +53,18 @@ def load(*out_dirs: str | Path) -> pd.DataFrame:
             try:
                 frame = pd.read_parquet(f)
             except Exception as err:  # pyarrow's errors for a damaged file have no common base but Exception
-                raise ValueError(f"{f} cannot be read as a cell's results ({type(err).__name__}); remove it and "
-                                 "rerun the evaluation into its folder to write it again") from None  # fmt: skip
+                raise ValueError(
+                    f"{f} cannot be read as a cell's results ({type(err).__name__}); remove it and "
+                    "rerun the evaluation into its folder to write it again"
+                ) from None
             settings = frame.attrs.get(CELL_SETTINGS)
             if settings is not None and first is None:
                 first = (f, settings)
             elif settings is not None and (differ := setting_differences(settings, first[1], {})):
-                raise ValueError(f"{f} and {first[0].name} hold results of other settings ({'; '.join(differ)}): "
-                                 "one folder holds one evaluation; remove the cell that does not belong")  # fmt: skip
+                raise ValueError(
+                    f"{f} and {first[0].name} hold results of other settings ({'; '.join(differ)}): "
+                    "one folder holds one evaluation; remove the cell that does not belong"
+                )
             if "world" not in frame:
                 frame.insert(2, "world", world_of(d))
             if "scenario" not in frame:  # cells made before scenarios existed ran the paper's
@@ -109,9 +113,15 @@ def coverage(out_dir: str | Path) -> dict[str, object]:
     wanted = [c.key for c in cells if agents is None or c.n_agents in agents]
     held = {f.stem for f in cell_files(out_dir)}
     scenario = Scenario.from_dict(record.get("scenario")).label if record.get("scenario") else PAPER.label
-    return {"controller": record.get("controller"), "scenario": scenario, "seed": record.get("seed"),
-            "maps": grid["maps_per_cell"], "repeats": grid["repeats"], "cells": [k for k in wanted if k in held],
-            "missing": [k for k in wanted if k not in held]}  # fmt: skip
+    return {
+        "controller": record.get("controller"),
+        "scenario": scenario,
+        "seed": record.get("seed"),
+        "maps": grid["maps_per_cell"],
+        "repeats": grid["repeats"],
+        "cells": [k for k in wanted if k in held],
+        "missing": [k for k in wanted if k not in held],
+    }
 
 
 def coverage_line(out_dir: str | Path) -> str:
@@ -120,10 +130,19 @@ def coverage_line(out_dir: str | Path) -> str:
     if not c:
         return f"{out_dir}: {len(cell_files(out_dir))} cells (no record says of which grid, seed or scenario)"
     # the shorter list: the cells missing, or those held (a one-cell evaluation of the grid holds one of 30)
-    which = ("" if not c["missing"] else f"; missing {', '.join(c['missing'])}" if len(c["missing"]) <= len(c["cells"])
-             else f": {', '.join(c['cells'])}" if c["cells"] else "")  # fmt: skip
-    return (f"{c['controller']}: scenario {c['scenario']}, seed {c['seed']}, {c['maps']} maps x {c['repeats']} "
-            f"repeats per cell, {len(c['cells'])} of {len(c['cells']) + len(c['missing'])} cells{which}")  # fmt: skip
+    which = (
+        ""
+        if not c["missing"]
+        else f"; missing {', '.join(c['missing'])}"
+        if len(c["missing"]) <= len(c["cells"])
+        else f": {', '.join(c['cells'])}"
+        if c["cells"]
+        else ""
+    )
+    return (
+        f"{c['controller']}: scenario {c['scenario']}, seed {c['seed']}, {c['maps']} maps x {c['repeats']} "
+        f"repeats per cell, {len(c['cells'])} of {len(c['cells']) + len(c['missing'])} cells{which}"
+    )
 
 
 def cell_table(out_dir: str | Path) -> str:
@@ -140,9 +159,16 @@ def cell_table(out_dir: str | Path) -> str:
     for (n, agents), maps in per_map.groupby(level=["n", "N"]):
         half = 1.96 * maps["found"].std(ddof=1) / len(maps) ** 0.5 if len(maps) > 1 else float("nan")
         mean = maps["found"].mean()
-        rows.append({"n": n, "N": agents, "maps": len(maps), "found": round(mean, 3),
-                     "95% CI": f"[{mean - half:.3f}, {mean + half:.3f}]",
-                     **({"bound": round(maps["bound"].mean(), 3)} if bound else {})})  # fmt: skip
+        rows.append(
+            {
+                "n": n,
+                "N": agents,
+                "maps": len(maps),
+                "found": round(mean, 3),
+                "95% CI": f"[{mean - half:.3f}, {mean + half:.3f}]",
+                **({"bound": round(maps["bound"].mean(), 3)} if bound else {}),
+            }
+        )
     return f"{coverage_line(out_dir)}\n{pd.DataFrame(rows).to_string(index=False)}"
 
 
@@ -165,8 +191,16 @@ def paired_table(out_dir: str | Path, baseline: str | Path) -> str:
     counts = table["verdict"].value_counts()
     verdicts = ("better", "tie", "worse", "saturated", "too few maps")
     summary = ", ".join(f"{verdict} on {counts[verdict]}" for verdict in verdicts if verdict in counts)
-    rows = pd.DataFrame({"n": table.n, "N": table.N, "maps": table.maps, "mine": table["mine"].round(3),
-                         "baseline": table["base"].round(3), "diff": [f"{d:+.3f}" for d in table["diff"]],
-                         "95% CI": [f"[{lo:+.3f}, {hi:+.3f}]" for lo, hi in zip(table.low, table.high, strict=True)],
-                         "verdict": table.verdict})  # fmt: skip
+    rows = pd.DataFrame(
+        {
+            "n": table.n,
+            "N": table.N,
+            "maps": table.maps,
+            "mine": table["mine"].round(3),
+            "baseline": table["base"].round(3),
+            "diff": [f"{d:+.3f}" for d in table["diff"]],
+            "95% CI": [f"[{lo:+.3f}, {hi:+.3f}]" for lo, hi in zip(table.low, table.high, strict=True)],
+            "verdict": table.verdict,
+        }
+    )
     return f"against {other} ({baseline}), paired on the same maps: {summary}\n{rows.to_string(index=False)}"

@@ -24,9 +24,28 @@ from searchrl.world.state import WorldState
 # better than uniform, 1 every target on the prior's best cell; searchrl/world/truth.py). `blocked` is the share of
 # the team's moves that a wall or another agent stopped (the world's collisions per agent-step of the episode),
 # `stale` the share of its agent-steps whose footprint swept no free cell new to the team (searchrl/world/swept.py).
-COLUMNS = ["controller", "model", "world", "scenario", "family", "severity", "variance_scale", "n", "N", "targets",
-           "map_seed", "repeat", "found_fraction", "L", "R", "F", "M_bar", "prior_quality", "blocked",
-           "stale"]  # fmt: skip
+COLUMNS = [
+    "controller",
+    "model",
+    "world",
+    "scenario",
+    "family",
+    "severity",
+    "variance_scale",
+    "n",
+    "N",
+    "targets",
+    "map_seed",
+    "repeat",
+    "found_fraction",
+    "L",
+    "R",
+    "F",
+    "M_bar",
+    "prior_quality",
+    "blocked",
+    "stale",
+]
 
 
 BATCH_MB = 1024.0  # run_cell's memory budget of one batch of worlds, the evaluation's default (`batch_mb`)
@@ -93,15 +112,29 @@ def run_cell(
         on_steps(int(counted.sum()) * config.n_agents)
 
     seeds = [map_seed(seed, cell_index, m) for m, _ in episodes]
-    final = play_episodes(controller_factory, config, seeds, episode_keys(seed, cell_index, episodes), scenario,
-                          needs_observation, count if on_steps else None, on_done,
-                          slots=cell_slots(config, budget_mb, len(episodes)))  # fmt: skip
+    final = play_episodes(
+        controller_factory,
+        config,
+        seeds,
+        episode_keys(seed, cell_index, episodes),
+        scenario,
+        needs_observation,
+        count if on_steps else None,
+        on_done,
+        slots=cell_slots(config, budget_mb, len(episodes)),
+    )
     rows = []
     for e, (_, r) in enumerate(episodes):
         rows.append(
-            {"n": cell.n, "N": cell.n_agents, "targets": cell.n_targets, "map_seed": seeds[e], "repeat": r,
-             **{name: final[name][e] for name in ("found_fraction", "L", "R", "F", "M_bar", "prior_quality")},
-             "blocked": final["collisions"][e] / max(1, final["L"][e] * cell.n_agents),
-             "stale": final["stale"][e] / max(1, final["L"][e] * cell.n_agents)}
-        )  # fmt: skip
+            {
+                "n": cell.n,
+                "N": cell.n_agents,
+                "targets": cell.n_targets,
+                "map_seed": seeds[e],
+                "repeat": r,
+                **{name: final[name][e] for name in ("found_fraction", "L", "R", "F", "M_bar", "prior_quality")},
+                "blocked": final["collisions"][e] / max(1, final["L"][e] * cell.n_agents),
+                "stale": final["stale"][e] / max(1, final["L"][e] * cell.n_agents),
+            }
+        )
     return pd.DataFrame(rows)

@@ -20,7 +20,8 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from searchrl.atomic import FolderBusy, storage_message, write_text_atomic
-from searchrl.evaluate.app import claim_evaluation, fail, given_out_dir, plan_evaluation, run_evaluation
+from searchrl.evaluate.app import claim_evaluation, fail, plan_evaluation, run_evaluation
+from searchrl.evaluate.checks import given_out_dir
 from searchrl.evaluate.schema import EvaluateConfig, GridConfig
 from searchrl.shared_schema import override_keys
 from searchrl.world.config import ConfigError, need
@@ -68,16 +69,22 @@ def evaluate_suite(cfg: DictConfig, overrides: list[str]) -> list[Path]:
     """Evaluate this shard's part of every scenario of `cfg.suite`; returns the scenario folders."""
     plans = []
     try:
-        frozen = [o for o, k in zip(overrides, override_keys(overrides), strict=True)
-                  if k.split(".")[0] in FROZEN and not o.startswith("suite=")]  # fmt: skip
+        frozen = [
+            o
+            for o, k in zip(overrides, override_keys(overrides), strict=True)
+            if k.split(".")[0] in FROZEN and not o.startswith("suite=")
+        ]
         if frozen:
-            raise ConfigError(f"{', '.join(frozen)} cannot apply to suite={cfg.suite.name}: a suite is frozen (its "
-                              "grid, seed and scenarios are conf/suite/); remove them, or evaluate with grid.* and "
-                              "scenario=… without suite=")  # fmt: skip
+            raise ConfigError(
+                f"{', '.join(frozen)} cannot apply to suite={cfg.suite.name}: a suite is frozen (its "
+                "grid, seed and scenarios are conf/suite/); remove them, or evaluate with grid.* and "
+                "scenario=… without suite="
+            )
         suite = OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(SuiteConfig), cfg.suite), resolve=True)
         typed = OmegaConf.to_object(cfg)
-        base = (given_out_dir(typed, "runs/suite/<suite>/<controller or policy>")
-                or suite_default_dir(typed, suite["name"]))  # fmt: skip
+        base = given_out_dir(typed, "runs/suite/<suite>/<controller or policy>") or suite_default_dir(
+            typed, suite["name"]
+        )
         scenarios = suite_scenarios(suite)
         for offset, scenario in enumerate(scenarios):
             one = copy.deepcopy(cfg)

@@ -59,8 +59,9 @@ def policy_copy(model: OnPolicyAlgorithm) -> ActorCriticPolicy:
     # paper network's 0.9 s build; it changes no layer. Built on the CPU: only the CPU generator is drawn from.
     kwargs = {**model.policy_kwargs, "ortho_init": False}
     with torch.random.fork_rng(devices=[]):
-        twin = model.policy_class(model.observation_space, model.action_space, model.lr_schedule,
-                                  use_sde=model.use_sde, **kwargs)  # fmt: skip
+        twin = model.policy_class(
+            model.observation_space, model.action_space, model.lr_schedule, use_sde=model.use_sde, **kwargs
+        )
     twin.to(model.device)
     twin.load_state_dict(model.policy.state_dict())  # strict: a setting the build missed fails here, by name
     return twin
@@ -92,8 +93,9 @@ class Actor:
         self.keys = tuple(getattr(extractor, "keys", space.spaces))
         # The parts to observe for it, each on the grid its space says (a part's one setting).
         self.parts = make_parts((name, {"grid": space[name].shape[-1]}) for name in getattr(extractor, "parts", ()))
-        example = {k: torch.as_tensor(np.stack([space[k].sample() for _ in range(4)]), device=self.device)
-                   for k in self.keys}  # fmt: skip
+        example = {
+            k: torch.as_tensor(np.stack([space[k].sample() for _ in range(4)]), device=self.device) for k in self.keys
+        }
         self._extract = _optimized(extractor, example) if optimize else extractor
 
     def initial_state(self, batch: int) -> torch.Tensor | None:
@@ -105,9 +107,12 @@ class Actor:
 
     @torch.inference_mode()
     def logits(
-        self, maps: np.ndarray, vector: np.ndarray, state: torch.Tensor | None = None,
+        self,
+        maps: np.ndarray,
+        vector: np.ndarray,
+        state: torch.Tensor | None = None,
         parts: dict[str, np.ndarray] | None = None,
-    ) -> tuple[np.ndarray, torch.Tensor | None]:  # fmt: skip
+    ) -> tuple[np.ndarray, torch.Tensor | None]:
         """maps (B, C, F, F), vector (B, V), state (2, layers, B, hidden) on the actor's device or None, and the
         actor's observation parts {key: (B, ...)} (`self.parts`) -> (logits (B, n_actions) float32, next state on
         the device). A slot whose episode starts now gets a zero state (`initial_state`)."""

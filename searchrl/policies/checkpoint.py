@@ -97,8 +97,14 @@ def policy_class(algo: str, critic: Mapping[str, Any] | None = None) -> type:
 # buffer's class are left empty: SB3 makes them anew (a resumed training resets its envs, as SB3's `load` with an env
 # always does; `_setup_model` picks the buffer class of the observation space).
 FROM_CONFIG = ("policy_class", "policy_kwargs", "observation_space", "action_space", "clip_range", "lr_schedule")
-LEFT_EMPTY = ("ep_info_buffer", "ep_success_buffer", "_last_obs", "_last_original_obs", "_last_episode_starts",
-              "rollout_buffer_class")  # fmt: skip
+LEFT_EMPTY = (
+    "ep_info_buffer",
+    "ep_success_buffer",
+    "_last_obs",
+    "_last_original_obs",
+    "_last_episode_starts",
+    "rollout_buffer_class",
+)
 REBUILT = FROM_CONFIG + LEFT_EMPTY
 
 
@@ -110,8 +116,10 @@ def _data(path: str | Path) -> dict[str, Any]:
     except ValueError:
         data = None
     if not isinstance(data, dict):
-        raise ValueError(f"checkpoint={str(path)!r} cannot be read as an SB3 model (no JSON data mapping); it may be "
-                         "truncated or not a searchrl model")  # fmt: skip
+        raise ValueError(
+            f"checkpoint={str(path)!r} cannot be read as an SB3 model (no JSON data mapping); it may be "
+            "truncated or not a searchrl model"
+        )
     return data
 
 
@@ -177,9 +185,11 @@ def _member(path: str | Path, name: str) -> bytes | None:
     except OSError:
         raise
     except Exception as err:  # BadZipFile, a truncated member
-        raise ValueError(f"checkpoint={str(path)!r} cannot be read as an SB3 model ({type(err).__name__}: "
-                         f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a "
-                         "searchrl model") from None  # fmt: skip
+        raise ValueError(
+            f"checkpoint={str(path)!r} cannot be read as an SB3 model ({type(err).__name__}: "
+            f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a "
+            "searchrl model"
+        ) from None
 
 
 def saved_identity(path: str | Path) -> dict[str, Any] | None:
@@ -203,8 +213,9 @@ def saved_step(path: str | Path) -> int | None:
     return step if isinstance(step, int) else None
 
 
-def load_checkpoint(path: str | Path, record: DictConfig | None = None, cls: type[BaseAlgorithm] | None = None,
-                    **kwargs: object) -> BaseAlgorithm:  # fmt: skip
+def load_checkpoint(
+    path: str | Path, record: DictConfig | None = None, cls: type[BaseAlgorithm] | None = None, **kwargs: object
+) -> BaseAlgorithm:
     """The SB3 model saved at `path` by a run whose record is `record` (default: the run's own config.yaml,
     `run_config`), loaded as `cls` (a subclass of the run's algorithm class, if given), without unpickling anything
     of the file: its pickled entries are rebuilt (`rebuilt_entries`) and its tensors read by SB3 with torch's
@@ -228,8 +239,9 @@ def load_checkpoint(path: str | Path, record: DictConfig | None = None, cls: typ
         ) from None
 
 
-def load_actor(path: str | Path, config: WorldConfig, optimize: bool = True,
-               device: str | torch.device = "cpu") -> Actor:  # fmt: skip
+def load_actor(
+    path: str | Path, config: WorldConfig, optimize: bool = True, device: str | torch.device = "cpu"
+) -> Actor:
     """The actor of a saved RecurrentPPO / PPO / A2C model.zip, its network on `device` (a checked one:
     searchrl/policies/device.py); ValueError if it sees another field of view (channels, side) or acts in another
     action set than `config`'s world."""

@@ -92,8 +92,13 @@ class WithGrid(SearchCNN):
             cls.parts = (cls.part,)
         super().__init_subclass__(**kwargs)
 
-    def __init__(self, observation_space: spaces.Dict, conv_channels: Sequence[int] = (32, 64, 128),
-                 vector_size: int = 32, fc_sizes: Sequence[int] = (256, 256)) -> None:  # fmt: skip
+    def __init__(
+        self,
+        observation_space: spaces.Dict,
+        conv_channels: Sequence[int] = (32, 64, 128),
+        vector_size: int = 32,
+        fc_sizes: Sequence[int] = (256, 256),
+    ) -> None:
         super().__init__(observation_space, conv_channels, vector_size, fc_sizes)
         if self.part not in observation_space.spaces:
             raise ValueError(f"the {type(self).__name__} network reads {self.part!r}, which the env does not observe")

@@ -25,8 +25,9 @@ from torch import nn
 States = tuple[torch.Tensor, torch.Tensor]
 
 
-def process_sequence(features: torch.Tensor, lstm_states: States, episode_starts: torch.Tensor,
-                     lstm: nn.LSTM) -> tuple[torch.Tensor, States]:  # fmt: skip
+def process_sequence(
+    features: torch.Tensor, lstm_states: States, episode_starts: torch.Tensor, lstm: nn.LSTM
+) -> tuple[torch.Tensor, States]:
     """features (n_seq·L, input) in sequence-major order, lstm_states ((layers, n_seq, hidden) × 2), episode_starts
     (n_seq·L,) -> (outputs (n_seq·L, hidden), final states): what sb3-contrib's `_process_sequence` returns."""
     n_seq = lstm_states[0].shape[1]
@@ -55,9 +56,13 @@ class SequenceLstmPolicy(RecurrentMultiInputActorCriticPolicy):
         # sb3-contrib's omits the LSTM's settings, so a policy built from it (SB3's way to copy or load a policy
         # alone) would get the default 256-wide LSTM and refuse the weights.
         data = super()._get_constructor_parameters()
-        data.update(lstm_hidden_size=self.lstm_actor.hidden_size, n_lstm_layers=self.lstm_actor.num_layers,
-                    shared_lstm=self.shared_lstm, enable_critic_lstm=self.enable_critic_lstm,
-                    lstm_kwargs=self.lstm_kwargs)  # fmt: skip
+        data.update(
+            lstm_hidden_size=self.lstm_actor.hidden_size,
+            n_lstm_layers=self.lstm_actor.num_layers,
+            shared_lstm=self.shared_lstm,
+            enable_critic_lstm=self.enable_critic_lstm,
+            lstm_kwargs=self.lstm_kwargs,
+        )
         return data
 
     def _get_action_dist_from_latent(self, latent_pi: torch.Tensor) -> Distribution:
@@ -87,8 +92,10 @@ class OwnCriticLstmPolicy(SequenceLstmPolicy):
             return super().make_features_extractor()
         critic = self.critic_extractor_class(self.observation_space, **self.features_extractor_kwargs)
         if critic.features_dim != self.features_extractor.features_dim:  # the critic's LSTM takes the actor's width
-            raise ValueError(f"the critic's features ({critic.features_dim}) must be as wide as the actor's "
-                             f"({self.features_extractor.features_dim})")  # fmt: skip
+            raise ValueError(
+                f"the critic's features ({critic.features_dim}) must be as wide as the actor's "
+                f"({self.features_extractor.features_dim})"
+            )
         return critic
 
     def _get_constructor_parameters(self) -> dict[str, Any]:

@@ -42,8 +42,12 @@ def interquartile_mean(values: np.ndarray) -> float:
     return float(values[cut : values.size - cut].mean())
 
 
-def bootstrap(statistic: Callable[..., float | np.ndarray], *controllers: dict[tuple, np.ndarray],
-              n_boot: int = 2000, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+def bootstrap(
+    statistic: Callable[..., float | np.ndarray],
+    *controllers: dict[tuple, np.ndarray],
+    n_boot: int = 2000,
+    seed: int = 0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(statistic, low, high) of `statistic(*controllers)` (each {task: maps' scores}) with its 95 % interval: maps
     resampled within each task, the same draw of map indices for every controller (their maps pair)."""
     point = np.asarray(statistic(*controllers), float)

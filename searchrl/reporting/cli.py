@@ -35,8 +35,9 @@ def _kernel_flag(arg: str) -> bool:
     return arg.startswith("--") and "." in arg.split("=", 1)[0]
 
 
-def parse(p: argparse.ArgumentParser, argv: Sequence[str] | None = None,
-          rest: bool = False) -> tuple[argparse.Namespace, list[str]]:  # fmt: skip
+def parse(
+    p: argparse.ArgumentParser, argv: Sequence[str] | None = None, rest: bool = False
+) -> tuple[argparse.Namespace, list[str]]:
     """(options, the remaining arguments). Arguments `p` does not know are refused (usage and exit 2), except a
     kernel's flags; with `rest` the remaining ones are returned instead (missed_targets.py: Hydra overrides)."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -75,30 +76,40 @@ def check_eval_dirs(dirs: Sequence[Path], min_dirs: int = 1) -> None:
     """Stop, naming the folder, unless every one of `dirs` exists and holds `cells/*.parquet`, and there are at
     least `min_dirs` of them."""
     if not dirs and min_dirs == 1:
-        stop("no evaluation folders given and none with results under runs/eval/: pass EVAL_DIR ... (folders "
-             "written by `python -m searchrl.evaluate`) or set SEARCHRL_EVAL_DIRS")  # fmt: skip
+        stop(
+            "no evaluation folders given and none with results under runs/eval/: pass EVAL_DIR ... (folders "
+            "written by `python -m searchrl.evaluate`) or set SEARCHRL_EVAL_DIRS"
+        )
     if len(dirs) < min_dirs:
-        stop(f"{len(dirs)} evaluation folders given, {min_dirs} or more needed: pass EVAL_DIR EVAL_DIR ... or set "
-             "SEARCHRL_EVAL_DIRS (comma-separated)")  # fmt: skip
+        stop(
+            f"{len(dirs)} evaluation folders given, {min_dirs} or more needed: pass EVAL_DIR EVAL_DIR ... or set "
+            "SEARCHRL_EVAL_DIRS (comma-separated)"
+        )
     for d in dirs:
         if not d.is_dir():
             stop(f"evaluation folder {str(d)!r} does not exist")
         if not cell_files(d):
-            stop(f"evaluation folder {str(d)!r} holds no results (no cells/*.parquet): run "
-                 f"`python -m searchrl.evaluate ... out_dir={d}` first")  # fmt: skip
+            stop(
+                f"evaluation folder {str(d)!r} holds no results (no cells/*.parquet): run "
+                f"`python -m searchrl.evaluate ... out_dir={d}` first"
+            )
         for cell in cell_files(d):  # a damaged file named here, not as pyarrow's traceback halfway through a notebook
             try:
                 pq.read_metadata(cell)
             except Exception as err:  # pyarrow's errors for a damaged file have no common base but Exception
-                stop(f"{cell} cannot be read as a cell's results ({type(err).__name__}); remove it and rerun the "
-                     f"evaluation into {d} to write it again")  # fmt: skip
+                stop(
+                    f"{cell} cannot be read as a cell's results ({type(err).__name__}); remove it and rerun the "
+                    f"evaluation into {d} to write it again"
+                )
 
 
 def check_run_dirs(dirs: Sequence[Path]) -> None:
     """Stop, naming the folder, unless every one of `dirs` holds a training log progress.csv (and there is one)."""
     if not dirs:
-        stop("no run folders given and none with a progress.csv under runs/train/: pass RUN_DIR ... "
-             "(folders written by `python -m searchrl.train`) or set SEARCHRL_RUN_DIRS")  # fmt: skip
+        stop(
+            "no run folders given and none with a progress.csv under runs/train/: pass RUN_DIR ... "
+            "(folders written by `python -m searchrl.train`) or set SEARCHRL_RUN_DIRS"
+        )
     for d in dirs:
         if not d.is_dir():
             stop(f"run folder {str(d)!r} does not exist")
@@ -111,21 +122,33 @@ def with_results(root: Path) -> list[Path]:
     return sorted(p for p in root.glob("*") if (p / "cells").is_dir())
 
 
-def eval_inputs(description: str, default_out: Path, default_dirs: Callable[[], list[Path]] | None = None,
-                min_dirs: int = 1, argv: Sequence[str] | None = None) -> tuple[list[Path], Path]:  # fmt: skip
+def eval_inputs(
+    description: str,
+    default_out: Path,
+    default_dirs: Callable[[], list[Path]] | None = None,
+    min_dirs: int = 1,
+    argv: Sequence[str] | None = None,
+) -> tuple[list[Path], Path]:
     """(evaluation folders, output folder) of `python analysis/<script>.py [EVAL_DIR ...] [--out DIR]`: the folders
     given, else $SEARCHRL_EVAL_DIRS, else `default_dirs()` (every folder under runs/eval/ with results); checked
     (`check_eval_dirs`)."""
-    p = parser(description, "EVAL_DIR", "evaluation folders (default: $SEARCHRL_EVAL_DIRS, comma-separated, then "
-                                        "every folder under runs/eval/ with results)")  # fmt: skip
+    p = parser(
+        description,
+        "EVAL_DIR",
+        "evaluation folders (default: $SEARCHRL_EVAL_DIRS, comma-separated, then "
+        "every folder under runs/eval/ with results)",
+    )
     dirs, out, _ = eval_args(p, default_out, default_dirs, min_dirs, argv)
     return dirs, out
 
 
 def eval_args(
-    p: argparse.ArgumentParser, default_out: Path, default_dirs: Callable[[], list[Path]] | None = None,
-    min_dirs: int = 1, argv: Sequence[str] | None = None,
-) -> tuple[list[Path], Path, argparse.Namespace]:  # fmt: skip
+    p: argparse.ArgumentParser,
+    default_out: Path,
+    default_dirs: Callable[[], list[Path]] | None = None,
+    min_dirs: int = 1,
+    argv: Sequence[str] | None = None,
+) -> tuple[list[Path], Path, argparse.Namespace]:
     """`eval_inputs` with a parser the script made (`parser(...)` plus its own options): also its parsed options."""
     args, _ = parse(p, argv)
     default = default_dirs or (lambda: with_results(Path.cwd() / "runs" / "eval"))
@@ -137,8 +160,12 @@ def eval_args(
 def run_inputs(description: str, default_out: Path, argv: Sequence[str] | None = None) -> tuple[list[Path], Path]:
     """(run folders, output folder) of `python analysis/<script>.py [RUN_DIR ...] [--out DIR]`: the folders given,
     else $SEARCHRL_RUN_DIRS, else every run under runs/train/<model>/ with a progress.csv; each checked."""
-    p = parser(description, "RUN_DIR", "training run folders (default: $SEARCHRL_RUN_DIRS, comma-separated, then "
-                                       "every run under runs/train/ with a progress.csv)")  # fmt: skip
+    p = parser(
+        description,
+        "RUN_DIR",
+        "training run folders (default: $SEARCHRL_RUN_DIRS, comma-separated, then "
+        "every run under runs/train/ with a progress.csv)",
+    )
     args, _ = parse(p, argv)
     default = lambda: sorted(f.parent for f in (Path.cwd() / "runs" / "train").glob("*/*/progress.csv"))  # noqa: E731
     dirs = folders(args.dirs, "SEARCHRL_RUN_DIRS", default)

@@ -30,10 +30,17 @@ def efficiency_summary(summary: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for key, block in summary.groupby(["controller", "model"]):
         hard, open_cells = block[is_hard(block)], block[block["bound"] < 0.995]
-        rows.append({"controller": key[0], "model": key[1], "hard found": hard["mean"].mean(),
-                     "hard bound": hard["bound"].mean(), "hard efficiency": hard["efficiency"].mean(),
-                     "unsaturated cells": len(open_cells),
-                     "their efficiency": open_cells["efficiency"].mean()})  # fmt: skip
+        rows.append(
+            {
+                "controller": key[0],
+                "model": key[1],
+                "hard found": hard["mean"].mean(),
+                "hard bound": hard["bound"].mean(),
+                "hard efficiency": hard["efficiency"].mean(),
+                "unsaturated cells": len(open_cells),
+                "their efficiency": open_cells["efficiency"].mean(),
+            }
+        )
     return pd.DataFrame(rows).set_index(["controller", "model"])
 
 
@@ -78,8 +85,11 @@ def with_bounds(summary: pd.DataFrame, bounds: pd.DataFrame) -> pd.DataFrame:
     merged = summary.drop(columns=["bound", *extra], errors="ignore").merge(
         bounds[["n", "N", "bound", "mc_stderr", *extra]], on=["n", "N"], how="left", validate="many_to_one"
     )
-    merged = merged.assign(efficiency=merged["mean"] / merged["bound"], efficiency_low=merged["low"] / merged["bound"],
-                           efficiency_high=merged["high"] / merged["bound"])  # fmt: skip
+    merged = merged.assign(
+        efficiency=merged["mean"] / merged["bound"],
+        efficiency_low=merged["low"] / merged["bound"],
+        efficiency_high=merged["high"] / merged["bound"],
+    )
     if "detection_bound" in merged:
         merged["detection_efficiency"] = merged["mean"] / merged["detection_bound"]
     return merged
@@ -131,8 +141,17 @@ def training_curves(run_dirs: list[str | Path]) -> pd.DataFrame:
 
 
 # What differs between the seeds of one setting besides the seed: a resume's settings and the run's own paths
-NOT_SETTING = ("seed", "resume", "total_timesteps", "threads", "device", "progress_bar", "keep_checkpoints", "logger",
-               "hydra")  # fmt: skip
+NOT_SETTING = (
+    "seed",
+    "resume",
+    "total_timesteps",
+    "threads",
+    "device",
+    "progress_bar",
+    "keep_checkpoints",
+    "logger",
+    "hydra",
+)
 
 
 def _setting(run: Path) -> tuple[str, int]:

@@ -81,9 +81,11 @@ def job_overrides(job: Path) -> dict[str, object]:
             raise ValueError
         cfg = OmegaConf.load(config) if config.is_file() else None
     except (OSError, UnicodeDecodeError, ValueError, yaml.YAMLError):
-        raise ValueError(f"{path} (or {config.name} beside it) cannot be read as the job's overrides and config; "
-                         "a sweep rerun into the folder does not rewrite it: remove the job's folder to train it "
-                         "again") from None  # fmt: skip
+        raise ValueError(
+            f"{path} (or {config.name} beside it) cannot be read as the job's overrides and config; "
+            "a sweep rerun into the folder does not rewrite it: remove the job's folder to train it "
+            "again"
+        ) from None
     overrides = {}
     for item in items:
         key, _, text = str(item).partition("=")
@@ -94,8 +96,10 @@ def job_overrides(job: Path) -> dict[str, object]:
         held = OmegaConf.select(cfg, key, default=None)
         held = held.get("name") if isinstance(held, DictConfig) else held
         if held is not None and not isinstance(held, ListConfig) and str(held) != str(value):
-            raise ValueError(f"{path} says {key}={value} but the job's run holds {key}={held} ({config}): another "
-                             "job's overrides or another run's folder; restore the job's own or remove it")  # fmt: skip
+            raise ValueError(
+                f"{path} says {key}={value} but the job's run holds {key}={held} ({config}): another "
+                "job's overrides or another run's folder; restore the job's own or remove it"
+            )
     return overrides
 
 
@@ -117,8 +121,14 @@ def mean_ci(values: np.ndarray, level: float = 0.95, seed: int = 0) -> tuple[flo
         return float(values.mean()), math.nan, math.nan
     if np.ptp(values) == 0:
         return float(values[0]), float(values[0]), float(values[0])
-    result = stats.bootstrap((values,), np.mean, confidence_level=level, n_resamples=9999, method="percentile",
-                             random_state=np.random.default_rng(seed))  # fmt: skip
+    result = stats.bootstrap(
+        (values,),
+        np.mean,
+        confidence_level=level,
+        n_resamples=9999,
+        method="percentile",
+        random_state=np.random.default_rng(seed),
+    )
     interval = result.confidence_interval
     return float(values.mean()), float(interval.low), float(interval.high)
 
@@ -131,8 +141,15 @@ def score_table(jobs: pd.DataFrame, keys: list[str] | None = None, level: float 
     for key, group in groups:
         mean, low, high = mean_ci(group["score"].to_numpy(), level)
         values = key if isinstance(key, tuple) else (key,)
-        rows.append({**dict(zip(keys, values, strict=True)), "seeds": int(group["finished"].sum()),
-                     "score": mean, "low": low, "high": high})  # fmt: skip
+        rows.append(
+            {
+                **dict(zip(keys, values, strict=True)),
+                "seeds": int(group["finished"].sum()),
+                "score": mean,
+                "low": low,
+                "high": high,
+            }
+        )
     return pd.DataFrame(rows).sort_values("score", ascending=False, na_position="last").reset_index(drop=True)
 
 

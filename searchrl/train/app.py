@@ -16,55 +16,35 @@ import sys
 from pathlib import Path
 
 import hydra
-import pandas as pd
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
-from stable_baselines3.common.logger import Logger
-from stable_baselines3.common.vec_env import VecEnv
 
-from searchrl.atomic import (
-    FolderBusy,
-    check_writable,
-    hold,
-    remove_temporaries,
-    storage_message,
-    write_text_atomic,
-)
+from searchrl.atomic import FolderBusy, hold, storage_message
 from searchrl.multirun import Stopped, in_sweep
 from searchrl.paths import CONF_DIR
 from searchrl.policies.checkpoint import save_model
 from searchrl.shared_schema import override_keys
-from searchrl.threads import use_threads
-from searchrl.train.build import init_weights, make_algorithm, make_vec_env
+from searchrl.train.build import make_vec_env
 from searchrl.train.callbacks import (
     AtomicCheckpointCallback,
     HParamsCallback,
     Preemption,
     TeamMetricsCallback,
     ValidationCallback,
-    checkpoints,
     run_hparams,
 )
 from searchrl.train.command_line import fail
-from searchrl.train.csv_log import AppendingCSV, ContinuedClock, ResumableTensorBoard, check_log, clock_offsets
-from searchrl.train.imitation import clone, collect
+from searchrl.train.csv_log import check_log
 from searchrl.train.plan import Plan, make_plan
-from searchrl.train.run_record import (
-    config_record,
-    is_finished,
-    load_newest_checkpoint,
-    other_log,
-    run_identity,
-    set_aside_logs,
-)
+from searchrl.train.run_record import is_finished, other_log, run_identity
+from searchrl.train.run_start import prepare_folder, record_config, set_logs, start_model, warm_start
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig, register_configs, saved_config
 from searchrl.train.score import read_score, stored_score, write_score
 from searchrl.train.sweep_job import continued_job
-from searchrl.train.wandb_log import start_wandb
 from searchrl.world.config import ConfigError
 
 register_configs()
@@ -135,8 +115,11 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
         env.close()
         try:
             stored_score(run_dir)
-            print(f"{run_dir} has trained its {start_step} agent-steps and saved model.zip: nothing to do, no file "
-                  "changed", file=sys.stderr)  # fmt: skip
+            print(
+                f"{run_dir} has trained its {start_step} agent-steps and saved model.zip: nothing to do, no file "
+                "changed",
+                file=sys.stderr,
+            )
         except ValueError as err:  # lost or damaged, or another run's: the score of its own log
             score_again(run_dir, cfg.validation.score_last, err)
             print(f"{run_dir} has trained its {start_step} agent-steps and saved model.zip", file=sys.stderr)
@@ -154,10 +137,16 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
         warm_start(plan, model, run_dir)
     set_logs(model, run_dir, start_step if resuming else None, cfg)
     preemption = Preemption()
-    validation = ValidationCallback(plan.world, plan.scenario, cfg.validation.every, cfg.validation.n_worlds,
-                                    cfg.validation.seed, cfg.validation.deterministic,
-                                    at_start=(plan.clones or cfg.init is not None) and not resuming,
-                                    preemption=preemption)  # fmt: skip
+    validation = ValidationCallback(
+        plan.world,
+        plan.scenario,
+        cfg.validation.every,
+        cfg.validation.n_worlds,
+        cfg.validation.seed,
+        cfg.validation.deterministic,
+        at_start=(plan.clones or cfg.init is not None) and not resuming,
+        preemption=preemption,
+    )
     callbacks: list[BaseCallback] = [
         HParamsCallback(run_hparams(cfg, plan.scenario.label)),
         TeamMetricsCallback(),
@@ -171,14 +160,20 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
     if preemption.stopped:
         env.close()
         name = signal.Signals(preemption.signal).name
-        print(f"stopped by {name} at {model.num_timesteps} agent-steps (checkpoints/step_{model.num_timesteps}.zip); "
-              f"continue with resume={run_dir}", file=sys.stderr)  # fmt: skip
+        print(
+            f"stopped by {name} at {model.num_timesteps} agent-steps (checkpoints/step_{model.num_timesteps}.zip); "
+            f"continue with resume={run_dir}",
+            file=sys.stderr,
+        )
         raise Stopped(128 + preemption.signal)  # 143 for SIGTERM, 130 for SIGINT, as a shell reports them
     final = save_model(model, run_dir / "model.zip", run_identity(cfg))
     score = write_score(run_dir, cfg.validation.score_last)
     model.logger.close()  # the W&B run finishes here; the CSV and TensorBoard files are complete
-    print(f"trained {model.num_timesteps} agent-steps; model: {final}; score {score['score']:.4f} (mean found "
-          f"fraction of the last {score['validations']} validations)", file=sys.stderr)  # fmt: skip
+    print(
+        f"trained {model.num_timesteps} agent-steps; model: {final}; score {score['score']:.4f} (mean found "
+        f"fraction of the last {score['validations']} validations)",
+        file=sys.stderr,
+    )
     env.close()
     return final
 
@@ -195,101 +190,21 @@ def score_again(run_dir: Path, score_last: int, why: ValueError) -> dict[str, ob
     return score
 
 
-def prepare_folder(cfg: TrainConfig, run_dir: Path, resuming: bool) -> None:
-    """Refuse a folder that holds another run (or a finished one with nothing to resume from), clear what a killed
-    writer left, and set torch's and numba's threads as the run records them."""
-    if not resuming and ((run_dir / "config.yaml").exists() or checkpoints(run_dir / "checkpoints")):
-        fail(f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder")
-    if resuming and not checkpoints(run_dir / "checkpoints") and (run_dir / "model.zip").exists():
-        fail(f"resume={str(run_dir)!r} is a finished run with no checkpoints/ left (a shipped folder): start a new "
-             f"run from its weights with init={run_dir / 'model.zip'}")  # fmt: skip
-    for folder in (run_dir, run_dir / "checkpoints"):  # a folder made read-only: said now, not after a rollout
-        try:
-            check_writable(folder, "resume" if resuming else "hydra.run.dir", folder=True)
-        except ValueError as err:
-            fail(str(err))
-    for folder in (run_dir, run_dir / "checkpoints"):  # left by a killed writer; we hold the folder's lock
-        remove_temporaries(folder)
-    use_threads(cfg.threads, network_on_cpu=cfg.device == "cpu")  # torch's and the world's (numba's)
-
-
-def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple[BaseAlgorithm, bool]:
-    """(the algorithm, whether it resumes): the newest readable checkpoint with its step count and optimiser state,
-    or a fresh one (from init= weights if given), also for a resume of a run killed before its first checkpoint."""
-    cfg = plan.settings
-    if resuming:
-        model, checkpoint = load_newest_checkpoint(plan, run_dir, env)
-        if model is not None:
-            start = model.num_timesteps
-            if cfg.total_timesteps < start:
-                fail(f"total_timesteps={cfg.total_timesteps} is not allowed: {run_dir} has trained {start} "
-                     f"agent-steps already ({checkpoint.name}); give total_timesteps >= {start}")  # fmt: skip
-            model.set_random_seed((cfg.seed + start) % 2**32)  # new scenarios, not a replay of the first
-            print(f"resuming {run_dir} from {checkpoint.name} at {start} agent-steps", file=sys.stderr)
-            return model, True
-        aside = set_aside_logs(run_dir)
-        print(f"{run_dir} has no checkpoint yet: starting it again from step 0"
-              + (f" (the killed attempt's logs moved to {aside})" if aside else ""), file=sys.stderr)  # fmt: skip
-    model = make_algorithm(plan, env)
-    if cfg.init is not None:
-        try:
-            fresh = init_weights(model, cfg.init, plan.record())
-        except ValueError as err:
-            fail(str(err))
-        print(f"policy weights from {cfg.init}" + (f"; fresh: {', '.join(fresh)}" if fresh else ""), file=sys.stderr)
-    return model, False
-
-
-def record_config(plan: Plan, run_dir: Path) -> None:
-    """The run's record (`config_record`), written once the run has started well: a resume writes back what it
-    changed (say total_timesteps) but never what it resumes from."""
-    write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(config_record(plan.settings)))
-
-
-def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:
-    """Clone the teacher into the fresh policy (imitation.py); imitation.csv records each epoch, imitation.zip the
-    clone before RL, and checkpoints/step_0.zip too, so a kill before the first RL checkpoint resumes from it."""
-    im, seed = plan.settings.imitation, plan.settings.seed
-    demos = collect(list(plan.groups), str(plan.teacher), im.episodes, plan.settings.algo.gamma, seed,
-                    plan.teacher_args, plan.scenario)  # fmt: skip
-    print(f"imitation: {len(demos)} sequences of {plan.teacher}, found fraction {demos.found_fraction:.3f}",
-          file=sys.stderr)  # fmt: skip
-    rows: list[dict[str, float]] = []
-
-    def record(row: dict[str, float]) -> None:
-        rows.append({**row, "teacher_found_fraction": demos.found_fraction})
-        rows[-1]["epoch"] = len(rows)
-        print(f"imitation epoch {len(rows)} ({row['phase']}): accuracy {row['accuracy']:.3f}, "
-              f"value loss {row['value_loss']:.2f}", file=sys.stderr)  # fmt: skip
-        write_text_atomic(run_dir / "imitation.csv", pd.DataFrame(rows).to_csv(index=False))
-
-    fit = (im.epochs, im.value_epochs, im.batch_sequences, im.learning_rate)
-    clone(model.policy, demos, *fit, seed, on_epoch=record, lr_schedule=im.lr_schedule)
-    save_model(model, run_dir / "imitation.zip", run_identity(plan.settings))  # the clone before RL, to evaluate
-    save_model(model, run_dir / "checkpoints" / "step_0.zip", run_identity(plan.settings))
-
-
-def set_logs(model: BaseAlgorithm, run_dir: Path, resume_step: int | None, cfg: TrainConfig) -> None:
-    """One CSV across resumed segments (rows past the checkpoint dropped), plus TensorBoard, plus a W&B run with
-    `logger=wandb`; a resumed segment's elapsed time and iterations continue the run's."""
-    offsets = clock_offsets(run_dir / "progress.csv", resume_step) if resume_step is not None else {}
-    csv_writer = AppendingCSV(run_dir / "progress.csv", resume_step=resume_step)
-    purge = None if resume_step is None else resume_step + 1
-    writers = [csv_writer, ResumableTensorBoard(str(run_dir / "tensorboard"), purge)]
-    if cfg.logger.name == "wandb":
-        writers.append(start_wandb(cfg, run_dir))
-    model.set_logger(Logger(str(run_dir), [ContinuedClock(w, offsets) for w in writers] if offsets else writers))
-
-
-def learn(plan: Plan, model: BaseAlgorithm, callbacks: list[BaseCallback], validation: ValidationCallback,
-          resuming: bool) -> None:  # fmt: skip
+def learn(
+    plan: Plan, model: BaseAlgorithm, callbacks: list[BaseCallback], validation: ValidationCallback, resuming: bool
+) -> None:
     """RL up to total_timesteps; a run without RL (total_timesteps=0, a clone only) is validated once for its
     score."""
     cfg = plan.settings
     remaining = cfg.total_timesteps - model.num_timesteps
     if remaining > 0:
-        model.learn(total_timesteps=remaining, callback=CallbackList(callbacks), log_interval=cfg.log_interval,
-                    reset_num_timesteps=not resuming, progress_bar=cfg.progress_bar)  # fmt: skip
+        model.learn(
+            total_timesteps=remaining,
+            callback=CallbackList(callbacks),
+            log_interval=cfg.log_interval,
+            reset_num_timesteps=not resuming,
+            progress_bar=cfg.progress_bar,
+        )
     elif not resuming:
         validation.init_callback(model)
         validation.on_training_end()

@@ -23,8 +23,17 @@ def make_vec_env(plan: Plan, seed: int | None = None) -> VecEnv:
     the teacher term, wrapped to label every step with the teacher's action (`TeacherLabels`)."""
     parts = observation_parts(asdict(plan.settings.network), asdict(plan.settings.critic))
     reward = make_reward(plan.settings.reward)
-    envs = [SearchVecEnv(world, n_worlds=k, seed=None if seed is None else seed + j, scenario=plan.scenario,
-                         parts=parts, reward=reward) for j, (world, k) in enumerate(plan.groups)]  # fmt: skip
+    envs = [
+        SearchVecEnv(
+            world,
+            n_worlds=k,
+            seed=None if seed is None else seed + j,
+            scenario=plan.scenario,
+            parts=parts,
+            reward=reward,
+        )
+        for j, (world, k) in enumerate(plan.groups)
+    ]
     env = envs[0] if len(envs) == 1 else TeamMixVecEnv(envs)
     if plan.teacher_term and plan.teacher is not None:
         return TeacherLabels(env, plan.teacher, plan.teacher_args, plan.settings.seed)
@@ -37,9 +46,15 @@ def make_algorithm(plan: Plan, env: VecEnv) -> BaseAlgorithm:
     algo = asdict(s.algo)
     algo.pop("name")
     network, critic = asdict(s.network), asdict(s.critic)  # the policies read a run's record: mappings
-    model = plan.algorithm(policy_class(s.algo.name, critic), env, seed=s.seed, device=s.device,
-                           policy_kwargs=policy_kwargs(network, s.algo.name, critic), verbose=0,
-                           **algo)  # fmt: skip
+    model = plan.algorithm(
+        policy_class(s.algo.name, critic),
+        env,
+        seed=s.seed,
+        device=s.device,
+        policy_kwargs=policy_kwargs(network, s.algo.name, critic),
+        verbose=0,
+        **algo,
+    )
     attach_teacher(plan, model, env)
     return model
 
@@ -71,10 +86,15 @@ def init_weights(model: BaseAlgorithm, path: str, cfg: DictConfig) -> list[str]:
     shared = [name for name in ours if name in theirs]
     wrong = [name for name in shared if ours[name].shape != theirs[name].shape]
     if wrong or "action_net.weight" not in shared:
-        why = (f"{wrong[0]} is {tuple(theirs[wrong[0]].shape)} there, {tuple(ours[wrong[0]].shape)} here" if wrong
-               else "it has no actor head of this policy")  # fmt: skip
-        raise ValueError(f"init={path!r} does not fit this run's policy (algo, network, observation and action "
-                         f"spaces must match): {why}")  # fmt: skip
+        why = (
+            f"{wrong[0]} is {tuple(theirs[wrong[0]].shape)} there, {tuple(ours[wrong[0]].shape)} here"
+            if wrong
+            else "it has no actor head of this policy"
+        )
+        raise ValueError(
+            f"init={path!r} does not fit this run's policy (algo, network, observation and action "
+            f"spaces must match): {why}"
+        )
     model.policy.load_state_dict({**ours, **{name: theirs[name] for name in shared}})
     # named_parameters names a module shared under two names (the actor's extractor) once
     fresh = [name for name, _ in model.policy.named_parameters() if name not in theirs]

@@ -76,8 +76,11 @@ class Preemption:
             raise KeyboardInterrupt  # a second Ctrl-C: stop now, without the checkpoint
         if self.signal is None:
             self.signal = signum
-            print(f"{signal.Signals(signum).name}: stopping after this rollout's update, with a checkpoint",
-                  file=sys.stderr, flush=True)  # fmt: skip
+            print(
+                f"{signal.Signals(signum).name}: stopping after this rollout's update, with a checkpoint",
+                file=sys.stderr,
+                flush=True,
+            )
 
 
 class AtomicCheckpointCallback(BaseCallback):
@@ -91,8 +94,9 @@ class AtomicCheckpointCallback(BaseCallback):
     at its first step (`Preemption.stopped`), and the checkpoint then saved holds every update: nothing trained is
     lost."""
 
-    def __init__(self, directory: Path, every: int, keep: int = 3, preemption: Preemption | None = None,
-                 run: dict | None = None) -> None:  # fmt: skip
+    def __init__(
+        self, directory: Path, every: int, keep: int = 3, preemption: Preemption | None = None, run: dict | None = None
+    ) -> None:
         super().__init__()
         self.directory, self.every, self.keep, self.run = Path(directory), every, keep, run or {}
         self.preemption = preemption
@@ -144,9 +148,17 @@ class ValidationCallback(BaseCallback):
     rollout); the random-walk level on the same worlds is logged with each as `val/random_<metric>` for reference.
     The final validation's row also holds the last update's losses, which SB3 records after its last log row."""
 
-    def __init__(self, world_config: WorldConfig, scenario: Scenario, every: int, n_worlds: int, seed: int,
-                 deterministic: bool, at_start: bool = False,
-                 preemption: Preemption | None = None) -> None:  # fmt: skip
+    def __init__(
+        self,
+        world_config: WorldConfig,
+        scenario: Scenario,
+        every: int,
+        n_worlds: int,
+        seed: int,
+        deterministic: bool,
+        at_start: bool = False,
+        preemption: Preemption | None = None,
+    ) -> None:
         super().__init__()
         self.preemption = preemption
         self.world_config, self.scenario = world_config, scenario
@@ -218,11 +230,17 @@ def run_hparams(settings: TrainConfig, scenario: str) -> dict[str, bool | int | 
     s = settings
     chosen = {
         **{f"algo.{k}": v for k, v in asdict(s.algo).items()},
-        "model": s.model.name if s.model else None, "network.extractor": s.network.extractor,
-        "network.lstm_hidden_size": s.network.lstm_hidden_size, "critic": s.critic.name,
-        "imitation.teacher": s.imitation.teacher, "imitation.rl_weight": s.imitation.rl_weight,
-        "imitation.rl_schedule": s.imitation.rl_schedule, "reward": s.reward, "scenario": scenario,
-        "seed": s.seed, "total_timesteps": s.total_timesteps,
-    }  # fmt: skip
+        "model": s.model.name if s.model else None,
+        "network.extractor": s.network.extractor,
+        "network.lstm_hidden_size": s.network.lstm_hidden_size,
+        "critic": s.critic.name,
+        "imitation.teacher": s.imitation.teacher,
+        "imitation.rl_weight": s.imitation.rl_weight,
+        "imitation.rl_schedule": s.imitation.rl_schedule,
+        "reward": s.reward,
+        "scenario": scenario,
+        "seed": s.seed,
+        "total_timesteps": s.total_timesteps,
+    }
     scalars = (bool, int, float, str)
     return {k: "none" if v is None else v for k, v in chosen.items() if v is None or isinstance(v, scalars)}

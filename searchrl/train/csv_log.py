@@ -45,9 +45,11 @@ def check_log(path: Path, resume_step: int, every: int) -> None:
     kept = [s for s in steps if s <= resume_step]
     for before, after in zip([0.0, *kept], [*kept, float(resume_step)], strict=True):
         if after < before or after - before > every:
-            raise ValueError(f"{where} jumps from step {before:g} to {after:g} (a row every {every} agent-steps "
-                             f"up to the checkpoint at {resume_step}): it is damaged; move it aside to resume with "
-                             "a new log")  # fmt: skip
+            raise ValueError(
+                f"{where} jumps from step {before:g} to {after:g} (a row every {every} agent-steps "
+                f"up to the checkpoint at {resume_step}): it is damaged; move it aside to resume with "
+                "a new log"
+            )
 
 
 def log_digest(path: Path, step: int) -> str | None:

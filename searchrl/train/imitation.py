@@ -64,8 +64,15 @@ def discounted_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> 
     return returns
 
 
-def collect(groups: list[tuple[WorldConfig, int]], teacher: str, episodes: int, gamma: float, seed: int,
-            teacher_args: dict | None = None, scenario: Scenario = PAPER) -> Demonstrations:  # fmt: skip
+def collect(
+    groups: list[tuple[WorldConfig, int]],
+    teacher: str,
+    episodes: int,
+    gamma: float,
+    seed: int,
+    teacher_args: dict | None = None,
+    scenario: Scenario = PAPER,
+) -> Demonstrations:
     """Let `teacher` (built with `teacher_args`) play `episodes` rounds in each (world config, K) group; round e
     of group j is seeded (seed, j, e), so the same seed gives the same demonstrations."""
     parts, found = [], []
@@ -140,9 +147,17 @@ def lr_factor(schedule: str, step: int, steps: int) -> float:
     return 1.0 if schedule == "constant" else 1.0 - step / max(steps, 1)  # a phase of 0 epochs has 0 steps
 
 
-def clone(policy: ActorCriticPolicy, demos: Demonstrations, epochs: int, value_epochs: int, batch_sequences: int,
-          learning_rate: float, seed: int, on_epoch: Callable[[dict[str, float]], None] | None = None,
-          lr_schedule: str = "constant") -> list[dict[str, float]]:  # fmt: skip
+def clone(
+    policy: ActorCriticPolicy,
+    demos: Demonstrations,
+    epochs: int,
+    value_epochs: int,
+    batch_sequences: int,
+    learning_rate: float,
+    seed: int,
+    on_epoch: Callable[[dict[str, float]], None] | None = None,
+    lr_schedule: str = "constant",
+) -> list[dict[str, float]]:
     """Fit `policy` in place: `epochs` of cross-entropy on the teacher's actions through the whole network, then
     `value_epochs` of (V − return)² on the value-only parameters. One row of metrics per epoch (phase, imitation
     loss, value loss, accuracy = argmax action is the teacher's, averaged over the epoch's minibatches; learning

@@ -100,11 +100,14 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     check_numbers(s)
     rollout = s.algo.n_steps * sum(k * world.n_agents for world, k in groups)
     batch = getattr(s.algo, "batch_size", None)
-    need(batch is None or 1 <= batch <= rollout, "algo.batch_size", batch, f"1 <= batch_size <= rollout "
-         f"size {rollout}")  # fmt: skip
+    need(batch is None or 1 <= batch <= rollout, "algo.batch_size", batch, f"1 <= batch_size <= rollout size {rollout}")
     # A minibatch is whole slots' rollouts (searchrl/train/slot_buffer.py): a whole number of n_steps.
-    need(batch is None or batch % s.algo.n_steps == 0, "algo.batch_size", batch,
-         f"a multiple of algo.n_steps={s.algo.n_steps} (minibatches of whole slots' rollouts)")  # fmt: skip
+    need(
+        batch is None or batch % s.algo.n_steps == 0,
+        "algo.batch_size",
+        batch,
+        f"a multiple of algo.n_steps={s.algo.n_steps} (minibatches of whole slots' rollouts)",
+    )
     check_init(s)
     im = s.imitation
     if im.teacher is not None:
@@ -213,8 +216,12 @@ def check_numbers(cfg: TrainConfig) -> None:
             f"total_timesteps={cfg.total_timesteps!r} is not allowed: must be >= 1, or 0 with imitation.teacher "
             "or init (a run without RL)"
         )
-    need(cfg.validation.every >= 0, "validation.every", cfg.validation.every,
-         ">= 0 agent-steps between validations (0: only the final model's)")  # fmt: skip
+    need(
+        cfg.validation.every >= 0,
+        "validation.every",
+        cfg.validation.every,
+        ">= 0 agent-steps between validations (0: only the final model's)",
+    )
     for key in ("n_worlds", "score_last"):
         need(getattr(cfg.validation, key) >= 1, f"validation.{key}", getattr(cfg.validation, key), ">= 1")
 
@@ -230,9 +237,14 @@ def check_network_choices(cfg: TrainConfig) -> None:
     for name, value in (("network.grid", cfg.network.grid), ("critic.grid", cfg.critic.grid)):
         need(value >= 4, name, value, "an integer >= 4 (two stride-2 convolutions)")
     if parts and cfg.imitation.teacher is not None and cfg.imitation.epochs > 0:
-        need(False, "imitation.epochs", cfg.imitation.epochs, f"0 with network.extractor={cfg.network.extractor} or "
-             f"critic.name={cfg.critic.name} (cloning records the window and 3-vector only): start from a clone "
-             "with init=")  # fmt: skip
+        need(
+            False,
+            "imitation.epochs",
+            cfg.imitation.epochs,
+            f"0 with network.extractor={cfg.network.extractor} or "
+            f"critic.name={cfg.critic.name} (cloning records the window and 3-vector only): start from a clone "
+            "with init=",
+        )
 
 
 def check_init(cfg: TrainConfig) -> None:
@@ -260,8 +272,13 @@ def check_teacher_term(cfg: TrainConfig, teacher_term: bool) -> None:
     if weight > 0 and im.teacher is None:
         need(False, "imitation.rl_weight", weight, "0 without imitation.teacher (the term imitates the teacher)")
     if teacher_term and cfg.algo.name not in TEACHER_ALGORITHMS:
-        need(False, "algo", cfg.algo.name, f"one of {', '.join(TEACHER_ALGORITHMS)} with imitation.rl_weight or "
-             "imitation.critic_warmup (the teacher term is a PPO loss term)")  # fmt: skip
+        need(
+            False,
+            "algo",
+            cfg.algo.name,
+            f"one of {', '.join(TEACHER_ALGORITHMS)} with imitation.rl_weight or "
+            "imitation.critic_warmup (the teacher term is a PPO loss term)",
+        )
 
 
 def unused_settings(cfg: TrainConfig, overrides: list[str], groups: tuple[tuple[WorldConfig, int], ...]) -> list[str]:
@@ -280,8 +297,10 @@ def unused_settings(cfg: TrainConfig, overrides: list[str], groups: tuple[tuple[
     notes = [f"{k} has no effect here (no imitation.teacher, or a feed-forward algo)" for k in unused]
     sequences = sum(k * world.n_agents for world, k in groups) * cfg.imitation.episodes
     if cfg.imitation.teacher is not None and cfg.imitation.batch_sequences > sequences:
-        notes.append(f"imitation.batch_sequences={cfg.imitation.batch_sequences} is more than the {sequences} teacher "
-                     "sequences: each minibatch holds all of them")  # fmt: skip
+        notes.append(
+            f"imitation.batch_sequences={cfg.imitation.batch_sequences} is more than the {sequences} teacher "
+            "sequences: each minibatch holds all of them"
+        )
     return notes
 
 

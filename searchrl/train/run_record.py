@@ -34,8 +34,9 @@ def config_record(settings: TrainConfig) -> dict[str, Any]:
     out (a run made before a part existed drew its default)."""
     record = OmegaConf.structured(settings)
     record.resume = None
-    record.scenario = Scenario.from_dict(OmegaConf.to_container(record.scenario, resolve=True)
-                                         if "scenario" in record else None).to_dict()  # fmt: skip
+    record.scenario = Scenario.from_dict(
+        OmegaConf.to_container(record.scenario, resolve=True) if "scenario" in record else None
+    ).to_dict()
     return OmegaConf.to_container(record, resolve=True)
 
 
@@ -72,9 +73,11 @@ def foreign_checkpoint(path: Path, step: int, settings: TrainConfig) -> str | No
     if differ:
         key = differ[0]
         more = f" (and {len(differ) - 1} more settings)" if len(differ) > 1 else ""
-        return (f"was saved by a run with {key}={theirs[key]!r}, but the run's config.yaml says {key}={ours[key]!r}"
-                f"{more}: another run's checkpoint (move it out of checkpoints/), or a config.yaml edited since "
-                "(restore it)")  # fmt: skip
+        return (
+            f"was saved by a run with {key}={theirs[key]!r}, but the run's config.yaml says {key}={ours[key]!r}"
+            f"{more}: another run's checkpoint (move it out of checkpoints/), or a config.yaml edited since "
+            "(restore it)"
+        )
     return None
 
 
@@ -86,8 +89,10 @@ def other_log(checkpoint: Path, step: int) -> str | None:
     log = log_digest(checkpoint.parent.parent / "progress.csv", step)
     if identity.get("log") is None or log is None or log == identity["log"]:
         return None
-    return (f"progress.csv is not the log checkpoints/{checkpoint.name} was saved with (its rows before step {step} "
-            "differ: another run's log, or an edited one); move it aside to resume with a new log")  # fmt: skip
+    return (
+        f"progress.csv is not the log checkpoints/{checkpoint.name} was saved with (its rows before step {step} "
+        "differ: another run's log, or an edited one); move it aside to resume with a new log"
+    )
 
 
 def is_finished(run_dir: Path, step: int, total: int) -> bool:
@@ -129,8 +134,10 @@ def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[Base
                 fail(f"resume={plan.settings.resume!r}: checkpoints/{path.name} {problem}; nothing was changed")
             return load_algorithm(plan, str(path), env), path
         except OSError as err:  # cannot be read now (permission, I/O): maybe whole, so nothing is set aside
-            fail(f"resume={plan.settings.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
-                 f"{err.strerror or err}); nothing was renamed: restore access and resume again")  # fmt: skip
+            fail(
+                f"resume={plan.settings.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
+                f"{err.strerror or err}); nothing was renamed: restore access and resume again"
+            )
         except ValueError as err:
             aside = path.with_name(f"{path.name}.unreadable")
             path.rename(aside)

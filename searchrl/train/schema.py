@@ -167,8 +167,11 @@ def job_name(num: int, overrides: list[str]) -> str:
     """`<num>_<key=value,...>`: a multirun job's number and its task overrides (Hydra's `override_dirname`, less
     UNNAMED, `+` dropped, `/` written `-`), so the folder and its TensorBoard run say what the job set, swept values
     included; e.g. `3_model=b,algo.learning_rate=0.001,seed=1`. Cut at 160 characters with a digest of the rest."""
-    kept = [o.lstrip("+") for o, key in zip(overrides, override_keys(overrides), strict=True)
-            if key.split(".")[0] not in UNNAMED]  # fmt: skip
+    kept = [
+        o.lstrip("+")
+        for o, key in zip(overrides, override_keys(overrides), strict=True)
+        if key.split(".")[0] not in UNNAMED
+    ]
     name = f"{num}_{','.join(kept)}".replace("/", "-").rstrip("_")
     if len(name) > 160:
         name = f"{name[:143]}~{hashlib.sha256(name.encode()).hexdigest()[:16]}"

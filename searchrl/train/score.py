@@ -53,19 +53,25 @@ def stored_score(run_dir: Path) -> dict[str, object]:
         last = int(record["last"])
         recorded = (float(record["score"]), [int(s) for s in record["steps"]])
     except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError):
-        raise ValueError(f"{path} cannot be read as a run's score; python -m searchrl.train resume={run_dir} "
-                         "writes it again from the run's progress.csv") from None  # fmt: skip
+        raise ValueError(
+            f"{path} cannot be read as a run's score; python -m searchrl.train resume={run_dir} "
+            "writes it again from the run's progress.csv"
+        ) from None
     try:
         own = run_score(run_dir, last)
     except (UnicodeDecodeError, ValueError) as err:  # pandas' parser errors are ValueErrors
-        raise ValueError(f"{Path(run_dir) / 'progress.csv'} cannot be read as a run's log ({type(err).__name__})"
-                         ) from None  # fmt: skip
-    same = recorded[1] == own["steps"] and (recorded[0] == own["score"] or (math.isnan(recorded[0])
-                                                                           and math.isnan(own["score"])))  # fmt: skip
+        raise ValueError(
+            f"{Path(run_dir) / 'progress.csv'} cannot be read as a run's log ({type(err).__name__})"
+        ) from None
+    same = recorded[1] == own["steps"] and (
+        recorded[0] == own["score"] or (math.isnan(recorded[0]) and math.isnan(own["score"]))
+    )
     if not same:
-        raise ValueError(f"{path} is not the score of {Path(run_dir) / 'progress.csv'} (it says {recorded[0]:.4f} at "
-                         f"steps {recorded[1]}, the log gives {own['score']:.4f} at {own['steps']}): another run's "
-                         "file or an edited log; resume the run to write it again")  # fmt: skip
+        raise ValueError(
+            f"{path} is not the score of {Path(run_dir) / 'progress.csv'} (it says {recorded[0]:.4f} at "
+            f"steps {recorded[1]}, the log gives {own['score']:.4f} at {own['steps']}): another run's "
+            "file or an edited log; resume the run to write it again"
+        )
     return own
 
 

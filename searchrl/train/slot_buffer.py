@@ -47,8 +47,9 @@ class SlotRolloutBuffer(RecurrentDictRolloutBuffer):
         """The teacher's action (n_steps, n_envs) for each step of the rollout just collected."""
         labels = np.asarray(labels, np.int64)
         if labels.shape != (self.buffer_size, self.n_envs):
-            raise ValueError(f"labels of shape {labels.shape}: expected (n_steps, n_envs) = "
-                             f"{(self.buffer_size, self.n_envs)}")  # fmt: skip
+            raise ValueError(
+                f"labels of shape {labels.shape}: expected (n_steps, n_envs) = {(self.buffer_size, self.n_envs)}"
+            )
         self.labels = labels
         self._slots.pop("labels", None)
 
@@ -59,8 +60,12 @@ class SlotRolloutBuffer(RecurrentDictRolloutBuffer):
             return torch.as_tensor(np.ascontiguousarray(np.swapaxes(array, 0, 1)), dtype=dtype, device=self.device)
 
         fields = {f"obs/{key}": slot_major(obs) for key, obs in self.observations.items()}
-        fields.update({name: slot_major(getattr(self, name)) for name in
-                       ("values", "log_probs", "advantages", "returns", "episode_starts")})  # fmt: skip
+        fields.update(
+            {
+                name: slot_major(getattr(self, name))
+                for name in ("values", "log_probs", "advantages", "returns", "episode_starts")
+            }
+        )
         fields["actions"] = slot_major(self.actions.reshape(self.buffer_size, self.n_envs, -1))
         for name in ("hidden_states_pi", "cell_states_pi", "hidden_states_vf", "cell_states_vf"):
             # (n_steps, layers, n_envs, hidden) -> each slot's state at its rollout's start: (layers, n_envs, hidden)

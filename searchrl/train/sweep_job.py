@@ -48,8 +48,10 @@ def continued_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple
     differ = sorted(k for k in before.keys() | now.keys() if before.get(k, "<absent>") != now.get(k, "<absent>"))
     if differ:
         key = differ[0]
-        raise ConfigError(f"{run_dir} holds a run of other settings ({key}: {before.get(key, '<absent>')} there, "
-                          f"{now.get(key, '<absent>')} now): sweep into another hydra.sweep.dir")  # fmt: skip
+        raise ConfigError(
+            f"{run_dir} holds a run of other settings ({key}: {before.get(key, '<absent>')} there, "
+            f"{now.get(key, '<absent>')} now): sweep into another hydra.sweep.dir"
+        )
     # model.zip is written once the budget is trained; its score.json is checked by the app (score.py stored_score)
     if (run_dir / "model.zip").is_file() and saved.total_timesteps == cfg.total_timesteps:
         return cfg, overrides, True

@@ -49,8 +49,10 @@ def check_settings(weight: float, schedule: str, critic_warmup: int) -> None:
     if schedule not in SCHEDULES:
         raise ValueError(f"imitation.rl_schedule={schedule!r} is not allowed: one of {', '.join(SCHEDULES)}")
     if int(critic_warmup) < 0:
-        raise ValueError(f"imitation.critic_warmup={critic_warmup!r} is not allowed: an integer >= 0 (rollouts of "
-                         "critic-only fitting)")  # fmt: skip
+        raise ValueError(
+            f"imitation.critic_warmup={critic_warmup!r} is not allowed: an integer >= 0 (rollouts of "
+            "critic-only fitting)"
+        )
 
 
 def value_parameters(policy: ActorCriticPolicy) -> list[torch.nn.Parameter]:
@@ -73,8 +75,9 @@ class TeacherTerm:
     rollouts_trained: int = 0
     label_source: LabelSource | None = None
 
-    def configure_teacher(self, weight: float, schedule: str, critic_warmup: int, source: LabelSource | None,
-                          anneal_steps: int = 0) -> None:  # fmt: skip
+    def configure_teacher(
+        self, weight: float, schedule: str, critic_warmup: int, source: LabelSource | None, anneal_steps: int = 0
+    ) -> None:
         check_settings(weight, schedule, critic_warmup)
         self.teacher_weight, self.teacher_schedule, self.critic_warmup = float(weight), schedule, int(critic_warmup)
         self.teacher_anneal_steps = int(anneal_steps)
@@ -183,8 +186,12 @@ class TeacherTerm:
                 with torch.no_grad():
                     log_ratio = log_prob - data.old_log_prob
                     approx_kls.append(((torch.exp(log_ratio) - 1) - log_ratio)[mask].mean().item())
-                for key, value in (("pg", policy_loss), ("value", value_loss), ("entropy", entropy_loss),
-                                   ("imitation", imitation_loss)):  # fmt: skip
+                for key, value in (
+                    ("pg", policy_loss),
+                    ("value", value_loss),
+                    ("entropy", entropy_loss),
+                    ("imitation", imitation_loss),
+                ):
                     logs[key].append(value.item())
                 logs["clip"].append(((ratio - 1).abs() > clip_range).float()[mask].mean().item())
                 if self.target_kl is not None and approx_kls[-1] > 1.5 * self.target_kl:
@@ -199,16 +206,22 @@ class TeacherTerm:
             if not continue_training:
                 break
         buffer = self.rollout_buffer
-        logged = [("policy_gradient_loss", "pg"), ("value_loss", "value"), ("entropy_loss", "entropy"),
-                  ("clip_fraction", "clip"), ("approx_kl", "kl")]  # fmt: skip
+        logged = [
+            ("policy_gradient_loss", "pg"),
+            ("value_loss", "value"),
+            ("entropy_loss", "entropy"),
+            ("clip_fraction", "clip"),
+            ("approx_kl", "kl"),
+        ]
         if self.label_source is not None:  # without a teacher the labels are placeholders: nothing to log
             logged.append(("imitation_loss", "imitation"))
             self.logger.record("train/imitation_weight", weight)
         for name, key in logged:
             self.logger.record(f"train/{name}", float(np.mean(logs[key])) if logs[key] else float("nan"))
         self.logger.record("train/loss", loss.item())
-        self.logger.record("train/explained_variance",
-                           explained_variance(buffer.values.flatten(), buffer.returns.flatten()))  # fmt: skip
+        self.logger.record(
+            "train/explained_variance", explained_variance(buffer.values.flatten(), buffer.returns.flatten())
+        )
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/clip_range", clip_range)
 

@@ -27,9 +27,13 @@ from searchrl.world.scenario import PAPER, Scenario
 
 
 def run_episodes(
-    world_config: WorldConfig, n_worlds: int, seed: int, model: OnPolicyAlgorithm | None, deterministic: bool = False,
+    world_config: WorldConfig,
+    n_worlds: int,
+    seed: int,
+    model: OnPolicyAlgorithm | None,
+    deterministic: bool = False,
     scenario: Scenario = PAPER,
-) -> dict[str, float]:  # fmt: skip
+) -> dict[str, float]:
     """Mean episode metrics of `model`'s policy (or of a random walk, None) over the validation set of `n_worlds`
     worlds drawn from `seed` under `scenario` (module docstring)."""
     if model is None:

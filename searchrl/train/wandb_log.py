@@ -43,8 +43,11 @@ class WandbOutput(KVWriter):
         self.run = run
 
     def write(self, key_values: dict[str, Any], key_excluded: dict[str, Any], step: int = 0) -> None:
-        values = {key: float(value) for key, value in key_values.items()
-                  if isinstance(value, numbers.Number) and not isinstance(value, bool)}  # fmt: skip
+        values = {
+            key: float(value)
+            for key, value in key_values.items()
+            if isinstance(value, numbers.Number) and not isinstance(value, bool)
+        }
         if values:
             self.run.log(values, step=int(step))
 
@@ -57,7 +60,15 @@ def start_wandb(cfg: TrainConfig, run_dir: Path) -> WandbOutput:
     import wandb
 
     run_id = hashlib.sha256(str(run_dir.resolve()).encode()).hexdigest()[:16]
-    run = wandb.init(project=cfg.logger.project, entity=cfg.logger.entity, group=cfg.logger.group,
-                     mode=cfg.logger.mode, dir=str(run_dir), name=run_dir.name, id=run_id, resume="allow",
-                     config=asdict(cfg))  # fmt: skip
+    run = wandb.init(
+        project=cfg.logger.project,
+        entity=cfg.logger.entity,
+        group=cfg.logger.group,
+        mode=cfg.logger.mode,
+        dir=str(run_dir),
+        name=run_dir.name,
+        id=run_id,
+        resume="allow",
+        config=asdict(cfg),
+    )
     return WandbOutput(run)

@@ -120,9 +120,15 @@ def _top_mass(flat: np.ndarray, chosen: np.ndarray, amount: float) -> tuple[floa
 
 
 def search_bound(
-    p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, reach: int, draws: int, rng: np.random.Generator,
+    p: np.ndarray,
+    u: np.ndarray,
+    free: np.ndarray,
+    count: int,
+    reach: int,
+    draws: int,
+    rng: np.random.Generator,
     budgets: Sequence[float] = (),
-) -> SearchBound:  # fmt: skip
+) -> SearchBound:
     """The bound for one map: the expected targets on the `reach` cells of largest estimated marginal, and for each
     of `budgets` (`detection_budget`, one per move set say) the detection bound on the same draws.
 

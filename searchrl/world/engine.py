@@ -48,9 +48,16 @@ class SearchWorld:
     the window and the 3-vector, in `parts` after every reset and step.
     """
 
-    def __init__(self, config: WorldConfig, n_worlds: int, seed: int | None = None, scenario: Scenario = PAPER,
-                 auto_reset: bool = True, observe: bool = True,
-                 parts: Sequence[ObservationPart] = ()) -> None:  # fmt: skip
+    def __init__(
+        self,
+        config: WorldConfig,
+        n_worlds: int,
+        seed: int | None = None,
+        scenario: Scenario = PAPER,
+        auto_reset: bool = True,
+        observe: bool = True,
+        parts: Sequence[ObservationPart] = (),
+    ) -> None:
         need(is_int(n_worlds) and n_worlds >= 1, "n_worlds", n_worlds, "an integer >= 1")
         check_seed(seed)
         scenario.check(config)
@@ -68,8 +75,14 @@ class SearchWorld:
         self.started = False  # a world is stepped only once reset (`reset`, `from_maps`) has drawn it
 
     @classmethod
-    def from_maps(cls, config: WorldConfig, map_seeds: Sequence[int], streams: WorldStreams,
-                  scenario: Scenario = PAPER, observe: bool = True) -> SearchWorld:  # fmt: skip
+    def from_maps(
+        cls,
+        config: WorldConfig,
+        map_seeds: Sequence[int],
+        streams: WorldStreams,
+        scenario: Scenario = PAPER,
+        observe: bool = True,
+    ) -> SearchWorld:
         """Worlds for one episode each: world k reset from `np.random.default_rng(map_seeds[k])` (its map, targets
         and start cells), stepped with draws from its own stream (`streams`, one per world), never reset on its own
         (`start_episodes` starts another episode in a world)."""

@@ -12,8 +12,9 @@ def make_footprint(radius: int = 2) -> np.ndarray:
     """Γ[dy + r, dx + r] = exp(-(dx² + dy²) / 2) on the disc dx² + dy² <= r², 0 outside. Shape (2r+1, 2r+1).
     Python's math.exp, the C library's, not numpy's (searchrl/world/libm.py says why)."""
     d = range(-radius, radius + 1)
-    return np.array([[math.exp(-(dy * dy + dx * dx) / 2.0) if dy * dy + dx * dx <= radius**2 else 0.0 for dx in d]
-                     for dy in d])  # fmt: skip
+    return np.array(
+        [[math.exp(-(dy * dy + dx * dx) / 2.0) if dy * dy + dx * dx <= radius**2 else 0.0 for dx in d] for dy in d]
+    )
 
 
 GAMMA: np.ndarray = make_footprint(2)  # (5, 5) float64; the paper prints it to 4 decimals

@@ -23,8 +23,9 @@ class Gaussians:
     rho: np.ndarray
 
     @staticmethod
-    def draw(n: int, m: int, variance_high: float, variance_low: float, rho_max: float,
-             rng: np.random.Generator) -> Gaussians:  # fmt: skip
+    def draw(
+        n: int, m: int, variance_high: float, variance_low: float, rho_max: float, rng: np.random.Generator
+    ) -> Gaussians:
         """Means uniform over [0, n - 1]², each σ² uniform in [variance_low, variance_high), ρ uniform in
         (-rho_max, rho_max), drawn in that order."""
         mu = rng.uniform(0.0, n - 1.0, size=(m, 2))
@@ -34,8 +35,11 @@ class Gaussians:
 
     def __add__(self, other: Gaussians) -> Gaussians:
         """Both sets, self's first: their densities come from one `densities` call."""
-        return Gaussians(np.concatenate((self.mu, other.mu)), np.concatenate((self.var, other.var)),
-                         np.concatenate((self.rho, other.rho)))  # fmt: skip
+        return Gaussians(
+            np.concatenate((self.mu, other.mu)),
+            np.concatenate((self.var, other.var)),
+            np.concatenate((self.rho, other.rho)),
+        )
 
     def densities(self, n: int) -> np.ndarray:
         """Each Gaussian's density at the cell centres of an n×n grid: (m, n, n) float64 [component, row = y,

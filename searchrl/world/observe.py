@@ -46,8 +46,9 @@ def observe(
     return maps, vec
 
 
-def observe_worlds(config: WorldConfig, state: WorldState, out: tuple[np.ndarray, np.ndarray],
-                   worlds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+def observe_worlds(
+    config: WorldConfig, state: WorldState, out: tuple[np.ndarray, np.ndarray], worlds: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """`observe` of the worlds listed in `worlds` (int64 indices) into `out`, the others' rows left as they are:
     after a step has observed every world and a few were reset, only those have changed."""
     maps, vec = out

@@ -64,8 +64,10 @@ def _until_room(draw, room: int, what: str, n: int) -> np.ndarray:
         walls = draw()
         if (~walls).sum() >= room:
             return walls
-    raise ConfigError(f"{what} is not allowed here: {_MAX_OBSTACLE_DRAWS} draws left fewer than {room} free cells "
-                      f"(agents and targets) of {n}x{n}")  # fmt: skip
+    raise ConfigError(
+        f"{what} is not allowed here: {_MAX_OBSTACLE_DRAWS} draws left fewer than {room} free cells "
+        f"(agents and targets) of {n}x{n}"
+    )
 
 
 @dataclass(frozen=True)
@@ -86,12 +88,20 @@ class IidObstacles:
             walls = rng.random((n, n)) < self.density
             return ~largest_region(~walls) if self.connected else walls
 
-        return _until_room(draw, room, f"scenario.obstacles.density={self.density}"
-                           + (" with connected=true" if self.connected else ""), n)  # fmt: skip
+        return _until_room(
+            draw,
+            room,
+            f"scenario.obstacles.density={self.density}" + (" with connected=true" if self.connected else ""),
+            n,
+        )
 
     def check(self, config: WorldConfig) -> None:
-        need(finite(self.density) and 0 <= self.density < 1, "scenario.obstacles.density", self.density,
-             "0 <= density < 1")  # fmt: skip
+        need(
+            finite(self.density) and 0 <= self.density < 1,
+            "scenario.obstacles.density",
+            self.density,
+            "0 <= density < 1",
+        )
         need(isinstance(self.connected, bool), "scenario.obstacles.connected", self.connected, "true or false")
         # Agents and targets need distinct free cells in the smallest world: checked at the expected density here,
         # exactly at every reset (the draw repeats until they fit).
@@ -106,9 +116,13 @@ def _check_room(config: WorldConfig, free_share: float, name: str, value: object
     n = config.world_size[0]
     free = int(n * n * free_share)
     room = config.n_agents + config.n_targets[1]
-    need(room <= free, name, value,
-         f"agents and targets start on distinct cells: n_agents + max targets = {room} must fit the about {free} "
-         f"free cells of the smallest world (n={n})")  # fmt: skip
+    need(
+        room <= free,
+        name,
+        value,
+        f"agents and targets start on distinct cells: n_agents + max targets = {room} must fit the about {free} "
+        f"free cells of the smallest world (n={n})",
+    )
 
 
 @dataclass(frozen=True)
@@ -157,8 +171,11 @@ class MazeObstacles:
         seen[stack[0]] = True
         while stack:
             i, j = stack[-1]
-            around = [(i + di, j + dj) for di, dj in ((-1, 0), (1, 0), (0, -1), (0, 1))
-                      if 0 <= i + di < side and 0 <= j + dj < side and not seen[i + di, j + dj]]  # fmt: skip
+            around = [
+                (i + di, j + dj)
+                for di, dj in ((-1, 0), (1, 0), (0, -1), (0, 1))
+                if 0 <= i + di < side and 0 <= j + dj < side and not seen[i + di, j + dj]
+            ]
             if not around:
                 stack.pop()
                 continue
@@ -185,17 +202,30 @@ class MazeObstacles:
             walls[i * step : i * step + width, col] = False
 
     def check(self, config: WorldConfig) -> None:
-        need(is_int(self.corridor) and 1 <= self.corridor <= 16, "scenario.obstacles.corridor", self.corridor,
-             "an integer 1 <= corridor <= 16 (cells)")  # fmt: skip
+        need(
+            is_int(self.corridor) and 1 <= self.corridor <= 16,
+            "scenario.obstacles.corridor",
+            self.corridor,
+            "an integer 1 <= corridor <= 16 (cells)",
+        )
         need(finite(self.loops) and 0 <= self.loops <= 1, "scenario.obstacles.loops", self.loops, "0 <= loops <= 1")
         # Exact: the lattice's side² open squares of corridor² cells and the side² − 1 openings of its spanning
         # tree are free in every draw. One lattice cell is no maze (an open room), so the smallest world needs two.
         n = config.world_size[0]
         side, width = (n + 1) // (self.corridor + 1), self.corridor
-        need(side >= 2, "scenario.obstacles.corridor", self.corridor, f"at most {(n + 1) // 2 - 1} in the smallest "
-             f"world (n={n}): two corridors and a wall a side, else the maze is one open room")  # fmt: skip
-        _check_room(config, (side * side * width * width + (side * side - 1) * width) / (n * n),
-                    "scenario.obstacles.corridor", self.corridor)  # fmt: skip
+        need(
+            side >= 2,
+            "scenario.obstacles.corridor",
+            self.corridor,
+            f"at most {(n + 1) // 2 - 1} in the smallest "
+            f"world (n={n}): two corridors and a wall a side, else the maze is one open room",
+        )
+        _check_room(
+            config,
+            (side * side * width * width + (side * side - 1) * width) / (n * n),
+            "scenario.obstacles.corridor",
+            self.corridor,
+        )
 
     @property
     def label(self) -> str:
@@ -238,13 +268,25 @@ class RoomObstacles:
         return walls
 
     def check(self, config: WorldConfig) -> None:
-        need(is_int(self.room_size) and 4 <= self.room_size <= 1024, "scenario.obstacles.room_size", self.room_size,
-             "an integer 4 <= room_size <= 1024 (cells)")  # fmt: skip
-        need(is_int(self.door) and 1 <= self.door < self.room_size, "scenario.obstacles.door", self.door,
-             "an integer 1 <= door < room_size (cells)")  # fmt: skip
+        need(
+            is_int(self.room_size) and 4 <= self.room_size <= 1024,
+            "scenario.obstacles.room_size",
+            self.room_size,
+            "an integer 4 <= room_size <= 1024 (cells)",
+        )
+        need(
+            is_int(self.door) and 1 <= self.door < self.room_size,
+            "scenario.obstacles.door",
+            self.door,
+            "an integer 1 <= door < room_size (cells)",
+        )
         n = config.world_size[0]
-        need(self.room_size <= n, "scenario.obstacles.room_size", self.room_size, f"at most the smallest world's "
-             f"side n={n}: a larger room is never divided, and the world is one open room")  # fmt: skip
+        need(
+            self.room_size <= n,
+            "scenario.obstacles.room_size",
+            self.room_size,
+            f"at most the smallest world's side n={n}: a larger room is never divided, and the world is one open room",
+        )
         _check_room(config, 0.8, "scenario.obstacles.room_size", self.room_size)
 
     @property

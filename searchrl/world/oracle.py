@@ -126,9 +126,15 @@ def _sweep(state: WorldState, k: int) -> list[bool]:
     """SPEC step 3, *Swept*: per agent, whether its footprint held no free cell the team had not swept before
     this step; then the footprints are swept."""
     h = state.halo
-    cells = [{(int(state.pos[k, i, 0]) + dr + h, int(state.pos[k, i, 1]) + dc + h)
-              for dr in range(-2, 3) for dc in range(-2, 3) if GAMMA[dr + 2, dc + 2] > 0}
-             for i in range(state.n_agents)]  # fmt: skip
+    cells = [
+        {
+            (int(state.pos[k, i, 0]) + dr + h, int(state.pos[k, i, 1]) + dc + h)
+            for dr in range(-2, 3)
+            for dc in range(-2, 3)
+            if GAMMA[dr + 2, dc + 2] > 0
+        }
+        for i in range(state.n_agents)
+    ]
     stale = [all(state.swept[k, r, c] or state.blocked[k, r, c] for r, c in mine) for mine in cells]
     for mine in cells:
         for r, c in mine:

@@ -47,8 +47,9 @@ class MixturePrior:
     kind: ClassVar[str] = "mixture"
     variance_scale: float | None = None
 
-    def components(self, config: WorldConfig, n: int, m: int, rng: np.random.Generator
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    def components(
+        self, config: WorldConfig, n: int, m: int, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(p's m densities (m, n, n), p and u (n, n)), drawn in the paper's order: p's Gaussians, then u's."""
         scale = config.prob_variance_scale if self.variance_scale is None else self.variance_scale
         p_gaussians = Gaussians.draw(n, m, scale * n, config.variance_floor, config.rho_max, rng)
@@ -60,18 +61,26 @@ class MixturePrior:
         densities, p, u = self.components(config, n, m, rng)
         return self.truth(config, p, u, densities, rng)
 
-    def truth(self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray,
-              rng: np.random.Generator) -> PriorDraw:  # fmt: skip
+    def truth(
+        self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray, rng: np.random.Generator
+    ) -> PriorDraw:
         """The agents' maps and the truth's from the prior's own draw; the paper's: the truth is the prior."""
         return PriorDraw(p, u, p, u)
 
     def check(self, config: WorldConfig) -> None:
         if self.variance_scale is not None:
-            need(finite(self.variance_scale) and 0 < self.variance_scale <= 1e6, "scenario.prior.variance_scale",
-                 self.variance_scale, "null (the world's prob_variance_scale) or 0 < scale <= 1e6")  # fmt: skip
-            need(config.variance_floor < self.variance_scale * config.world_size[0], "scenario.prior.variance_scale",
-                 self.variance_scale,
-                 f"scale · smallest n must exceed variance_floor={config.variance_floor}")  # fmt: skip
+            need(
+                finite(self.variance_scale) and 0 < self.variance_scale <= 1e6,
+                "scenario.prior.variance_scale",
+                self.variance_scale,
+                "null (the world's prob_variance_scale) or 0 < scale <= 1e6",
+            )
+            need(
+                config.variance_floor < self.variance_scale * config.world_size[0],
+                "scenario.prior.variance_scale",
+                self.variance_scale,
+                f"scale · smallest n must exceed variance_floor={config.variance_floor}",
+            )
 
     @property
     def label(self) -> str:
@@ -91,18 +100,24 @@ class PriorErrorMaps(MixturePrior):
     kind: ClassVar[str] = ""
     severity: float = 1.0
 
-    def truth(self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray,
-              rng: np.random.Generator) -> PriorDraw:  # fmt: skip
+    def truth(
+        self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray, rng: np.random.Generator
+    ) -> PriorDraw:
         return PriorDraw(p, u, p, u) if self.severity == 0 else self.wrong(config, p, u, densities, rng)
 
-    def wrong(self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray,
-              rng: np.random.Generator) -> PriorDraw:  # fmt: skip
+    def wrong(
+        self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray, rng: np.random.Generator
+    ) -> PriorDraw:
         raise NotImplementedError
 
     def check(self, config: WorldConfig) -> None:
         super().check(config)
-        need(finite(self.severity) and 0 <= self.severity <= 1, "scenario.prior.severity", self.severity,
-             "0 <= severity <= 1 (0: the paper's prior; 1: the family's most wrong)")  # fmt: skip
+        need(
+            finite(self.severity) and 0 <= self.severity <= 1,
+            "scenario.prior.severity",
+            self.severity,
+            "0 <= severity <= 1 (0: the paper's prior; 1: the family's most wrong)",
+        )
 
     @property
     def label(self) -> str:
@@ -125,8 +140,9 @@ class MisweightedPrior(PriorErrorMaps):
 
     kind: ClassVar[str] = "misweighted"
 
-    def wrong(self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray,
-              rng: np.random.Generator) -> PriorDraw:  # fmt: skip
+    def wrong(
+        self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray, rng: np.random.Generator
+    ) -> PriorDraw:
         m = densities.shape[0]
         weights = (1.0 - self.severity) + self.severity * m * rng.dirichlet(np.ones(m))
         return PriorDraw(p, u, probability_map(np.tensordot(weights, densities, axes=1), config.eta), u)
@@ -141,8 +157,9 @@ class UninformedPrior(PriorErrorMaps):
 
     kind: ClassVar[str] = "uninformed"
 
-    def wrong(self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray,
-              rng: np.random.Generator) -> PriorDraw:  # fmt: skip
+    def wrong(
+        self, config: WorldConfig, p: np.ndarray, u: np.ndarray, densities: np.ndarray, rng: np.random.Generator
+    ) -> PriorDraw:
         return PriorDraw((1.0 - self.severity) * p + self.severity / p.size, u, p, u)
 
 

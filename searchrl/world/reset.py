@@ -68,8 +68,9 @@ def draw_world(config: WorldConfig, n_agents: int, rng: np.random.Generator, sce
 def write_world(config: WorldConfig, state: WorldState, k: int, world: DrawnWorld) -> None:
     """World k of `state` starts an episode in the drawn `world`: maps, obstacles, agents, targets, every belief
     the prior, counters at 0."""
-    p_peak, u_peak = _write_world(state.arrays(), k, world.p, world.u, world.free, world.pos, world.targets,
-                                  world_threads())  # fmt: skip
+    p_peak, u_peak = _write_world(
+        state.arrays(), k, world.p, world.u, world.free, world.pos, world.targets, world_threads()
+    )
     if config.belief_age > 0:  # else 0: the rate (a count of free cells) is not needed
         state.age_rate[k] = config.belief_age * team_sensing_rate(state.blocked[k : k + 1], state.n_agents)[0]
     state.belief_time[k] = 0  # both are (K, N, 0, 0), and this a no-op, in a world that keeps neither
@@ -157,8 +158,9 @@ def _write_beliefs(w, k, first, stop):
         merge_pos[k, i, 0], merge_pos[k, i, 1] = 0, 0  # as allocated: no merge yet
 
 
-def reset_worlds(config: WorldConfig, state: WorldState, mask: np.ndarray, rng: np.random.Generator,
-                 scenario: Scenario = PAPER) -> None:  # fmt: skip
+def reset_worlds(
+    config: WorldConfig, state: WorldState, mask: np.ndarray, rng: np.random.Generator, scenario: Scenario = PAPER
+) -> None:
     """Reset the worlds where `mask` (K,) is true, in index order, leaving the others untouched."""
     for k in np.flatnonzero(mask):
         reset_world(config, state, int(k), rng, scenario)

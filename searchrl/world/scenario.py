@@ -88,8 +88,10 @@ def register_part(part: str, cls: type) -> None:
     need(part in PARTS, "part", part, f"one of {', '.join(PARTS)}")
     kind = getattr(cls, "kind", None)
     if not isinstance(kind, str) or kind in PARTS[part]:
-        raise ConfigError(f"scenario.{part}.kind={kind!r} cannot be registered: a new name is needed, "
-                          f"not one of {', '.join(PARTS[part])}")  # fmt: skip
+        raise ConfigError(
+            f"scenario.{part}.kind={kind!r} cannot be registered: a new name is needed, "
+            f"not one of {', '.join(PARTS[part])}"
+        )
     PARTS[part][kind] = cls
 
 
@@ -149,14 +151,17 @@ class Scenario:
         if values.get("mix") is not None:
             given = sorted(k for k, v in values.items() if k != "mix" and v is not None)
             if given:
-                raise ConfigError(f"scenario.{given[0]} is not allowed with scenario.mix: a mix draws whole "
-                                  "scenarios (set the part in its families, or null it)")  # fmt: skip
+                raise ConfigError(
+                    f"scenario.{given[0]} is not allowed with scenario.mix: a mix draws whole "
+                    "scenarios (set the part in its families, or null it)"
+                )
             return ScenarioMix.from_spec(values["mix"])
         values = {k: v for k, v in values.items() if k != "mix"}
         unknown = sorted(set(values) - {"obstacles", "prior", "targets"})
         if unknown:
-            raise ConfigError(f"scenario.{unknown[0]} is not allowed: a scenario has obstacles, prior and targets "
-                              "(or a mix)")  # fmt: skip
+            raise ConfigError(
+                f"scenario.{unknown[0]} is not allowed: a scenario has obstacles, prior and targets (or a mix)"
+            )
         parts = {}
         for name, kinds in PARTS.items():
             settings = dict(values.get(name) or {})
@@ -165,8 +170,10 @@ class Scenario:
             allowed = {f.name for f in fields(kinds[kind])}
             extra = sorted(set(settings) - allowed)
             if extra:
-                raise ConfigError(f"scenario.{name}.{extra[0]}={settings[extra[0]]!r} is not allowed: "
-                                  f"{name} of kind {kind} take {sorted(allowed) or 'no settings'}")  # fmt: skip
+                raise ConfigError(
+                    f"scenario.{name}.{extra[0]}={settings[extra[0]]!r} is not allowed: "
+                    f"{name} of kind {kind} take {sorted(allowed) or 'no settings'}"
+                )
             parts[name] = kinds[kind](**settings)
         return cls(**parts)
 
@@ -174,15 +181,24 @@ class Scenario:
 PAPER = Scenario()
 
 
-def scenario_grid(families: dict[str, dict], severities: list[float], variance_scales: list[float | None],
-                  obstacles: dict | None = None, name: str = "suite") -> list[Scenario]:  # fmt: skip
+def scenario_grid(
+    families: dict[str, dict],
+    severities: list[float],
+    variance_scales: list[float | None],
+    obstacles: dict | None = None,
+    name: str = "suite",
+) -> list[Scenario]:
     """Scenarios made from families of prior error: per variance scale (the prior's sharpness, null: the world's),
     the prior right (severity 0), then each family at each severity. `families` maps a name to the parts the
     family sets ({"targets": {"kind": "shifted"}}), each part's severity set per point. ConfigError naming a bad
     value under `name` (the suite's or the mix's key)."""
     severities = [float(s) for s in severities]
-    need((len(severities) > 0 or not families) and all(0 < s <= 1 for s in severities), f"{name}.severities",
-         severities, "severities in (0, 1] (severity 0, the prior right, comes once per sharpness)")  # fmt: skip
+    need(
+        (len(severities) > 0 or not families) and all(0 < s <= 1 for s in severities),
+        f"{name}.severities",
+        severities,
+        "severities in (0, 1] (severity 0, the prior right, comes once per sharpness)",
+    )
     need(len(variance_scales) > 0, f"{name}.variance_scales", variance_scales, "one or more (null: the world's)")
     scenarios = []
     for scale in variance_scales:
@@ -191,12 +207,20 @@ def scenario_grid(families: dict[str, dict], severities: list[float], variance_s
             base["obstacles"] = dict(obstacles)
         scenarios.append(Scenario.from_dict(base))
         for family, parts in families.items():
-            need(isinstance(parts, dict) and bool(parts) and set(parts) <= {"prior", "targets"},
-                 f"{name}.families.{family}", parts,
-                 "the parts the family sets: prior and/or targets, with a kind")  # fmt: skip
+            need(
+                isinstance(parts, dict) and bool(parts) and set(parts) <= {"prior", "targets"},
+                f"{name}.families.{family}",
+                parts,
+                "the parts the family sets: prior and/or targets, with a kind",
+            )
             for severity in severities:
-                values = {**base, **{part: {**base.get(part, {}), **settings, "severity": severity}
-                                     for part, settings in parts.items()}}  # fmt: skip
+                values = {
+                    **base,
+                    **{
+                        part: {**base.get(part, {}), **settings, "severity": severity}
+                        for part, settings in parts.items()
+                    },
+                }
                 values["prior"] = {**values["prior"], "variance_scale": scale}
                 scenarios.append(Scenario.from_dict(values))
     return scenarios
@@ -217,11 +241,18 @@ class ScenarioMix:
         spec = dict(spec)
         unknown = sorted(set(spec) - {"families", "severities", "variance_scales", "obstacles", "scenarios"})
         if unknown:
-            raise ConfigError(f"scenario.mix.{unknown[0]} is not allowed: a mix has families, severities, "
-                              "variance_scales, obstacles and scenarios")  # fmt: skip
+            raise ConfigError(
+                f"scenario.mix.{unknown[0]} is not allowed: a mix has families, severities, "
+                "variance_scales, obstacles and scenarios"
+            )
         severities = list(spec.get("severities") or [])
-        grid = scenario_grid(dict(spec.get("families") or {}), severities, list(spec.get("variance_scales") or [None]),
-                             spec.get("obstacles"), name="scenario.mix")  # fmt: skip
+        grid = scenario_grid(
+            dict(spec.get("families") or {}),
+            severities,
+            list(spec.get("variance_scales") or [None]),
+            spec.get("obstacles"),
+            name="scenario.mix",
+        )
         per_scale = 1 + len(spec.get("families") or {}) * len(severities)
         weighted = []  # the right prior repeated once per severity: a family, picked as often as each other
         for start in range(0, len(grid), per_scale):

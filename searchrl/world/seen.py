@@ -36,8 +36,9 @@ def freshness(rate, now, then):
     return np.exp(-rate * (now - then))
 
 
-def remember_sightings(w, support, seen: np.ndarray, known: np.ndarray, view: int, phi: int, forget: bool,
-                       first: int, stop: int) -> None:  # fmt: skip
+def remember_sightings(
+    w, support, seen: np.ndarray, known: np.ndarray, view: int, phi: int, forget: bool, first: int, stop: int
+) -> None:
     """Update seen and known (K,N,S,S), either (K,N,0,0) to skip it, of worlds first..stop-1 at the agents'
     positions in w (a `WorldArrays`): seen *= (1 − Γ) (support: a `Footprint`) under the footprint of every other
     agent within Chebyshev distance `view` of each agent, scanned row by row; then on the agent's Φ (radius `phi`)
@@ -89,6 +90,13 @@ def update_freshness(config: WorldConfig, state: WorldState, first: int, stop: i
     of them) or a reset (one); nothing when the world keeps neither."""
     if state.belief_seen.size or state.belief_time.size:
         remember_sightings(
-            state.arrays(), SUPPORT, state.belief_seen, state.belief_time, config.fov // 2,
-            config.explicit_area // 2, True, first, stop,
-        )  # fmt: skip
+            state.arrays(),
+            SUPPORT,
+            state.belief_seen,
+            state.belief_time,
+            config.fov // 2,
+            config.explicit_area // 2,
+            True,
+            first,
+            stop,
+        )

@@ -12,13 +12,12 @@ from searchrl.world import kernels
 from searchrl.world.config import WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT
 from searchrl.world.kernels import CACHE
-from searchrl.world.merge import communicate, merge_values, merge_work, plan_merge, write_merge
-from searchrl.world.parallel import agent_blocks, block_span, chunk_count, chunk_span, world_threads
+from searchrl.world.merge import merge_work
+from searchrl.world.parallel import agent_blocks, chunk_count, chunk_span, world_threads
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
+from searchrl.world.step_spans import MERGE_BLOCK_AGENTS, step_sharing_merges, step_span
 from searchrl.world.streams import WorldStreams
-from searchrl.world.sums import numpy_sum
-from searchrl.world.swept import sweep
 
 
 @dataclass
@@ -87,12 +86,36 @@ def step(
         comm_gain=np.empty((k, n), np.float64),
         comm_pairs=np.empty(k, np.int64),
     )
-    out = (result.collided, result.targets_found, result.info_collected, np.empty((k, n), np.bool_),
-           result.comm_pairs, result.comm_gain, result.reward, result.terminated, result.truncated)  # fmt: skip
+    out = (
+        result.collided,
+        result.targets_found,
+        result.info_collected,
+        np.empty((k, n), np.bool_),
+        result.comm_pairs,
+        result.comm_gain,
+        result.reward,
+        result.terminated,
+        result.truncated,
+    )
     sensing, radii, reward_terms = _step_terms(config)
     work = merge_work(threads, n, config.comm_range // 2)  # a slot per thread
-    step_worlds(state.arrays(), actions, priority, detect, MOVES, SUPPORT, sensing, radii, config.communication,
-                reward_terms, config.max_steps, scratch, work, out, threads)  # fmt: skip
+    step_worlds(
+        state.arrays(),
+        actions,
+        priority,
+        detect,
+        MOVES,
+        SUPPORT,
+        sensing,
+        radii,
+        config.communication,
+        reward_terms,
+        config.max_steps,
+        scratch,
+        work,
+        out,
+        threads,
+    )
     update_freshness(config, state, 0, k)  # observation only: when each agent last saw a cell, what it saw sensed
     return result
 
@@ -105,16 +128,39 @@ def _step_terms(config: WorldConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray
     τ/λ, the coefficients of SPEC.md's reward (phase 6) in the order it adds them."""
     sensing = np.array([config.lam, config.k, config.k_per_n], np.float64)
     radii = np.array([config.explicit_area // 2, config.comm_range // 2], np.int64)
-    reward_terms = np.array([config.step_reward, config.collision_reward, config.target_reward,
-                             config.xi / config.lam, config.tau / config.lam], np.float64)  # fmt: skip
+    reward_terms = np.array(
+        [
+            config.step_reward,
+            config.collision_reward,
+            config.target_reward,
+            config.xi / config.lam,
+            config.tau / config.lam,
+        ],
+        np.float64,
+    )
     for terms in (sensing, radii, reward_terms):
         terms.flags.writeable = False
     return sensing, radii, reward_terms
 
 
 @njit(cache=CACHE, parallel=True)
-def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, merge, reward_terms, max_steps, scratch,
-                work, out, threads):  # fmt: skip
+def step_worlds(
+    w,
+    actions,
+    priority,
+    detect,
+    moves,
+    support,
+    sensing,
+    radii,
+    merge,
+    reward_terms,
+    max_steps,
+    scratch,
+    work,
+    out,
+    threads,
+):
     """SPEC.md's step (move, detect, sense and sweep, refresh, communicate, reward, time) for every world of w, the
     worlds shared among numba's threads (searchrl/world/parallel.py). actions (K,N) int64, priority (K,N) and detect
     (K,T) float64 the step's draws, moves (A,2) int64, support a `Footprint`, sensing, radii and reward_terms those of
@@ -125,7 +171,7 @@ def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, me
 
     Each thread runs the phases in turn over its span of worlds: a phase touches the rows of its own worlds only,
     so this equals running each phase over all worlds in turn. With fewer worlds than threads, the merges are
-    shared among the threads as well (`_step_sharing_merges`).
+    shared among the threads as well (`step_spans.step_sharing_merges`).
     """
     n_worlds, size = actions.shape[0], w.size
     c_coef = np.empty(n_worlds)  # each world's λk, as `WorldConfig.sensing_rate` computes it
@@ -134,115 +180,62 @@ def step_worlds(w, actions, priority, detect, moves, support, sensing, radii, me
     n_chunks = chunk_count(n_worlds, scratch.claim.shape[0], threads)
     blocks = agent_blocks(n_worlds, actions.shape[1], threads, MERGE_BLOCK_AGENTS) if merge else 1
     if blocks > 1:  # fewer worlds than threads: each world's merge is shared among them too
-        _step_sharing_merges(w, actions, priority, detect, moves, support, c_coef, radii, reward_terms, max_steps,
-                             scratch, work, out, blocks)  # fmt: skip
+        step_sharing_merges(
+            w,
+            actions,
+            priority,
+            detect,
+            moves,
+            support,
+            c_coef,
+            radii,
+            reward_terms,
+            max_steps,
+            scratch,
+            work,
+            out,
+            blocks,
+        )
         return
     if n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
-        _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps,
-                   scratch, work, out, np.int64(0), np.int64(0), n_worlds)  # fmt: skip
+        step_span(
+            w,
+            actions,
+            priority,
+            detect,
+            moves,
+            support,
+            c_coef,
+            radii,
+            merge,
+            reward_terms,
+            max_steps,
+            scratch,
+            work,
+            out,
+            np.int64(0),
+            np.int64(0),
+            n_worlds,
+        )
         return
     for chunk in prange(n_chunks):
         first, stop = chunk_span(chunk, n_chunks, 0, n_worlds)
-        _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps,
-                   scratch, work, out, np.int64(chunk), first, stop)  # fmt: skip
-
-
-# The fewest agents of a block of a shared merge. A shared step opens three parallel regions where a world's own
-# thread opens none, so a small team (whose merge is a few microseconds) stays whole.
-MERGE_BLOCK_AGENTS = 16
-
-
-@njit(cache=CACHE)
-def _act_and_sense(w, actions, priority, detect, moves, support, c_coef, phi, scratch, out, slot, first, stop):
-    """Phases 1-4 of SPEC.md's step for worlds first..stop-1, with scratch slot `slot`."""
-    collided, found_by, collected, stale = out[:4]
-    n_agents, n_support = actions.shape[1], support.dr.shape[0]
-    target, candidate = np.empty((n_agents, 2), np.int64), np.empty(n_agents, np.bool_)
-    cover_agent, cover_g = np.empty(n_support, np.int64), np.empty(n_support, np.float64)
-    claim, surv, fsum = scratch.claim[slot], scratch.surv[slot], scratch.fsum[slot]
-    removed, done = scratch.removed[slot], scratch.done[slot]
-    kernels.move_agents(w, first, stop, actions, priority, moves, claim, target, candidate, collided)
-    kernels.detect_targets(w, first, stop, detect, support, cover_agent, cover_g, found_by)
-    kernels.sense(w, first, stop, support, c_coef, surv, fsum, removed, done, collected)
-    sweep(w, first, stop, support, stale)
-    kernels.refresh_beliefs(w, first, stop, phi)
-
-
-@njit(cache=CACHE)
-def _step_span(w, actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps, scratch,
-               work, out, slot, first, stop):  # fmt: skip
-    """`step_worlds` for worlds first..stop-1, with scratch and work slot `slot`."""
-    comm_pairs, comm_gain = out[4], out[5]
-    n_agents = actions.shape[1]
-    _act_and_sense(w, actions, priority, detect, moves, support, c_coef, radii[0], scratch, out, slot, first, stop)
-    communicate(w, first, stop, radii[1], merge, work, slot, comm_pairs, comm_gain)
-    _account(w, first, stop, reward_terms, max_steps, out, np.empty(n_agents), np.empty(n_agents))
-
-
-@njit(cache=CACHE)
-def _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out, k):
-    """World k's phases 1-4 and its merge's plan, in scratch and work slot k; returns its merge's buffer length."""
-    _act_and_sense(w, actions, priority, detect, moves, support, c_coef, radii[0], scratch, out, k, k, k + 1)
-    return plan_merge(w, k, radii[1], np.bool_(True), work, k, out[4], out[5])
-
-
-@njit(cache=CACHE, parallel=True)
-def _step_sharing_merges(w, actions, priority, detect, moves, support, c_coef, radii, reward_terms, max_steps,
-                         scratch, work, out, blocks):  # fmt: skip
-    """`step_worlds` with merges (K < threads): world k's phases 1-4 and its merge's plan on a thread of its own
-    (scratch and work slot k), then its merge's two passes shared among the threads, `blocks` blocks of agents a
-    world (each pass reads what the one before wrote, so each is a parallel region of its own), then phases 6-7
-    in this thread. Each agent's values, ΔM and box are computed as in `communicate`, so the step is the same bit
-    for bit."""
-    comm_gain = out[5]
-    n_worlds, n_agents = actions.shape
-    size = np.empty(n_worlds, np.int64)
-    if n_worlds == 1:  # in this thread: a parallel region of one world would only wake the others
-        size[0] = _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out,
-                                 np.int64(0))  # fmt: skip
-    else:
-        for k in prange(n_worlds):
-            size[k] = _prepare_merge(w, actions, priority, detect, moves, support, c_coef, radii, scratch, work, out,
-                                     np.int64(k))  # fmt: skip
-    base = np.zeros(n_worlds + 1, np.int64)
-    for k in range(n_worlds):
-        base[k + 1] = base[k] + size[k]
-    buf = np.empty(base[n_worlds], np.float32)
-    for job in prange(n_worlds * blocks):
-        k, first, stop = block_span(job, blocks, n_agents)
-        merge_values(w, k, first, stop, work, k, buf, base[k])
-    for job in prange(n_worlds * blocks):
-        k, first, stop = block_span(job, blocks, n_agents)
-        write_merge(w, k, first, stop, work, k, buf, base[k], comm_gain)
-    _account(w, np.int64(0), n_worlds, reward_terms, max_steps, out, np.empty(n_agents), np.empty(n_agents))
-
-
-@njit(cache=CACHE)
-def _account(w, first, stop, reward_terms, max_steps, out, reward64, info64):
-    """Phases 6 and 7 of SPEC.md for worlds first..stop-1: each agent's reward into out's reward (float32), the
-    clock and the episode's end into out's terminated and truncated, and the episode's tallies. reward64 and info64
-    (N,) float64 are work space. The terms are added in SPEC.md's order and the team's sums are numpy's
-    (`numpy_sum`), so the figures are those of the same sums in numpy, bit for bit."""
-    collided, found_by, collected, stale, comm_pairs, comm_gain, reward, terminated, truncated = out
-    step_reward, collision_reward, target_reward, info_weight, comm_weight = reward_terms
-    t, n_found, n_targets = w.t, w.n_found, w.n_targets  # fields read once (kernels.py: no view in the loops)
-    ep_return, ep_info, ep_comm_pairs, ep_collisions, ep_stale = (w.ep_return, w.ep_info, w.ep_comm_pairs,
-                                                                  w.ep_collisions, w.ep_stale)  # fmt: skip
-    n_agents = reward64.shape[0]
-    for k in range(first, stop):
-        n_collided = n_stale = 0
-        for i in range(n_agents):
-            reward64[i] = (step_reward + collision_reward * collided[k, i] + target_reward * found_by[k, i]
-                           + info_weight * collected[k, i] + comm_weight * comm_gain[k, i])  # fmt: skip
-            reward[k, i] = np.float32(reward64[i])
-            info64[i] = collected[k, i]
-            n_collided += collided[k, i]
-            n_stale += stale[k, i]
-        t[k] += 1
-        terminated[k] = n_found[k] == n_targets[k]
-        truncated[k] = t[k] >= max_steps and not terminated[k]
-        ep_return[k] += numpy_sum(reward64)
-        ep_info[k] += numpy_sum(info64)
-        ep_comm_pairs[k] += comm_pairs[k]
-        ep_collisions[k] += n_collided
-        ep_stale[k] += n_stale
+        step_span(
+            w,
+            actions,
+            priority,
+            detect,
+            moves,
+            support,
+            c_coef,
+            radii,
+            merge,
+            reward_terms,
+            max_steps,
+            scratch,
+            work,
+            out,
+            np.int64(chunk),
+            first,
+            stop,
+        )

@@ -32,8 +32,10 @@ class WorldStreams:
     def _rows(self, size: int | tuple[int, ...]) -> tuple[int, ...]:
         size = (size,) if isinstance(size, (int, np.integer)) else tuple(size)
         if not size or size[0] != len(self.generators):
-            raise ValueError(f"a draw of size {size} from {len(self.generators)} world streams: its first axis must "
-                             f"be the number of worlds, {len(self.generators)}")  # fmt: skip
+            raise ValueError(
+                f"a draw of size {size} from {len(self.generators)} world streams: its first axis must "
+                f"be the number of worlds, {len(self.generators)}"
+            )
         return size[1:]
 
     def random(self, size: int | tuple[int, ...]) -> np.ndarray:

@@ -107,8 +107,15 @@ def finite(value: object) -> bool:
     return (is_int(value) or isinstance(value, (float, np.floating))) and np.isfinite(value)
 
 
-def _replace_share(severity: float, weights: np.ndarray | None, p: np.ndarray, u: np.ndarray, free: np.ndarray,
-                   count: int, rng: np.random.Generator) -> np.ndarray:  # fmt: skip
+def _replace_share(
+    severity: float,
+    weights: np.ndarray | None,
+    p: np.ndarray,
+    u: np.ndarray,
+    free: np.ndarray,
+    count: int,
+    rng: np.random.Generator,
+) -> np.ndarray:
     """Targets of which each, with probability `severity`, is drawn from `weights` over the free cells left
     (uniform when None, or when they hold no mass there) instead of the prior's placement. Draws: `count`
     uniforms, the prior's placement of the others, then the replaced ones' cells without replacement."""
@@ -131,8 +138,9 @@ class PriorTargets:
 
     kind: ClassVar[str] = "prior"
 
-    def __call__(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-                 ) -> np.ndarray:  # fmt: skip
+    def __call__(
+        self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
+    ) -> np.ndarray:
         return place_targets(p, u, free, count, rng)
 
     def check(self, config: WorldConfig) -> None:
@@ -156,17 +164,21 @@ class PriorError:
     kind: ClassVar[str] = ""
     severity: float = 1.0
 
-    def __call__(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-                 ) -> np.ndarray:  # fmt: skip
+    def __call__(
+        self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
+    ) -> np.ndarray:
         return place_targets(p, u, free, count, rng) if self.severity == 0 else self.wrong(p, u, free, count, rng)
 
-    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-              ) -> np.ndarray:  # fmt: skip
+    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
         raise NotImplementedError
 
     def check(self, config: WorldConfig) -> None:
-        need(finite(self.severity) and 0 <= self.severity <= 1, "scenario.targets.severity", self.severity,
-             "0 <= severity <= 1 (0: the paper's placement; 1: the family's most wrong prior)")  # fmt: skip
+        need(
+            finite(self.severity) and 0 <= self.severity <= 1,
+            "scenario.targets.severity",
+            self.severity,
+            "0 <= severity <= 1 (0: the paper's placement; 1: the family's most wrong prior)",
+        )
 
     @property
     def label(self) -> str:
@@ -190,8 +202,7 @@ class OffPriorTargets(PriorError):
 
     kind: ClassVar[str] = "off_prior"
 
-    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-              ) -> np.ndarray:  # fmt: skip
+    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
         return _replace_share(self.severity, None, p, u, free, count, rng)
 
 
@@ -203,8 +214,7 @@ class AdversarialTargets(PriorError):
 
     kind: ClassVar[str] = "adversarial"
 
-    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-              ) -> np.ndarray:  # fmt: skip
+    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
         values = p[free]
         mirrored = np.empty_like(values)
         mirrored[np.argsort(values, kind="stable")] = np.sort(values)[::-1]  # the lowest cell takes the highest mass
@@ -228,15 +238,18 @@ class ShiftedTargets(PriorError):
         reach = self.severity * self.distance * n
         return round(reach * math.sin(theta)), round(reach * math.cos(theta))
 
-    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-              ) -> np.ndarray:  # fmt: skip
+    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
         moved = self.shift(p.shape[0], rng)
         return place_targets(np.roll(p, moved, axis=(0, 1)), np.roll(u, moved, axis=(0, 1)), free, count, rng)
 
     def check(self, config: WorldConfig) -> None:
         super().check(config)
-        need(finite(self.distance) and 0 < self.distance <= 1, "scenario.targets.distance", self.distance,
-             "0 < distance <= 1 (the largest shift, as a fraction of the world's side)")  # fmt: skip
+        need(
+            finite(self.distance) and 0 < self.distance <= 1,
+            "scenario.targets.distance",
+            self.distance,
+            "0 < distance <= 1 (the largest shift, as a fraction of the world's side)",
+        )
 
     @property
     def label(self) -> str:
@@ -252,8 +265,7 @@ class TemperedTargets(PriorError):
     kind: ClassVar[str] = "tempered"
     power: float = 4.0
 
-    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator
-              ) -> np.ndarray:  # fmt: skip
+    def wrong(self, p: np.ndarray, u: np.ndarray, free: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
         if self.power == 1:
             return place_targets(p, u, free, count, rng)
         truth = power(np.where(free, p, 0.0), 1.0 + self.severity * (self.power - 1.0))  # libm.py: why not numpy's
@@ -261,8 +273,12 @@ class TemperedTargets(PriorError):
 
     def check(self, config: WorldConfig) -> None:
         super().check(config)
-        need(finite(self.power) and 0 <= self.power <= 16, "scenario.targets.power", self.power,
-             "0 <= power <= 16 (> 1: the truth sharper than the prior; < 1: flatter)")  # fmt: skip
+        need(
+            finite(self.power) and 0 <= self.power <= 16,
+            "scenario.targets.power",
+            self.power,
+            "0 <= power <= 16 (> 1: the truth sharper than the prior; < 1: flatter)",
+        )
 
     @property
     def label(self) -> str:
@@ -273,8 +289,9 @@ class TemperedTargets(PriorError):
         return "sharper" if self.power > 1 else "flatter" if self.power < 1 else "tempered"
 
 
-PLACERS: dict[str, type] = {cls.kind: cls for cls in (PriorTargets, OffPriorTargets, ShiftedTargets,
-                                                      TemperedTargets, AdversarialTargets)}  # fmt: skip
+PLACERS: dict[str, type] = {
+    cls.kind: cls for cls in (PriorTargets, OffPriorTargets, ShiftedTargets, TemperedTargets, AdversarialTargets)
+}
 
 
 def prior_quality(p: np.ndarray, free: np.ndarray, targets: np.ndarray) -> float:
