@@ -18,6 +18,7 @@
 # into a temporary run folder).
 
 # %%
+import inspect
 import sys
 import tempfile
 from pathlib import Path
@@ -45,8 +46,9 @@ def profile(frame, event, arg):
         if name.startswith("searchrl.") and name != "searchrl.reporting.cli":
             called[name] = called.get(name, 0) + 1
             code = frame.f_code
-            # a module's body runs on import; dataclasses' generated methods have no file of their own
-            if code.co_name != "<module>" and not code.co_filename.startswith("<"):
+            # A module's body and its classes' bodies run on import (their code is not CO_OPTIMIZED, a function's
+            # is); dataclasses' generated methods have no file of their own
+            if code.co_flags & inspect.CO_OPTIMIZED and not code.co_filename.startswith("<"):
                 functions.setdefault(name, set()).add(code.co_qualname)
 
 

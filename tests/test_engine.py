@@ -252,6 +252,35 @@ def test_the_raw_bound_between_updates_leaves_the_recipe_as_it_would_train_alone
         assert torch.equal(alone, bounded)
 
 
+def test_the_raw_bound_runs_a_critic_s_own_extractor_as_the_recipe_does():
+    """A policy whose critic has its own extractor (`critic=true_state`) pays for it in every forward; the raw bound
+    is of the same network, so it runs the critic's extractor as often as the actor's, acting and updating."""
+    from hydra import compose, initialize_config_dir
+
+    import searchrl.train.app  # noqa: F401  (registers the training schemas)
+    from searchrl.bench.train import raw_acting_seconds, raw_update_seconds
+    from searchrl.paths import CONF_DIR
+    from searchrl.train.build import make_algorithm, make_vec_env
+    from searchrl.train.plan import make_plan
+
+    overrides = ["+model=b", "network=small", "critic=true_state", "threads=1", "env.n_worlds=2",
+                 "env.world.n_agents=4", "env.world.world_size=[12,12]", "algo.n_steps=8",
+                 "algo.batch_size=32"]  # fmt: skip
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        plan = make_plan(compose(config_name="train", overrides=overrides))
+    model = make_algorithm(plan, make_vec_env(plan, seed=0))
+    model.learn(plan.rollout)
+    policy = model.policy
+    assert policy.vf_features_extractor is not policy.pi_features_extractor
+    calls = {"actor": 0, "critic": 0}
+    for name, extractor in (("actor", policy.pi_features_extractor), ("critic", policy.vf_features_extractor)):
+        extractor.register_forward_hook(lambda *_, name=name: calls.__setitem__(name, calls[name] + 1))
+    for raw in (raw_acting_seconds, raw_update_seconds):
+        raw(model)
+        assert calls["critic"] == calls["actor"] > 0, raw.__name__
+        calls.update(actor=0, critic=0)
+
+
 def test_bench_train_takes_a_machine_and_refuses_a_missing_device_in_one_line(capsys):
     with pytest.raises(SystemExit):  # machine=gpu asks for cuda, which this machine lacks (CI has no GPU)
         bench_main(["train", "--machine", "gpu"] if not torch.cuda.is_available() else ["train", "--device", "cuda:99"])

@@ -180,8 +180,9 @@ def _then_bound(
 @torch.no_grad()
 def raw_acting_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
     """Seconds `model`'s network alone takes to act through its last rollout, in plain torch: per step, one forward
-    of every slot (extractor, actor and critic LSTMs one step on, heads) and a sample; the observations already on
-    the device (the rollout buffer's), so neither the world nor SB3's handling of the tensors is in it."""
+    of every slot (the extractor, or the actor's and the critic's, the LSTMs one step on, heads) and a sample; the
+    observations already on the device (the rollout buffer's), so neither the world nor SB3's handling of the
+    tensors is in it."""
     policy, buffer = model.policy, model.rollout_buffer
     policy.set_training_mode(False)
     data, _ = next(_untimed_get(buffer)(None))  # every slot, sequence-major: (n_envs·n_steps, ...)
@@ -197,9 +198,9 @@ def raw_acting_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
     def rollout() -> None:
         pi, vf = data.lstm_states.pi, data.lstm_states.vf
         for t, obs in enumerate(steps):
-            features = policy.features_extractor(obs)
-            actor, pi = process_sequence(features, pi, starts[:, t], policy.lstm_actor)
-            critic, vf = process_sequence(features, vf, starts[:, t], policy.lstm_critic)
+            actor_features, critic_features = features(policy, obs)
+            actor, pi = process_sequence(actor_features, pi, starts[:, t], policy.lstm_actor)
+            critic, vf = process_sequence(critic_features, vf, starts[:, t], policy.lstm_critic)
             logits = policy.action_net(policy.mlp_extractor.forward_actor(actor))
             policy.value_net(policy.mlp_extractor.forward_critic(critic))
             torch.distributions.Categorical(logits=logits).sample()
@@ -214,8 +215,8 @@ def raw_acting_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
 
 def raw_update_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
     """Seconds `model`'s network alone takes to train on its last rollout, in plain torch: n_epochs passes over the
-    minibatches its rollout buffer forms; each minibatch one forward (extractor, actor and critic LSTMs over whole
-    sequences, heads), a loss touching logits and values, backward, gradient clipping and an Adam step."""
+    minibatches its rollout buffer forms; each minibatch one forward (the extractor or both, actor and critic LSTMs
+    over whole sequences, heads), a loss touching logits and values, backward, gradient clipping and an Adam step."""
     policy = model.policy
     policy.set_training_mode(True)
     optimizer = torch.optim.Adam(policy.parameters(), lr=1e-5)
@@ -226,9 +227,9 @@ def raw_update_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
     ]
 
     def step(obs, states, starts, actions, mask) -> None:
-        features = policy.features_extractor(obs)  # SearchCNN itself (SB3 would only cast to float)
-        actor, _ = process_sequence(features, states.pi, starts, policy.lstm_actor)
-        critic, _ = process_sequence(features, states.vf, starts, policy.lstm_critic)
+        actor_features, critic_features = features(policy, obs)
+        actor, _ = process_sequence(actor_features, states.pi, starts, policy.lstm_actor)
+        critic, _ = process_sequence(critic_features, states.vf, starts, policy.lstm_critic)
         logits = policy.action_net(policy.mlp_extractor.forward_actor(actor))
         values = policy.value_net(policy.mlp_extractor.forward_critic(critic)).flatten()
         chosen = torch.log_softmax(logits, dim=1).gather(1, actions[:, None])[:, 0]
@@ -246,6 +247,14 @@ def raw_update_seconds(model, sync: Callable[[], None] = lambda: None) -> float:
             step(*batch)
     sync()
     return time.perf_counter() - start
+
+
+def features(policy, obs: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+    """(the actor's features, the critic's) of a batch of observations, each (B, features_dim): one pass of the
+    extractor when the policy shares it, else the critic's own extractor too (a critic such as `true_state`, whose
+    cost is part of the network's). The extractors themselves: SB3 would only cast the observations to float."""
+    actor = policy.pi_features_extractor(obs)
+    return actor, (actor if policy.share_features_extractor else policy.vf_features_extractor(obs))
 
 
 def _untimed_get(buffer) -> Callable:
