@@ -105,6 +105,49 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
     assert out.returncode == 0, out.stderr[-3000:]
 
 
+@pytest.mark.slow  # beyond.py three times (about 10 s each)
+def test_beyond_fits_the_budget_curve_and_refuses_folders_that_did_not_play_the_teacher_s_maps(fixture_dirs, tmp_path):
+    """Three checkpoints of a policy 0.01 better per million agent-steps than the one before (each map's found
+    fraction raised by that much): the line's slope is 0.01 per million, with no error; a policy folder that lost a
+    map is refused in one line; two folders of one name are refused."""
+    from omegaconf import OmegaConf
+
+    from searchrl.evaluate.results import cell_files
+
+    teacher = fixture_dirs / "eval" / "surfing"
+    folders, runs = [], []
+    for million in (1, 2, 4):
+        folder = shutil.copytree(fixture_dirs / "eval" / "policy", tmp_path / "eval" / f"at_{million}m")
+        record = OmegaConf.load(folder / "evaluation.yaml")
+        runs.append(record.controller)
+        record.controller = f"{record.controller}@step_{million}000000"
+        OmegaConf.save(record, folder / "evaluation.yaml")
+        for cell in cell_files(folder):
+            frame = pd.read_parquet(cell)
+            frame["found_fraction"] += 0.01 * million
+            frame.to_parquet(cell)
+        folders.append(str(folder))
+    out = _script("beyond.py", str(teacher), *folders, "--out", str(tmp_path / "out"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    table = pd.read_csv(tmp_path / "out" / "beyond.csv")
+    assert np.diff(table.minus_teacher) == pytest.approx([0.01, 0.02])
+    last = (tmp_path / "out" / "beyond.md").read_text().splitlines()[-1]
+    zero = 1 - table.minus_teacher[0] / 0.01  # the line through (1M, first difference) with slope 0.01 per million
+    assert last == (f"The budget curve of {runs[0]} (3 checkpoints), least squares: +0.01000 per million agent-steps "
+                    "(standard error 0.00000, 95 % CI [+0.01000, +0.01000], t with 1 degrees of freedom); the line "
+                    f"crosses 0 at {zero:.1f}M and +0.02 at {zero + 2:.1f}M.")  # fmt: skip
+    cell = cell_files(folders[0])[0]
+    frame = pd.read_parquet(cell)
+    frame[frame.map_seed != frame.map_seed.iloc[0]].to_parquet(cell)  # a map lost
+    out = _script("beyond.py", str(teacher), *folders, "--out", str(tmp_path / "refused"))
+    refusal = out.stderr.strip().splitlines()[-1]
+    assert out.returncode == 1 and refusal.startswith(f"error: {folders[0]} and {teacher} did not play the same maps")
+    twin = shutil.copytree(folders[1], tmp_path / "other" / "at_2m")
+    out = _script("beyond.py", str(teacher), folders[1], str(twin), "--out", str(tmp_path / "refused"))
+    assert out.returncode == 1 and "two evaluation folders are named 'at_2m'" in out.stderr
+    assert not (tmp_path / "refused").exists()  # refused before anything was written
+
+
 # context_probe.py needs a policy trained with the context: tests/test_context.py runs it on one
 # hedging.py runs rules and a shipped policy itself (about 50 s): in the slow run
 # beyond.py tabulates research folders (about 30 s): in the slow run
@@ -150,7 +193,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
         "guided_summary.py": {"summary.md": ("Mean found fraction per scenario; beside each baseline: mine", 5),
                               "best_rule.md": ("mine against the best rule of each scenario", 5),
                               "tail.md": ("Worst-10 % tail: per scenario and cell", 5)},
-        "beyond.py": {"beyond.csv": (2, 9), "beyond.png": (600, 384),
+        "beyond.py": {"beyond.csv": (2, 10), "beyond.png": (600, 384),
                       "beyond.md": ("Each policy minus surfing over surfing: scenario paper", 4)},
         "report.py": {"report.csv": (3, 6), "improvement.csv": (2, 5), "report.png": (1200, 432),
                       "report.md": ("Over 4 cells and ", 9)},

@@ -281,6 +281,24 @@ def test_the_raw_bound_runs_a_critic_s_own_extractor_as_the_recipe_does():
         calls.update(actor=0, critic=0)
 
 
+def test_bench_train_takes_the_training_app_s_overrides_and_names_the_case_by_them(capsys):
+    """`bench train ... KEY=VALUE`: the app's overrides on the recipe (a critic, a network, a smaller world) are what
+    is timed, the case's name carries them, and one that does not compose is refused in one line before any work."""
+    tiny = ["env.n_worlds=2", "env.world.n_agents=4", "env.world.world_size=[12,12]", "algo.n_steps=8",
+            "algo.batch_size=32", "critic=true_state"]  # fmt: skip
+    args = ["train", "--network", "small", "--updates", "1", "--threads", "1", "--json", *tiny]
+    assert bench_main(args) == 0
+    (row,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert row["slots"] == 2 * 4 and row["batch_size"] == 32 and row["raw_bound_agent_steps_per_s"] > 0
+    assert row["case"].startswith("recurrent_ppo_small_model_b_K2_N4+env.n_worlds=2+")
+    assert row["case"].endswith("+critic=true_state_cpu_threads1")
+    for bad, named in (("critic=nothing", "critic=nothing is not allowed: conf/critic/ has no 'nothing'"),
+                       ("network.extractr=x", "network.extractr=x is not allowed: no such setting")):  # fmt: skip
+        with pytest.raises(SystemExit):
+            bench_main(["train", "--network", "small", "--updates", "1", bad])
+        assert capsys.readouterr().err.strip().splitlines()[-1].startswith(f"python -m searchrl.bench: error: {named}")
+
+
 def test_bench_train_takes_a_machine_and_refuses_a_missing_device_in_one_line(capsys):
     with pytest.raises(SystemExit):  # machine=gpu asks for cuda, which this machine lacks (CI has no GPU)
         bench_main(["train", "--machine", "gpu"] if not torch.cuda.is_available() else ["train", "--device", "cuda:99"])

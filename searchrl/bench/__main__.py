@@ -48,7 +48,14 @@ def main(argv: list[str] | None = None) -> int:
 
         try:  # the recipe's settings (a missing device among them) are checked before any work
             rows = train.run(
-                args.updates, args.threads, args.network, args.experiment, args.device, args.machine, log=log
+                args.updates,
+                args.threads,
+                args.network,
+                args.experiment,
+                args.device,
+                args.machine,
+                log=log,
+                overrides=args.overrides,
             )
         except ConfigError as err:
             parser.error(str(err))

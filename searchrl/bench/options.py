@@ -48,6 +48,12 @@ def parser() -> argparse.ArgumentParser:
     sub["train"].add_argument("--experiment", help="a recipe of conf/experiment/ instead of model B with --network")
     sub["train"].add_argument("--device", help="torch device (cpu, cuda, cuda:1): the machine's, else cpu")
     sub["train"].add_argument(
+        "overrides",
+        nargs="*",
+        metavar="KEY=VALUE",
+        help="the training app's overrides on the recipe, e.g. critic=true_state network.extractor=own_map_cnn",
+    )
+    sub["train"].add_argument(
         "--machine",
         choices=sorted(p.stem for p in (CONF_DIR / "machine").glob("*.yaml")),
         help="settings for a machine (conf/machine/): slots per step, minibatch, threads, device",
@@ -107,6 +113,19 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
     if experiment is not None and experiment not in recipes():
         known = ", ".join(recipes())
         parser.error(f"--experiment={experiment} is not allowed: one of {known}")
+    if getattr(args, "overrides", None):  # each composes onto the recipe, or one line names it (as the app's would)
+        from searchrl.bench.train import composed_overrides
+        from searchrl.compose_check import check_jobs_compose
+        from searchrl.multirun import Refused
+        from searchrl.shared_schema import check_group_choices
+        from searchrl.train.schema import register_configs
+
+        register_configs()
+        try:
+            check_group_choices(args.overrides)
+            check_jobs_compose(composed_overrides(args.network, experiment, args.machine, args.overrides), "train")
+        except Refused as refusal:
+            parser.error(refusal.message)
     checkpoint = getattr(args, "checkpoint", None)
     if checkpoint and getattr(args, "controller", None):
         parser.error("--controller cannot apply with --checkpoint: give one of them")

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import copy
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import TextIO
 
 import numpy as np
@@ -72,12 +72,14 @@ def run(
     device: str | None = None,
     machine: str | None = None,
     log: TextIO | None = None,
+    overrides: Sequence[str] = (),
 ) -> list[dict]:
     """One run of `updates` rollouts (plus one warm-up rollout, not timed); `experiment` composes
     `+experiment=<name>` (its own model and network) instead of model B on the paper's recipe with `network`;
-    `machine` composes `machine=<name>` (conf/machine/), whose threads and device `threads` and `device` replace."""
-    overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", f"network={network}"]
-    overrides += [f"machine={machine}"] if machine else []
+    `machine` composes `machine=<name>` (conf/machine/), whose threads and device `threads` and `device` replace;
+    `overrides` are the training app's, after those (`critic=true_state`: the case's name carries them)."""
+    given = list(overrides)
+    overrides = composed_overrides(network, experiment, machine, given)
     overrides += [f"{key}={value}" for key, value in (("threads", threads), ("device", device)) if value is not None]
     register_configs()  # the training app's schemas, which the composed config names
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
@@ -121,6 +123,7 @@ def run(
     raw = rollout / (acting_s + update_s)
     name = f"recurrent_ppo_{network}_model_b_K{plan.settings.env.n_worlds}_N{plan.world.n_agents}"
     name = experiment.replace("/", "_") if experiment else name  # term/b -> term_b
+    name += "".join(f"+{override.replace('/', '_')}" for override in given)  # term_b+critic=true_state
     slots = sum(k * world.n_agents for world, k in plan.groups)
     row = {
         "case": f"{name}_{machine or torch.device(device).type}_threads{threads}",
@@ -152,6 +155,13 @@ def run(
             file=log,
         )
     return [row]
+
+
+def composed_overrides(network: str, experiment: str | None, machine: str | None, given: Sequence[str]) -> list[str]:
+    """The training app's overrides of a case: the recipe (`+experiment=<name>`, else model B with `network`), the
+    machine's settings, then the overrides `given`."""
+    overrides = [f"+experiment={experiment}"] if experiment else ["+model=b", f"network={network}"]
+    return overrides + ([f"machine={machine}"] if machine else []) + list(given)
 
 
 def _then_bound(
