@@ -10,30 +10,36 @@
 # Runs `python -m searchrl.train` in this process on the command line given (a recipe with a small budget by
 # default) under `sys.setprofile`, and counts the searchrl modules whose code was called (their import too), with
 # their source lines and how many functions of their own each ran beyond its import (the modules a reader of the run
-# follows). Written to `module_trace.md`. Run from the repository root:
+# follows; a module's and a class's body run on import). Written to `module_trace.md`. Run from the repository root:
 #
-#     python analysis/module_trace.py [--out DIR] [OVERRIDE ...]
+#     python analysis/module_trace.py [--out DIR] [--root CHECKOUT] [OVERRIDE ...]
 #
 # (default overrides: `+experiment=term/b total_timesteps=12288 validation.every=0 progress_bar=false threads=1`,
-# into a temporary run folder).
+# into a temporary run folder). `--root` traces the searchrl of another checkout (e.g. a `git worktree` of an older
+# commit), so two commits are measured the same way: nothing of searchrl is imported before the trace.
 
 # %%
+import argparse
 import inspect
+import os
+import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-from searchrl.atomic import write_text_atomic
-from searchrl.reporting import cli
-from searchrl.reporting.stats import markdown
-
-ROOT = Path.cwd()
-parser = cli.parser("The searchrl modules a training calls into", dirs=None)
-parser.usage = "module_trace.py [-h] [--out DIR] [OVERRIDE ...]"
-args, OVERRIDES = cli.parse(parser, rest=True)
-OUT = cli.out_dir(args.out, ROOT / "analysis" / "out" / "module_trace")
-OVERRIDES = OVERRIDES or ["+experiment=term/b", "total_timesteps=12288", "validation.every=0", "progress_bar=false",
-                          "threads=1"]  # fmt: skip
+HERE = Path.cwd()
+parser = argparse.ArgumentParser(description="The searchrl modules a training calls into")
+parser.add_argument("--out", type=Path, default=HERE / "analysis" / "out" / "module_trace", help="output folder")
+parser.add_argument("--root", type=Path, default=HERE, help="the checkout whose searchrl is traced (default: here)")
+parser.add_argument("overrides", nargs=argparse.REMAINDER, help="the training's overrides")
+args = parser.parse_args()
+ROOT, OUT = args.root.resolve(), args.out.resolve()
+if not (ROOT / "searchrl" / "train").is_dir():
+    sys.exit(f"error: --root={args.root} is not allowed: a checkout of this repository (no searchrl/train/ there)")
+OVERRIDES = args.overrides or ["+experiment=term/b", "total_timesteps=12288", "validation.every=0",
+                               "progress_bar=false", "threads=1"]  # fmt: skip
+sys.path.insert(0, str(ROOT))  # the traced checkout's searchrl first; its conf/ and runs/ from its root
+os.chdir(ROOT)
 
 # %%
 called: dict[str, int] = {}
@@ -43,7 +49,7 @@ functions: dict[str, set[str]] = {}  # the functions of its own source a module 
 def profile(frame, event, arg):
     if event == "call":
         name = frame.f_globals.get("__name__", "")
-        if name.startswith("searchrl.") and name != "searchrl.reporting.cli":
+        if name.startswith("searchrl."):
             called[name] = called.get(name, 0) + 1
             code = frame.f_code
             # A module's body and its classes' bodies run on import (their code is not CO_OPTIMIZED, a function's
@@ -63,12 +69,21 @@ with tempfile.TemporaryDirectory() as run:
     except SystemExit as stop:
         if stop.code not in (0, None):
             sys.setprofile(None)
-            cli.stop(f"the training ended with status {stop.code}")
+            sys.exit(f"error: the training ended with status {stop.code}")
     finally:
         sys.setprofile(None)
 
-# %%
+# Back to this checkout: its searchrl writes the report (the traced one may be another commit's)
+for name in [m for m in sys.modules if m == "searchrl" or m.startswith("searchrl.")]:
+    del sys.modules[name]
+sys.path.remove(str(ROOT))
+os.chdir(HERE)
 import pandas as pd  # noqa: E402
+
+from searchrl.atomic import write_text_atomic  # noqa: E402
+from searchrl.reporting.stats import markdown  # noqa: E402
+
+# %%
 
 rows = []
 for name, calls in sorted(called.items()):
@@ -84,7 +99,9 @@ table.insert(0, "layer", [m.split(".")[1] if (ROOT / "searchrl" / m.split(".")[1
 layers = table.groupby("layer").agg(modules=("lines", "size"), lines=("lines", "sum"))
 followed = table[table.functions > 0]  # the modules a reader of the run follows: those whose own code ran
 outside = followed[followed.layer != "world"]
-report = (f"`python -m searchrl.train {' '.join(OVERRIDES)}` calls into {len(table)} searchrl modules, "
+commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+report = (f"At {commit.stdout.strip() or 'an unknown commit'}, "
+          f"`python -m searchrl.train {' '.join(OVERRIDES)}` calls into {len(table)} searchrl modules, "
           f"{int(table.lines.sum())} lines of source ({int(layers.drop('world').modules.sum())} modules and "
           f"{int(layers.drop('world').lines.sum())} lines outside the world). {len(followed)} of them ran a function "
           f"of their own beyond their import ({len(outside)} modules and {int(outside.lines.sum())} lines outside "
