@@ -118,6 +118,34 @@ def test_shards_split_the_suites_scenario_cells_once(tmp_path):
     )
 
 
+def test_part_of_a_suite_runs_the_whole_suites_folders_and_the_rest_follows(tmp_path, capsys):
+    """`suite_scenarios=` runs only the scenarios it names (a pattern), each into the folder, cells and maps the
+    whole suite gives it; the whole suite run into the same folder afterwards runs only the rest. A pattern that
+    names no scenario is refused in one line before any folder, and so is the setting without a suite."""
+    whole = _run(tmp_path / "whole", "controller=coverage")
+    part = _run(tmp_path / "part", "controller=coverage", "suite_scenarios=[*off_prior*]")
+    assert [p.name for p in part] == ["var1+off_prior1"]
+    key = ["n", "N", "map_seed", "repeat"]
+    columns = [*key, "found_fraction", "L"]
+    mine = load(*part).sort_values(key).reset_index(drop=True)[columns]
+    theirs = load(whole[1]).sort_values(key).reset_index(drop=True)[columns]
+    assert mine.equals(theirs)
+    capsys.readouterr()
+    _run(tmp_path / "part", "controller=coverage")
+    err = capsys.readouterr().err
+    assert err.count("0 of 4 cells to run") == 1 and err.count("4 of 4 cells to run") == 2
+    err = _refusal(tmp_path / "bad", capsys, "controller=coverage", "suite_scenarios=[*off_prior*,nothing*]")
+    assert err.endswith("error: suite_scenarios='nothing*' is not allowed: a label or pattern of suite tiny's "
+                        "scenarios: var1, var1+off_prior1, var1+uninformed1\n"), err[-500:]  # fmt: skip
+    assert not (tmp_path / "bad").exists()
+    from searchrl.evaluate.app import plan_evaluation
+
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        cfg = compose(config_name="evaluate", overrides=["controller=coverage", "suite_scenarios=[var1]", *FAST])
+    with pytest.raises(ConfigError, match=r"^suite_scenarios=\['var1'\] is not allowed: null without suite=<name>$"):
+        plan_evaluation(cfg, ["controller=coverage", "suite_scenarios=[var1]"])
+
+
 @pytest.mark.parametrize(
     "overrides",
     [["grid.maps_per_cell=3"], ["seed=1"], ["scenario=walls"], ["suite.seed=3"], ["seed=1", "grid.repeats=2"]],

@@ -50,6 +50,7 @@ def check_evaluation(cfg: EvaluateConfig, overrides: list[str]) -> tuple[list[tu
                 f"{', '.join(fixed)} cannot apply with checkpoint={cfg.checkpoint!r}: a checkpoint is evaluated in "
                 "the world, model and action set of its run (its config.yaml); remove them"
             )
+    need(cfg.suite_scenarios is None, "suite_scenarios", cfg.suite_scenarios, "null without suite=<name>")
     keys = override_keys(overrides)
     if cfg.checkpoint is None:
         set_by_grid = [k for k in keys if k in SET_BY_GRID or k.startswith("env.extra_teams")]

@@ -34,6 +34,8 @@ class EvaluateConfig:
     checkpoint: str | None = None  # a trained model.zip: evaluated instead of the controller, with its own settings
     extensions: list[str] = field(default_factory=list)  # modules that register parts (searchrl/extensions.py)
     suite: Any = None  # a frozen scenario suite (conf/suite/): its cells, maps, seed and scenarios, one folder each
+    # Only these of the suite's scenarios (labels or shell patterns), each into the folder the whole suite gives it
+    suite_scenarios: list[str] | None = None
     deterministic: bool = False  # policies: argmax instead of sampled actions
     # What a reset draws besides the sizes and the prior (conf/scenario/); any scenario applies to a checkpoint too.
     scenario: dict[str, Any] = field(default_factory=scenario_default)

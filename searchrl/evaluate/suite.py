@@ -7,11 +7,14 @@ Each scenario is a normal evaluation folder, `<out_dir>/<scenario label>/` (defa
 `runs/suite/<suite>/<controller or policy path>`), so a suite resumes, shards (`shard=`/`num_shards=` split its
 (scenario, cell) pairs) and is recorded and loaded like any evaluation. A suite is frozen: the command line may not
 change its grid, seed or scenarios; every scenario of every cell is checked before any folder is written.
+`suite_scenarios=` runs part of it (labels or patterns, e.g. `'[*1,*1p?]'` for severity 1): the same folders, cells
+and maps the whole suite gives those scenarios, so the rest can follow into the same out_dir.
 """
 
 from __future__ import annotations
 
 import copy
+import fnmatch
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -56,6 +59,18 @@ def suite_scenarios(suite: dict[str, Any]) -> list[Scenario]:
     return scenarios
 
 
+def chosen_scenarios(scenarios: list[Scenario], patterns: list[str] | None, name: str) -> list[Scenario]:
+    """The scenarios whose labels match one of `patterns` (fnmatch; None: every one), in the suite's order;
+    ConfigError naming a pattern that matches none."""
+    if patterns is None:
+        return scenarios
+    labels = [s.label for s in scenarios]
+    for pattern in patterns:
+        allowed = f"a label or pattern of suite {name}'s scenarios: {', '.join(labels)}"
+        need(bool(fnmatch.filter(labels, pattern)), "suite_scenarios", pattern, allowed)
+    return [s for s in scenarios if any(fnmatch.fnmatchcase(s.label, p) for p in patterns)]
+
+
 def suite_default_dir(cfg: EvaluateConfig, name: str) -> Path:
     """runs/suite/<suite>/<controller> or runs/suite/<suite>/policy/<run path under runs/>."""
     if cfg.checkpoint is not None:
@@ -86,9 +101,12 @@ def evaluate_suite(cfg: DictConfig, overrides: list[str]) -> list[Path]:
             typed, suite["name"]
         )
         scenarios = suite_scenarios(suite)
-        for offset, scenario in enumerate(scenarios):
+        chosen = chosen_scenarios(scenarios, typed.suite_scenarios, suite["name"])
+        for offset, scenario in enumerate(scenarios):  # offset: a scenario's place in the whole suite
+            if scenario not in chosen:
+                continue
             one = copy.deepcopy(cfg)
-            one.suite, one.seed = None, suite["seed"]
+            one.suite, one.suite_scenarios, one.seed = None, None, suite["seed"]
             one.grid = OmegaConf.merge(OmegaConf.structured(GridConfig), suite["grid"])
             one.scenario, one.out_dir = scenario.to_dict(), str(base / scenario.label)
             plan = plan_evaluation(one, [o for o in overrides if not o.startswith("suite=")])
