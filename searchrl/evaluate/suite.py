@@ -7,8 +7,8 @@ Each scenario is a normal evaluation folder, `<out_dir>/<scenario label>/` (defa
 `runs/suite/<suite>/<controller or policy path>`), so a suite resumes, shards (`shard=`/`num_shards=` split its
 (scenario, cell) pairs) and is recorded and loaded like any evaluation. A suite is frozen: the command line may not
 change its grid, seed or scenarios; every scenario of every cell is checked before any folder is written.
-`suite_scenarios=` runs part of it (labels or patterns, e.g. `'[*1,*1p?]'` for severity 1): the same folders, cells
-and maps the whole suite gives those scenarios, so the rest can follow into the same out_dir.
+`suite_scenarios=` runs part of it (labels or patterns, e.g. `'[*+*1,*1p?]'` for prior_error's severity 1): the
+same folders, cells and maps the whole suite gives those scenarios, so the rest can follow into the same out_dir.
 """
 
 from __future__ import annotations
