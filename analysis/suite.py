@@ -127,7 +127,7 @@ def ci(values) -> str:
 
 def table(rows: dict[str, dict[str, str]], first: str) -> str:
     columns = list(next(iter(rows.values())))
-    lines = [f"| {first} | " + " | ".join(columns) + " |", "|---" * (len(columns) + 1) + "|"]
+    lines = [f"| {first} | " + " | ".join(columns) + " |", "|---" * (len(columns) + first.count("|") + 1) + "|"]
     return "\n".join(lines + [f"| {k} | " + " | ".join(v[c] for c in columns) + " |" for k, v in rows.items()])
 
 
@@ -141,7 +141,9 @@ for c in controllers:
     row |= {f: ci(per_map(mine[mine[GROUP] == f])) for f in families}
     row[WHOLE] = ci(per_map(mine))
     family_rows[c] = row
-note = "a family's column averages its severities 0.25, 0.5 and 1" if GROUP == "family" else "a column per scenario"
+held = [f"{s:g}" for s in sorted(wrong["severity"].unique())]  # a part of a suite may hold only some
+held = ", ".join(held[:-1]) + " and " + held[-1] if len(held) > 1 else "".join(held)
+note = f"a family's column averages its severities {held}" if GROUP == "family" else "a column per scenario"
 text = (f"Mean found fraction, 95 % CI over maps ({episodes['map'].nunique()} maps: cells x map seeds; {GRID}); "
         f"{note}\n\n" + table(family_rows, "controller"))  # fmt: skip
 write_text_atomic(OUT / f"{GROUP}.md", text + "\n")
@@ -151,7 +153,8 @@ print(text)
 if GROUP == "family":
     severity_rows = {}
     for (c, f), block in wrong.groupby(["controller", "family"]):
-        severity_rows[f"{c} | {f}"] = {"0": ci(per_map(right[right["controller"] == c]))} | {
+        mine = right[right["controller"] == c]  # the prior right (severity 0): "–" where a part lacks it
+        severity_rows[f"{c} | {f}"] = {"0": ci(per_map(mine)) if len(mine) else "–"} | {
             f"{s:g}": ci(per_map(part)) for s, part in block.groupby("severity")
         }
     write_text_atomic(OUT / "severity.md", table(severity_rows, "controller | family") + "\n")
@@ -230,7 +233,8 @@ def family_figure():
     fig, axes = plt.subplots(2, (len(families) + 1) // 2, figsize=(4 * ((len(families) + 1) // 2), 7), sharey=True)
     for ax, f in zip(np.ravel(axes), families, strict=False):
         for c in controllers:
-            points = [(0.0, right[right["controller"] == c])] + [
+            start = right[right["controller"] == c]  # the prior right, at severity 0, unless a part lacks it
+            points = ([(0.0, start)] if len(start) else []) + [
                 (s, part) for s, part in wrong[(wrong["controller"] == c) & (wrong["family"] == f)].groupby("severity")
             ]
             stats = np.array([bootstrap_mean_ci(per_map(p).to_numpy()) for _, p in points])

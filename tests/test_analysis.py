@@ -148,6 +148,24 @@ def test_beyond_fits_the_budget_curve_and_refuses_folders_that_did_not_play_the_
     assert not (tmp_path / "refused").exists()  # refused before anything was written
 
 
+def test_suite_tables_part_of_a_suite_without_its_prior_right_scenario(tmp_path):
+    """A part of a suite (`suite_scenarios=`) that holds one severity and not the prior right: the tables say which
+    severities they average and show the prior right's column as missing, and a pipe table's separator has as many
+    columns as its header."""
+    from tests.test_suite import _run
+
+    for controller in ("coverage", "surfing"):
+        _run(tmp_path / "suite" / controller, f"controller={controller}", "suite_scenarios=[*+*1]")
+    out = _script("suite.py", str(tmp_path / "suite"), "--out", str(tmp_path / "out"))
+    assert out.returncode == 0, out.stderr[-3000:]
+    family = (tmp_path / "out" / "family.md").read_text().splitlines()[0]
+    assert "no results for 1 of the suite's 3 scenarios (var1)" in family, family
+    assert family.endswith("a family's column averages its severities 1"), family
+    header, separator, *rows = (tmp_path / "out" / "severity.md").read_text().splitlines()
+    assert header == "| controller | family | 0 | 1 |" and separator == "|---|---|---|---|"
+    assert len(rows) == 4 and all(row.split(" | ")[2] == "–" for row in rows)
+
+
 # context_probe.py needs a policy trained with the context: tests/test_context.py runs it on one
 # hedging.py runs rules and a shipped policy itself (about 50 s): in the slow run
 # beyond.py tabulates research folders (about 30 s): in the slow run
