@@ -35,9 +35,10 @@ NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 # label_speed.py, module_trace.py, one_world.py and world_profile.py are benchmarks and traces, run by hand like
 # `python -m searchrl.bench` (their kernels' results are the golden slice's and tests/test_threads.py's;
 # compile_time.py's one signature a function is tests/test_structure.py's); carry_runs.py and team_reward.py (the
-# lab's long trainings: a carry and a reward) by tests/test_lab_parts.py
+# lab's long trainings: a carry and a reward) and lookahead.py (an extension module: a planner) by
+# tests/test_lab_parts.py
 EXPERIMENTS = ("carry_runs.py", "compile_time.py", "context_probe.py", "guided_b.py", "label_speed.py",
-               "module_trace.py", "one_world.py", "team_reward.py", "world_profile.py")  # fmt: skip
+               "lookahead.py", "module_trace.py", "one_world.py", "team_reward.py", "world_profile.py")  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -89,6 +90,8 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
             for name, source in folders.items():
                 (out_dir / "probe" / scenario / name).symlink_to(source)
         args = ["mine", "--probe", str(out_dir / "probe"), "--out", str(out_dir)]
+    if notebook == "lookahead_probe.py":  # worlds only: two samples of the smallest cell, two continuations per move
+        args = ["--cells", "20x1", "--samples", "2", "--continuations", "2"]
     if notebook == "beyond.py":  # the teacher's folder first, then the policies'
         args = [str(eval_dirs[0]), str(eval_dirs[2]), str(eval_dirs[1]), "--out", str(out_dir)]
     if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
@@ -208,6 +211,7 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                      "moves.md": ("Blocked / stale: per family, the mean share of a team's moves a wall or agent", 4),
                      "quality.md": ("Mean found fraction per bin of prior quality (the same episodes for every", None)},
         "oracle_teacher.py": {},
+        "lookahead_probe.py": {"samples.csv": (2, 12), "probe.md": ("| n | N | samples | found_by_teacher |", 3)},
         "guided_summary.py": {"summary.md": ("Mean found fraction per scenario; beside each baseline: mine", 5),
                               "best_rule.md": ("mine against the best rule of each scenario", 5),
                               "tail.md": ("Worst-10 % tail: per scenario and cell", 5)},
