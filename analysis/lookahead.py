@@ -28,8 +28,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from searchrl.controllers import registry
 from searchrl.controllers.base import ControllerConfig
+from searchrl.controllers.registry import make_controller, register
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.state import WorldState
@@ -75,7 +75,7 @@ class Lookahead:
             )
         self.config, self.samples, self.horizon, self.reach = config, int(samples), int(horizon), float(reach)
         self.confidence = float(confidence)
-        self.teacher = registry.make_controller("greedy_target", config, seed=seed, settings={"reach": reach})
+        self.teacher = make_controller("greedy_target", config, seed=seed, settings={"reach": reach})
         self.rng = random_source(seed)  # one key per world and step for its plan: the episode's own stream
         self.prior_u = np.zeros((0, 0, 0))
 
@@ -105,7 +105,7 @@ class Lookahead:
         copy_world(state, k, world)
         self.imagine_targets(world, state, k, np.random.default_rng([key, 0]))
         world.rng = WorldStreams([[key, 1, int(s)] for s in sample])
-        teacher = registry.make_controller(
+        teacher = make_controller(
             "greedy_target", self.config, seed=WorldStreams([[key, 2, int(s)] for s in sample]),
             settings={"reach": self.reach},
         )  # fmt: skip
@@ -159,4 +159,4 @@ def choose(found: np.ndarray, base: np.ndarray, confidence: float) -> np.ndarray
 
 
 # %% The controller joins the registry for this process only: `controller=lookahead`
-registry.register("lookahead", Lookahead, LookaheadConfig)
+register("lookahead", Lookahead, LookaheadConfig)
