@@ -55,7 +55,7 @@ def child() -> None:
 
     from searchrl.bench.world import case_config, measure
     from searchrl.evaluate.app import evaluate
-    from searchrl.paths import CONF_DIR
+    from searchrl.shared_schema import CONF_DIR
     from searchrl.world.observe import observe
     from searchrl.world.step import step
 

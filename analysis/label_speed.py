@@ -21,7 +21,7 @@ import numpy as np
 from hydra import compose, initialize_config_dir
 
 from searchrl.controllers.greedy_kernels import greedy_actions
-from searchrl.paths import CONF_DIR
+from searchrl.shared_schema import CONF_DIR
 from searchrl.train.build import make_vec_env
 from searchrl.train.plan import make_plan
 from searchrl.train.schema import register_configs

@@ -99,13 +99,18 @@ table.insert(0, "layer", [m.split(".")[1] if (ROOT / "searchrl" / m.split(".")[1
 layers = table.groupby("layer").agg(modules=("lines", "size"), lines=("lines", "sum"))
 followed = table[table.functions > 0]  # the modules a reader of the run follows: those whose own code ran
 outside = followed[followed.layer != "world"]
+# The app: what turns a command line into a run (searchrl/train/ and the package's top-level modules), as against
+# the parts it builds (world, envs, policies, controllers, imitation)
+app = table[table.layer.isin(["train", "top level"])]
 commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
 report = (f"At {commit.stdout.strip() or 'an unknown commit'}, "
           f"`python -m searchrl.train {' '.join(OVERRIDES)}` calls into {len(table)} searchrl modules, "
           f"{int(table.lines.sum())} lines of source ({int(layers.drop('world').modules.sum())} modules and "
           f"{int(layers.drop('world').lines.sum())} lines outside the world). {len(followed)} of them ran a function "
           f"of their own beyond their import ({len(outside)} modules and {int(outside.lines.sum())} lines outside "
-          f"the world):\n\n{markdown(layers)}\n{markdown(table)}")  # fmt: skip
+          f"the world). The app (searchrl/train/ and the top-level modules) is {len(app)} of them, "
+          f"{int(app.lines.sum())} lines; {int((app.functions > 0).sum())} ran a function of their own:"
+          f"\n\n{markdown(layers)}\n{markdown(table)}")  # fmt: skip
 OUT.mkdir(parents=True, exist_ok=True)
 write_text_atomic(OUT / "module_trace.md", report)
 print(report)

@@ -80,7 +80,7 @@ registry.register("oracle_switch", OracleSwitch, OracleSwitchConfig)
 if __name__ == "__main__":
     import hydra
 
-    from searchrl.paths import CONF_DIR
+    from searchrl.shared_schema import CONF_DIR
     from searchrl.train.app import main
 
     # the training app itself, its config found from here (its own decorator looks beside its module)

@@ -13,8 +13,7 @@ import sys
 
 from searchrl.atomic import check_writable
 from searchrl.controllers.registry import HEURISTICS
-from searchrl.paths import CONF_DIR
-from searchrl.shared_schema import TRAINABLE_MODELS
+from searchrl.shared_schema import CONF_DIR, TRAINABLE_MODELS
 from searchrl.world.config import ConfigError
 
 SCENARIOS = CONF_DIR / "scenario"

@@ -1,5 +1,6 @@
-"""Hydra schemas shared by the training and evaluation apps: the env group (the world's settings and its teams),
-the model presets and the scenario, registered in the ConfigStore; and how a command line's overrides name keys.
+"""The config both apps share: where it lives (conf/ beside the package: the one place the repository root is
+computed), the Hydra schemas of the env group (the world's settings and its teams), the model presets and the
+scenario, registered in the ConfigStore; and how a command line's overrides name keys.
 
 conf/env      -> EnvConfig    (world: WorldConfig's fields, the engine's own validated dataclass)
 conf/model    -> ModelConfig  (a model preset also writes Φ, communication, actions into env.world)
@@ -11,12 +12,34 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field, fields, is_dataclass, make_dataclass
 from difflib import get_close_matches
+from pathlib import Path
 from typing import Any, get_type_hints
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, ListConfig, OmegaConf, ValueNode
 
 from searchrl.world.config import ConfigError, WorldConfig
+
+
+def repository_root() -> Path:
+    """The checkout searchrl runs from: the folder holding `searchrl/` and `conf/`."""
+    return Path(__file__).resolve().parents[1]
+
+
+CONF_DIR = repository_root() / "conf"  # Hydra's config folder of every app
+
+
+def group_options(group: str) -> list[str]:
+    """The options of config group `group`: conf/<group>/**/*.yaml as `<group>=` names them (`term/b`)."""
+    folder = CONF_DIR / group
+    return sorted(p.relative_to(folder).with_suffix("").as_posix() for p in folder.rglob("*.yaml"))
+
+
+def recipes() -> list[str]:
+    """The training recipes, `+experiment=<name>`: conf/experiment/<name>.yaml, subfolders by what they make
+    (`term/b` makes runs/reference/term/b, `clone/b` the clone runs/reference/b; `research/` ships nothing)."""
+    return group_options("experiment")
+
 
 # WorldConfig's fields as a Hydra schema: the same names, types and defaults (types and unknown keys are checked at
 # composition), but `world_size` untyped so that an integer (`env.world.world_size=20`, every world 20×20) composes
@@ -73,46 +96,6 @@ def scenario_default() -> dict[str, Any]:
     the node whole. A schema default would merge its settings into every other file's parts (a maze's obstacles
     would keep iid's `density`); an empty mapping reads as the paper's (`Scenario.from_dict`)."""
     return {}
-
-
-def check_group_choices(argv: list[str]) -> None:
-    """Before Hydra reads the command line: every `[+]group=option` names an option that exists, else a refusal
-    (`multirun.Refused`) in one line with the nearest option, where Hydra's own is a page of search paths. A sweep's
-    comma-separated options are each checked; sweep functions (`choice(...)`) and Hydra's own groups are left to
-    Hydra. A heuristic asked for as a model is pointed to `controller=`."""
-    from searchrl.controllers.registry import HEURISTICS
-    from searchrl.multirun import refuse
-    from searchrl.paths import CONF_DIR, group_options
-
-    for arg in argv:
-        key, eq, value = arg.lstrip("+").partition("=")
-        if not eq or not key or key.split("/")[0] == "hydra" or not (CONF_DIR / key).is_dir() or "(" in value:
-            continue
-        options = group_options(key) + stored_options(key)
-        for option in value.split(","):
-            option = option.strip().strip("'\"")
-            if option in options or option == "null":
-                continue
-            listed = ", ".join(options) if len(options) <= 12 else f"the {len(options)} files of conf/{key}/"
-            if key == "model" and option in HEURISTICS:
-                refuse(
-                    f"{arg} is not allowed: {option} is a heuristic controller, not a model; evaluate it with "
-                    f"`python -m searchrl.evaluate controller={option}`; models: {listed}"
-                )
-            hint = nearest(option, options, f"{key}=")
-            refuse(f"{arg} is not allowed: conf/{key}/ has no {option!r}{hint}; options: {listed}")
-
-
-def stored_options(group: str) -> list[str]:
-    """The options of `group` a module stored in Hydra's ConfigStore (an extension's scenario, say), less the
-    schemas."""
-    from hydra.core.config_store import ConfigStore
-
-    try:
-        names = ConfigStore.instance().list(group)
-    except OSError:  # no such group stored
-        return []
-    return [n.removesuffix(".yaml") for n in names if not n.removesuffix(".yaml").endswith("_schema")]
 
 
 def nearest(word: str, options: list[str], prefix: str = "") -> str:
@@ -179,8 +162,6 @@ def _compose(config_name: str, group: str) -> DictConfig:
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
     from hydra.errors import MissingConfigException
-
-    from searchrl.paths import CONF_DIR, group_options
 
     def composed() -> DictConfig:
         try:

@@ -13,7 +13,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 import searchrl.train.callbacks as callbacks
-from searchrl.paths import CONF_DIR
+from searchrl.shared_schema import CONF_DIR
 from searchrl.train.callbacks import (
     AtomicCheckpointCallback,
     HParamsCallback,
@@ -23,7 +23,7 @@ from searchrl.train.callbacks import (
     checkpoints,
     run_hparams,
 )
-from searchrl.train.csv_log import log_digest
+from searchrl.train.logs import log_digest
 from searchrl.train.plan import make_plan
 from searchrl.train.schema import register_configs
 

@@ -80,7 +80,7 @@ def test_an_integer_world_size_is_an_n_by_n_world_everywhere() -> None:
     import searchrl
     import searchrl.train.app
     from searchrl.envs.single_env import SearchEnv
-    from searchrl.paths import CONF_DIR
+    from searchrl.shared_schema import CONF_DIR
     from searchrl.train.plan import team_groups
 
     assert WorldConfig(world_size=20).world_size == (20, 20) == WorldConfig(world_size=np.int64(20)).world_size

@@ -19,7 +19,7 @@ from hydra import compose, initialize_config_dir
 
 import searchrl.evaluate.app
 import searchrl.train.app  # noqa: F401  (registers the training schemas)
-from searchrl.paths import CONF_DIR
+from searchrl.shared_schema import CONF_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -183,7 +183,7 @@ GROUPS = ("scenario", "suite", "model", "experiment", "machine", "algo", "networ
 def test_the_docs_name_only_group_options_that_exist():
     """A `<group>=<option>` in the README, the docs, the configs or the analysis scripts names a file of conf/<group>/
     (schema.group_options): a renamed scenario, suite, recipe or model cannot leave a stale command behind."""
-    from searchrl.paths import group_options
+    from searchrl.shared_schema import group_options
 
     options = {group: set(group_options(group)) for group in GROUPS}
     for path in (ROOT / "tests" / "extension_example").glob("*.py"):  # what a user's package stores (extending.md)
@@ -211,15 +211,14 @@ def test_the_docs_name_only_group_options_that_exist():
 
 
 def test_the_trainable_models_are_the_files_of_conf_model():
-    from searchrl.paths import group_options
-    from searchrl.shared_schema import TRAINABLE_MODELS
+    from searchrl.shared_schema import TRAINABLE_MODELS, group_options
 
     assert group_options("model") == sorted(TRAINABLE_MODELS)
 
 
 def test_the_settings_reference_names_every_scenario_and_suite():
     """docs/options.md, the settings' reference, names every scenario file and every suite."""
-    from searchrl.paths import group_options
+    from searchrl.shared_schema import group_options
 
     text = (ROOT / "docs" / "options.md").read_text()
     missing = [f"{g}={o}" for g in ("scenario", "suite") for o in group_options(g) if f"`{o}`" not in text

@@ -229,7 +229,7 @@ def test_the_raw_bound_between_updates_leaves_the_recipe_as_it_would_train_alone
 
     import searchrl.train.app  # noqa: F401  (registers the training schemas)
     from searchrl.bench.train import _then_bound
-    from searchrl.paths import CONF_DIR
+    from searchrl.shared_schema import CONF_DIR
     from searchrl.train.build import make_algorithm, make_vec_env
     from searchrl.train.plan import make_plan
 
@@ -259,7 +259,7 @@ def test_the_raw_bound_runs_a_critic_s_own_extractor_as_the_recipe_does():
 
     import searchrl.train.app  # noqa: F401  (registers the training schemas)
     from searchrl.bench.train import raw_acting_seconds, raw_update_seconds
-    from searchrl.paths import CONF_DIR
+    from searchrl.shared_schema import CONF_DIR
     from searchrl.train.build import make_algorithm, make_vec_env
     from searchrl.train.plan import make_plan
 

@@ -18,7 +18,7 @@ from searchrl.evaluate.grid import table2_cells
 from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import COLUMNS
 from searchrl.multirun import exits
-from searchrl.paths import CONF_DIR
+from searchrl.shared_schema import CONF_DIR
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
 

@@ -16,8 +16,8 @@ from omegaconf import OmegaConf
 
 import searchrl.train.app  # noqa: F401  (registers the training schemas)
 from searchrl.controllers.registry import resolved
-from searchrl.paths import CONF_DIR, recipes
 from searchrl.policies.slim import weights_sha256
+from searchrl.shared_schema import CONF_DIR, recipes
 from searchrl.train.plan import make_plan
 from searchrl.train.schema import TrainConfig, saved_config
 from searchrl.world.scenario import Scenario

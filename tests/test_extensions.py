@@ -11,7 +11,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from searchrl.extensions import from_command_line
+from searchrl.command_line import from_command_line
 
 pytestmark = pytest.mark.app  # runs the apps as commands
 

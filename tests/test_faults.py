@@ -23,14 +23,13 @@ from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
 
 from searchrl.atomic import hold, temporary_path
-from searchrl.compose_check import check_jobs_compose
+from searchrl.command_line import check_group_choices, check_jobs_compose
 from searchrl.envs.parallel_env import SearchParallelEnv
 from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.results import load
 from searchrl.multirun import exits
-from searchrl.paths import CONF_DIR
 from searchrl.policies.checkpoint import REBUILT, load_checkpoint
-from searchrl.shared_schema import check_group_choices
+from searchrl.shared_schema import CONF_DIR
 from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
 from tests.test_untrusted_checkpoints import SHIPPED, poisoned
@@ -747,8 +746,8 @@ def test_evaluation_output_folders_are_checked_first(tmp_path, capsys):
 
 def test_cli_flags_and_world_bounds_are_checked_before_work(tmp_path, capsys):
     from searchrl.bench.__main__ import main as bench
+    from searchrl.command_line import check_resume_argument
     from searchrl.render import main as render
-    from searchrl.train.command_line import check_resume_argument
 
     gif = tmp_path / "x.gif"
     (tmp_path / "afile").write_text("")
@@ -822,7 +821,7 @@ def test_a_resumed_log_continues_the_runs_clock(tmp_path, tiny_run):
 
 
 def test_a_run_folder_with_a_space_in_its_path_resumes(tmp_path, tiny_run, capsys):
-    from searchrl.train.command_line import check_resume_argument
+    from searchrl.command_line import check_resume_argument
 
     run = _copy(tiny_run, tmp_path / "my run")
     check_resume_argument([f"resume='{run}'"])  # quoted for Hydra, as a shell passes it

@@ -13,10 +13,10 @@ from stable_baselines3 import PPO
 from searchrl.controllers.registry import make_teacher
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.imitation.clone import _evaluate, clone, collect, discounted_returns, lr_factor
+from searchrl.imitation.teacher_term import value_parameters
 from searchrl.policies.extractor import SearchCNN
 from searchrl.policies.recurrent import SequenceLstmPolicy
-from searchrl.train.imitation import _evaluate, clone, collect, discounted_returns, lr_factor
-from searchrl.train.teacher_term import value_parameters
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 

@@ -24,7 +24,7 @@ from searchrl.controllers import registry
 from searchrl.controllers.episodes import play_episodes
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
-from searchrl.train.teacher_labels import TeacherLabels
+from searchrl.imitation.teacher_labels import TeacherLabels
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import PAPER, IidObstacles, Scenario
 
@@ -203,7 +203,7 @@ def _check_teacher_resets() -> None:
 def _collect(monkeypatch, skip_partial: bool = False) -> tuple[list[np.ndarray], list[np.ndarray], object]:
     """(the teacher's reset masks, the worlds' done masks per step, the demonstrations) of a two-round collect by
     coverage (a rule with a plan per world); with `skip_partial` the teacher ignores resets of some worlds only."""
-    from searchrl.train import imitation
+    from searchrl.imitation import clone as imitation
 
     cls, resets, dones = registry.HEURISTICS["coverage"].cls, [], []
     original = cls.reset

@@ -152,7 +152,7 @@ def test_the_actor_never_reads_the_true_state_the_critic_does():
     actor = Actor(policy, optimize=False)
     assert actor.keys == ("map", "vector") and actor.parts == ()
     # the true state's branch is the critic's alone, fitted in the critic's warm-up
-    from searchrl.train.teacher_term import value_parameters
+    from searchrl.imitation.teacher_term import value_parameters
 
     assert {id(p) for p in policy.vf_features_extractor.parameters()} <= {id(p) for p in value_parameters(policy)}
 

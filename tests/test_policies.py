@@ -9,8 +9,8 @@ from hydra import compose, initialize_config_dir
 
 import searchrl.train.app  # noqa: F401  (registers the training schemas)
 from searchrl.controllers.policy import PolicyController
-from searchrl.paths import CONF_DIR
 from searchrl.policies.actor import Actor, sample_actions
+from searchrl.shared_schema import CONF_DIR
 from searchrl.train.build import make_algorithm, make_vec_env
 from searchrl.train.plan import make_plan
 from searchrl.world.observe import observe

@@ -25,7 +25,7 @@ from searchrl.evaluate.record import (
     option_defaults,
 )
 from searchrl.evaluate.runner import cell_config, episode_keys, run_cell, worlds_per_batch
-from searchrl.paths import CONF_DIR
+from searchrl.shared_schema import CONF_DIR
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.streams import WorldStreams, random_source
 

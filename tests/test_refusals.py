@@ -13,8 +13,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 from searchrl.evaluate.app import evaluate
-from searchrl.paths import CONF_DIR, recipes
-from searchrl.shared_schema import unknown_keys
+from searchrl.shared_schema import CONF_DIR, recipes, unknown_keys
 from searchrl.train.app import train
 from searchrl.world.obstacles import MazeObstacles
 from tests.test_faults import _refused

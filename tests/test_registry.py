@@ -26,7 +26,7 @@ from searchrl.evaluate.app import evaluate, make_controller_factory
 from searchrl.evaluate.results import load
 from searchrl.evaluate.schema import register_configs
 from searchrl.multirun import exits
-from searchrl.paths import CONF_DIR
+from searchrl.shared_schema import CONF_DIR
 from searchrl.world import scenario
 from searchrl.world.config import ConfigError, WorldConfig, need
 from tests.test_evaluate import SLICE
@@ -61,16 +61,44 @@ def _imports(path: Path) -> set[str]:
 
 
 def test_controllers_import_no_hydra_and_no_app_layer():
-    """Layering: world <- envs <- controllers <- train/evaluate; Hydra and its config library stay in the app
-    layer."""
+    """Layering: world <- envs <- controllers <- imitation <- train/evaluate; Hydra and its config library stay in
+    the app layer."""
     for path in (ROOT / "searchrl" / "controllers").glob("*.py"):
         app = [m for m in _imports(path) if m.split(".")[0] in ("hydra", "omegaconf")
-               or m.startswith(("searchrl.train", "searchrl.evaluate"))]  # fmt: skip
+               or m.startswith(("searchrl.imitation", "searchrl.train", "searchrl.evaluate"))]  # fmt: skip
         assert not app, (path, app)
 
 
+def _upward(layers: tuple[str, ...], above: tuple[str, ...]) -> list[tuple[str, str]]:
+    """(module file, what it imports) for each import of a layer above, in any module of `layers`."""
+    return [(str(path.relative_to(ROOT)), m) for layer in layers for path in (ROOT / "searchrl" / layer).glob("*.py")
+            for m in sorted(_imports(path)) if m.startswith(above)]  # fmt: skip
+
+
+def test_the_parts_import_no_app_and_policies_no_imitation():
+    """The parts the apps build (envs, policies, imitation) import neither app, and the policies not the imitation
+    layer that trains them: world <- envs <- policies/controllers <- imitation <- train/evaluate."""
+    assert not _upward(("envs", "policies", "imitation"), ("searchrl.train", "searchrl.evaluate"))
+    assert not _upward(("envs", "policies"), ("searchrl.imitation",))
+
+
+def test_the_layer_check_finds_an_upward_import(tmp_path, monkeypatch):
+    planted = tmp_path / "searchrl" / "policies"
+    planted.mkdir(parents=True)
+    (planted / "buffer.py").write_text("from searchrl.train.logs import log_digest\n")
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    assert _upward(("policies",), ("searchrl.train",)) == [("searchrl/policies/buffer.py", "searchrl.train.logs")]
+
+
 def test_the_world_imports_no_rl_library_no_hydra_and_no_layer_above_it():
-    above = ("searchrl.envs", "searchrl.controllers", "searchrl.policies", "searchrl.train", "searchrl.evaluate")
+    above = (
+        "searchrl.envs",
+        "searchrl.controllers",
+        "searchrl.policies",
+        "searchrl.imitation",
+        "searchrl.train",
+        "searchrl.evaluate",
+    )
     libraries = ("hydra", "omegaconf", "torch", "stable_baselines3", "sb3_contrib", "gymnasium", "pettingzoo")
     for path in (ROOT / "searchrl" / "world").glob("*.py"):
         bad = [m for m in _imports(path) if m.split(".")[0] in libraries or m.startswith(above)]
@@ -78,7 +106,7 @@ def test_the_world_imports_no_rl_library_no_hydra_and_no_layer_above_it():
 
 
 def test_importing_the_package_sets_no_environment_variable():
-    """The OpenMP wait policy is the entry points' to set (searchrl/omp_wait.py), not an import's."""
+    """The OpenMP wait policy is the entry points' to set (searchrl/threads.py), not an import's."""
     code = "import os, sys; sys.argv += ['-m']; import searchrl.world.engine; print(os.environ.get('OMP_WAIT_POLICY'))"
     env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)

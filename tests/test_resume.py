@@ -18,8 +18,8 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.multirun import exits
 from searchrl.train.app import train
+from searchrl.train.callbacks import run_episodes
 from searchrl.train.plan import make_plan
-from searchrl.train.validation import run_episodes
 from tests.test_train import TINY, _compose, _run
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)

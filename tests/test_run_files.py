@@ -9,8 +9,8 @@ import math
 import pandas as pd
 import pytest
 
-from searchrl.train.csv_log import AppendingCSV, ResumableTensorBoard
-from searchrl.train.score import read_score, run_score, write_score
+from searchrl.train.logs import AppendingCSV, ResumableTensorBoard
+from searchrl.train.run_record import read_score, run_score, write_score
 
 STEP = "time/total_timesteps"
 

@@ -1,4 +1,4 @@
-"""The whole-slot recurrent buffer (searchrl/train/slot_buffer.py): minibatches that are whole slots' rollouts in
+"""The whole-slot recurrent buffer (searchrl/policies/slot_buffer.py): minibatches that are whole slots' rollouts in
 sequence-major order, each slot once per epoch, labels on their rows, the LSTM state each slot entered its rollout
 with; and PPO's update equal to sb3-contrib's padded buffer where both form the same minibatches, with episode
 starts inside the rollouts."""
@@ -13,8 +13,8 @@ import torch
 from sb3_contrib import RecurrentPPO
 
 from searchrl.envs.vec_env import SearchVecEnv
-from searchrl.train.slot_buffer import SlotRolloutBuffer
-from searchrl.train.teacher_term import TeacherRecurrentPPO
+from searchrl.imitation.teacher_term import TeacherRecurrentPPO
+from searchrl.policies.slot_buffer import SlotRolloutBuffer
 from tests.test_teacher_term import WORLD, _model
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)

@@ -125,9 +125,9 @@ def test_nothing_below_the_entry_points_ends_the_process():
 
 
 def test_one_function_gives_the_repository_root():
-    """searchrl.paths.repository_root; no other module climbs from its own file."""
+    """searchrl.shared_schema.repository_root; no other module climbs from its own file."""
     climbers = [name for name, path in MODULES.items() if "Path(__file__)" in path.read_text()]
-    assert climbers == ["searchrl.paths"]
+    assert climbers == ["searchrl.shared_schema"]
 
 
 def _is_compiled(node: ast.AST) -> bool:
@@ -263,7 +263,7 @@ def test_nothing_patches_searchrl_at_run_time_or_switches_on_the_environment():
         rel = path.relative_to(ROOT).as_posix()
         patches, reads = _patches_and_environment_reads(path.read_text())
         patched += [f"{rel}:{line}" for line in patches]
-        if rel not in ENVIRONMENT_READERS and rel != "searchrl/omp_wait.py":  # sets a default, switches nothing
+        if rel not in ENVIRONMENT_READERS and rel != "searchrl/threads.py":  # sets a default, switches nothing
             read += [f"{rel}:{line}" for line in reads]
     # Shell scripts take their settings as arguments; the one variable read is the folder the device tool gives
     for path in sorted([*(ROOT / "analysis").glob("*.sh"), ROOT / ".ci" / "run"]):

@@ -16,8 +16,7 @@ import searchrl.evaluate.suite as suite_module
 from searchrl.evaluate.results import load
 from searchrl.evaluate.suite import SUITE_RECORD, SuiteConfig, evaluate_suite, suite_scenarios
 from searchrl.multirun import exits
-from searchrl.paths import CONF_DIR
-from searchrl.shared_schema import group_option
+from searchrl.shared_schema import CONF_DIR, group_option
 from searchrl.world.config import ConfigError
 from searchrl.world.scenario import PAPER
 

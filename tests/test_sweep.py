@@ -17,7 +17,7 @@ from PIL import Image
 
 from searchrl.multirun import exits
 from searchrl.reporting.sweep import load_jobs, mean_ci, score_table, setting_keys, validation_curves
-from searchrl.train.score import run_score, write_score
+from searchrl.train.run_record import run_score, write_score
 from tests.scripts import run_script
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)

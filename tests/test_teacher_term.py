@@ -15,10 +15,10 @@ from stable_baselines3.common.utils import set_random_seed
 from searchrl.controllers.registry import make_teacher
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.imitation.teacher_labels import TeacherLabels
+from searchrl.imitation.teacher_term import TeacherRecurrentPPO
 from searchrl.policies.extractor import SearchCNN
 from searchrl.train.app import train
-from searchrl.train.teacher_labels import TeacherLabels
-from searchrl.train.teacher_term import TeacherRecurrentPPO
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from tests.test_train import TINY, _compose, _run
@@ -48,7 +48,7 @@ def _labelled(seed: int = 0) -> TeacherLabels:
 @pytest.fixture
 def same_minibatches(monkeypatch):
     """sb3-contrib's buffer cut at offset 0 and the whole-slot buffer's slots in order: both form minibatches of the
-    same consecutive slots (searchrl/train/slot_buffer.py), so the updates can be compared."""
+    same consecutive slots (searchrl/policies/slot_buffer.py), so the updates can be compared."""
     monkeypatch.setattr(np.random, "randint", lambda *args, **kwargs: 0)
     monkeypatch.setattr(np.random, "permutation", lambda n: np.arange(n))
 

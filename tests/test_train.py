@@ -20,7 +20,7 @@ from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
 
 from searchrl.multirun import exits
-from searchrl.paths import CONF_DIR
+from searchrl.shared_schema import CONF_DIR
 from searchrl.train.app import train
 from searchrl.train.build import load_algorithm, make_vec_env
 from searchrl.train.plan import make_plan

@@ -1,4 +1,4 @@
-"""Validation during training (searchrl/train/validation.py): a fixed set of worlds and a fixed action stream, played
+"""Validation during training (searchrl/train/callbacks.py): a fixed set of worlds and a fixed action stream, played
 by a copy of the training policy, as evaluation plays them."""
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from searchrl.policies.actor import policy_copy
 from searchrl.policies.checkpoint import checkpoint_config, load_actor, load_checkpoint
 from searchrl.policies.recurrent import SequenceLstmPolicy
 from searchrl.train.build import make_algorithm, make_vec_env
+from searchrl.train.callbacks import run_episodes
 from searchrl.train.plan import Plan, make_plan
-from searchrl.train.validation import run_episodes
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import IidObstacles, Scenario
 from tests.test_train import TINY, _compose

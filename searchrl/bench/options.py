@@ -7,7 +7,7 @@ import argparse
 import math
 
 from searchrl.controllers.registry import HEURISTICS
-from searchrl.paths import CONF_DIR, recipes
+from searchrl.shared_schema import CONF_DIR, recipes
 
 SUITES = {
     "world": "engine throughput, batched against the oracle, at numba thread counts (--threads 1,2, --seconds)",
@@ -115,9 +115,8 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
         parser.error(f"--experiment={experiment} is not allowed: one of {known}")
     if getattr(args, "overrides", None):  # each composes onto the recipe, or one line names it (as the app's would)
         from searchrl.bench.train import composed_overrides
-        from searchrl.compose_check import check_jobs_compose
+        from searchrl.command_line import check_group_choices, check_jobs_compose
         from searchrl.multirun import Refused
-        from searchrl.shared_schema import check_group_choices
         from searchrl.train.schema import register_configs
 
         register_configs()

@@ -26,14 +26,14 @@ import numpy as np
 import torch
 from hydra import compose, initialize_config_dir
 
-from searchrl.paths import CONF_DIR
+from searchrl.imitation.teacher_labels import TeacherLabels
 from searchrl.policies.device import resolve_device
 from searchrl.policies.recurrent import process_sequence
+from searchrl.shared_schema import CONF_DIR
 from searchrl.threads import use_threads
 from searchrl.train.build import make_algorithm, make_vec_env
 from searchrl.train.plan import make_plan
 from searchrl.train.schema import register_configs
-from searchrl.train.teacher_labels import TeacherLabels
 
 
 def _timed(fn: Callable, total: list[float], sync: Callable[[], None]) -> Callable:

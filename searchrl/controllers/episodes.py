@@ -2,7 +2,7 @@
 starting the next waiting episode when its own ends.
 
 Evaluation (a grid cell's maps, searchrl/evaluate/runner.py), validation during training
-(searchrl/train/validation.py), `python -m searchrl.render` and the evaluation bench all play their episodes here,
+(searchrl/train/callbacks.py), `python -m searchrl.render` and the evaluation bench all play their episodes here,
 so a policy's validation number and its evaluation number come from the same code: the same worlds, the same
 draws, the same inference path (`PolicyController`, searchrl/controllers/policy.py).
 

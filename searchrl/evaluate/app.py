@@ -22,8 +22,8 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 from tqdm import tqdm
 
-from searchrl import extensions
 from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, storage_message, write_atomic
+from searchrl.command_line import import_modules
 from searchrl.controllers.factory import heuristic_factory, policy_factory
 from searchrl.controllers.registry import heuristic
 from searchrl.evaluate.cell_bounds import BOUND_COLUMNS, cell_bounds, map_prior
@@ -91,7 +91,7 @@ class Evaluation:
 
 def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | None = None) -> Evaluation:
     """Every check of an evaluation, before any work or file (ConfigError naming the bad value)."""
-    extensions.import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
+    import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
     check_known_keys(cfg)  # `+grid.map_per_cell=50` composes: refused here, not run without
     cfg = OmegaConf.to_object(cfg)  # typed from here on: the schema checked every value's type
     cells, out_dir, scenario = check_evaluation(cfg, overrides)

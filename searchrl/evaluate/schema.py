@@ -11,8 +11,7 @@ from omegaconf import MISSING
 
 from searchrl.controllers.registry import HEURISTICS
 from searchrl.evaluate.runner import BATCH_MB
-from searchrl.paths import CONF_DIR
-from searchrl.shared_schema import EnvConfig, ModelConfig, register_shared_configs, scenario_default
+from searchrl.shared_schema import CONF_DIR, EnvConfig, ModelConfig, register_shared_configs, scenario_default
 
 
 @dataclass
@@ -32,7 +31,7 @@ class EvaluateConfig:
     model: ModelConfig | None = None
     controller: Any = MISSING
     checkpoint: str | None = None  # a trained model.zip: evaluated instead of the controller, with its own settings
-    extensions: list[str] = field(default_factory=list)  # modules that register parts (searchrl/extensions.py)
+    extensions: list[str] = field(default_factory=list)  # modules that register parts (searchrl/command_line.py)
     suite: Any = None  # a frozen scenario suite (conf/suite/): its cells, maps, seed and scenarios, one folder each
     # Only these of the suite's scenarios (labels or shell patterns), each into the folder the whole suite gives it
     suite_scenarios: list[str] | None = None

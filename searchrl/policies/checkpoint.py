@@ -166,7 +166,7 @@ IDENTITY = "searchrl.json"
 
 def save_model(model: BaseAlgorithm, path: str | Path, run: dict[str, Any], log: str | None = None) -> Path:
     """Save `model` at `path` atomically, with IDENTITY: its step, `run` (plain JSON values) and `log`, the digest
-    of the run's log before that step (searchrl/train/csv_log.py's `log_digest`)."""
+    of the run's log before that step (searchrl/train/logs.py's `log_digest`)."""
     identity = {"step": int(model.num_timesteps), "run": run, "log": log}
 
     def write(tmp: Path) -> None:

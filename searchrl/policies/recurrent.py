@@ -6,7 +6,7 @@ call per step, resetting the state of the sequences whose episode starts at that
 a reset only at the steps where some sequence starts: between two such steps the LSTM can run over every sequence
 at once. `process_sequence` does that: one LSTM call per stretch between starting steps (one call when starts stand
 only at the sequences' heads, as sb3-contrib's buffer cuts them; a few in the whole-slot minibatches of
-searchrl/train/slot_buffer.py, where a slot's episode may start anywhere in its rollout), with the state of the
+searchrl/policies/slot_buffer.py, where a slot's episode may start anywhere in its rollout), with the state of the
 starting sequences zeroed at the stretch's first step (tests/test_recurrent.py: the loop's outputs and gradients).
 
 During a rollout every sequence is one step long, so acting takes the same path.

@@ -2,7 +2,7 @@
 score per setting with a confidence interval over seeds (scipy's bootstrap).
 
 A job is a folder under the sweep with `.hydra/overrides.yaml` (what Hydra writes for each job); its score is
-`score.json` (searchrl/train/score.py), NaN for a job that did not finish. The *setting* of a job is every override
+`score.json` (searchrl/train/run_record.py), NaN for a job that did not finish. The *setting* of a job is every override
 whose value differs between jobs, `seed` left out: the seeds of one setting are its repeats.
 """
 
@@ -17,7 +17,7 @@ import yaml
 from omegaconf import DictConfig, ListConfig, OmegaConf
 from scipy import stats
 
-from searchrl.train.score import stored_score
+from searchrl.train.run_record import stored_score
 
 SEED = "seed"
 IGNORED_PREFIXES = ("hydra.", "hydra/")  # the launcher's and sweeper's own settings
@@ -51,7 +51,7 @@ def load_jobs(sweep_dir: Path) -> pd.DataFrame:
 
     Each job's files are checked before they are used, ValueError in one line naming the file: its overrides must
     be readable and say what its run's config.yaml holds, and its score.json must be the score of its own
-    progress.csv (searchrl/train/score.py `stored_score`), so a job's files swapped for another's or damaged never
+    progress.csv (searchrl/train/run_record.py `stored_score`), so a job's files swapped for another's or damaged never
     enter the table."""
     rows = []
     for job in job_folders(sweep_dir):

@@ -3,10 +3,16 @@ its Hydra task function.
 
 Trains one shared policy for all agents (parameter sharing) and writes under the run directory: the resolved
 `config.yaml`, `progress.csv` and TensorBoard logs (team metrics, losses, validation), `checkpoints/`, and at the
-end `model.zip` and `score.json` (the run's score, score.py, which `main` returns to Hydra's sweepers), every file
+end `model.zip` and `score.json` (the run's score, run_record.py, which `main` returns to Hydra's sweepers), every file
 written atomically. `resume=<run dir>` continues a killed run from its newest readable checkpoint with step count
 and optimiser state intact; SIGTERM or SIGINT stops it with a checkpoint (exit 143, 130). The run folder is locked
 while in use (docs/files.md).
+
+A multirun started again into its own folder (`hydra.sweep.dir`) continues it (`continued_job`): each job whose
+folder holds a run of the same settings is not trained again if that run finished (its score is returned, as
+Hydra's sweepers need), and is resumed from its newest checkpoint if it was killed; a folder holding a run of other
+settings is refused (the job fails, the others run: searchrl/multirun.py). What `resume=` may change
+(RESUME_OVERRIDES, say a larger `total_timesteps`) may differ; nothing else may.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ from __future__ import annotations
 import signal
 import sys
 from pathlib import Path
+from typing import Any
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -24,11 +31,10 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
 from searchrl.atomic import FolderBusy, hold, storage_message
-from searchrl.multirun import Stopped, in_sweep
-from searchrl.paths import CONF_DIR
+from searchrl.multirun import Stopped, in_sweep, refuse
 from searchrl.policies.checkpoint import save_model
-from searchrl.shared_schema import override_keys
-from searchrl.train.build import make_vec_env
+from searchrl.shared_schema import CONF_DIR, override_keys
+from searchrl.train.build import make_vec_env, prepare_folder, record_config, set_logs, start_model, warm_start
 from searchrl.train.callbacks import (
     AtomicCheckpointCallback,
     HParamsCallback,
@@ -37,15 +43,12 @@ from searchrl.train.callbacks import (
     ValidationCallback,
     run_hparams,
 )
-from searchrl.train.command_line import fail
-from searchrl.train.csv_log import check_log
+from searchrl.train.logs import check_log
 from searchrl.train.plan import Plan, make_plan
-from searchrl.train.run_record import is_finished, other_log, run_identity
-from searchrl.train.run_start import prepare_folder, record_config, set_logs, start_model, warm_start
+from searchrl.train.run_record import is_finished, other_log, read_score, run_identity, stored_score, write_score
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig, register_configs, saved_config
-from searchrl.train.score import read_score, stored_score, write_score
-from searchrl.train.sweep_job import continued_job
 from searchrl.world.config import ConfigError
+from searchrl.world.scenario import Scenario
 
 register_configs()
 
@@ -60,11 +63,11 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
         return cfg, output_dir, False
     run_dir = Path(cfg.resume)
     if not (run_dir / "config.yaml").is_file():
-        fail(f"resume={cfg.resume!r} is not a run directory: it has no config.yaml")
+        refuse(f"resume={cfg.resume!r} is not a run directory: it has no config.yaml")
     keys = override_keys(overrides)
     other = [k for k in keys if k not in (*RESUME_OVERRIDES, "resume") and not k.startswith("hydra")]
     if other:
-        fail(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
+        refuse(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
     # Merged into the schema: a run saved by an older version gains new fields' defaults, and types are checked.
     try:
         loaded = saved_config(run_dir / "config.yaml")
@@ -73,7 +76,7 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
         saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), loaded)
     except Exception as err:  # empty, not YAML, wrong types, unreadable: the run's record is damaged
         detail = str(err).splitlines()[0] if str(err) else type(err).__name__
-        fail(f"resume={cfg.resume!r}: its config.yaml does not fit the current schema or cannot be read ({detail})")
+        refuse(f"resume={cfg.resume!r}: its config.yaml does not fit the current schema or cannot be read ({detail})")
     saved.resume = cfg.resume
     for key in keys:
         if key in RESUME_OVERRIDES:
@@ -90,19 +93,19 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
     try:
         plan = make_plan(cfg, [] if resuming else overrides or [])
     except (ConfigError, ValueError, OmegaConfBaseException) as err:
-        fail(str(err))
+        refuse(str(err))
     for note in plan.notes:
         print(f"note: {note}", file=sys.stderr)
     try:
         with hold(run_dir / ".lock", f"run folder {str(run_dir)!r}"):
             return _train_locked(plan, run_dir, resuming)
     except FolderBusy as err:
-        fail(str(err))
+        refuse(str(err))
     except OSError as err:  # a full disk mid-run: the last checkpoint stands, resume once there is space
         message = storage_message(err)
         if message is None:
             raise
-        fail(f"{message}; the run resumes from its last checkpoint with resume={run_dir}")
+        refuse(f"{message}; the run resumes from its last checkpoint with resume={run_dir}")
 
 
 def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
@@ -128,10 +131,10 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
         try:
             check_log(run_dir / "progress.csv", start_step, plan.rollout * cfg.log_interval)
         except ValueError as err:
-            fail(f"resume={cfg.resume!r}: {err}")
+            refuse(f"resume={cfg.resume!r}: {err}")
         problem = other_log(run_dir / "checkpoints" / f"step_{start_step}.zip", start_step)
         if problem:
-            fail(f"resume={cfg.resume!r}: {problem}; nothing was changed")
+            refuse(f"resume={cfg.resume!r}: {problem}; nothing was changed")
     record_config(plan, run_dir)
     if not resuming and plan.clones:
         warm_start(plan, model, run_dir)
@@ -185,7 +188,7 @@ def score_again(run_dir: Path, score_last: int, why: ValueError) -> dict[str, ob
     try:
         score = write_score(run_dir, score_last)
     except (UnicodeDecodeError, ValueError):  # pandas' parser errors are ValueErrors
-        fail(f"{why}; its progress.csv cannot be read to write it again")
+        refuse(f"{why}; its progress.csv cannot be read to write it again")
     print(f"score.json written again from {run_dir / 'progress.csv'} ({str(why).split(';')[0]})", file=sys.stderr)
     return score
 
@@ -212,10 +215,10 @@ def learn(
 
 @hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="train")
 def main(cfg: DictConfig) -> float:
-    """Train, and return the run's score (score.py) for Hydra sweepers: `-m hydra/sweeper=optuna` maximises it."""
+    """Train, and return the run's score (run_record.py) for Hydra sweepers: `-m hydra/sweeper=optuna` maximises it."""
     hydra_cfg = HydraConfig.get()
     run_dir, overrides = Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task)
-    if hydra_cfg.mode == RunMode.MULTIRUN:  # a sweep started again into its folder continues it (sweep_job.py)
+    if hydra_cfg.mode == RunMode.MULTIRUN:  # a sweep started again into its folder continues it
         cfg, overrides, finished = in_sweep(continue_sweep_job, cfg, run_dir, overrides)
         if finished:
             try:
@@ -233,4 +236,48 @@ def continue_sweep_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> 
     try:
         return continued_job(cfg, run_dir, overrides)
     except ConfigError as err:
-        fail(str(err))
+        refuse(str(err))
+
+
+def _flat(node: Any, prefix: str = "") -> dict[str, Any]:
+    if isinstance(node, dict):
+        out: dict[str, Any] = {}
+        for key, value in node.items():
+            out |= _flat(value, f"{prefix}{key}.")
+        return out or {prefix[:-1]: {}}
+    return {prefix[:-1]: node}
+
+
+def _settings(cfg: DictConfig) -> dict[str, Any]:
+    """The settings that decide a run, flat, its scenario as a run records it (every part written out)."""
+    values = OmegaConf.to_container(cfg, resolve=True)
+    values["scenario"] = Scenario.from_dict(values.get("scenario")).to_dict()
+    return {k: v for k, v in _flat(values).items() if k.split(".")[0] not in (*RESUME_OVERRIDES, "resume")}
+
+
+def continued_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple[DictConfig, list[str], bool]:
+    """(config, overrides, finished) of a multirun job whose folder `run_dir` may hold a run already: unchanged
+    with no run there; finished True for a run of these settings that reached `total_timesteps` (nothing to
+    train); else the config resuming it (`resume=run_dir`) with only the changeable overrides. ConfigError for a
+    run of other settings, naming the first that differs."""
+    if cfg.get("resume") is not None or not (run_dir / "config.yaml").is_file():
+        return cfg, overrides, False
+    try:
+        saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), saved_config(run_dir / "config.yaml"))
+    except Exception as err:  # damaged: said as resume= would say it
+        raise ConfigError(f"{run_dir} holds a run whose config.yaml cannot be read ({err}); move it away") from None
+    before, now = _settings(saved), _settings(cfg)
+    differ = sorted(k for k in before.keys() | now.keys() if before.get(k, "<absent>") != now.get(k, "<absent>"))
+    if differ:
+        key = differ[0]
+        raise ConfigError(
+            f"{run_dir} holds a run of other settings ({key}: {before.get(key, '<absent>')} there, "
+            f"{now.get(key, '<absent>')} now): sweep into another hydra.sweep.dir"
+        )
+    # model.zip is written once the budget is trained; its score.json is checked by the app (run_record.py stored_score)
+    if (run_dir / "model.zip").is_file() and saved.total_timesteps == cfg.total_timesteps:
+        return cfg, overrides, True
+    resumed = cfg.copy()
+    resumed.resume = str(run_dir)
+    kept = [o for o in overrides if o.lstrip("+~").split("=")[0] in RESUME_OVERRIDES]
+    return resumed, kept, False

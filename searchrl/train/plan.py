@@ -22,19 +22,19 @@ from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.utils import get_device
 
-from searchrl import extensions
+from searchrl.command_line import import_modules
 from searchrl.controllers.registry import make_teacher
 from searchrl.envs.rewards import make_reward
+from searchrl.imitation.clone import lr_factor
+from searchrl.imitation.teacher_term import TEACHER_ALGORITHMS, check_settings
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.checkpoint import policy_class
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
 from searchrl.policies.networks import observation_parts
 from searchrl.shared_schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, override_keys
-from searchrl.train.imitation import lr_factor
+from searchrl.train.logs import check_logger
 from searchrl.train.schema import A2CConfig, ImitationConfig, RecurrentPPOConfig, TrainConfig
-from searchrl.train.teacher_term import TEACHER_ALGORITHMS, check_settings
-from searchrl.train.wandb_log import check_logger
 from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.scenario import Scenario, ScenarioMix
 
@@ -50,7 +50,7 @@ class Plan:
     settings: TrainConfig
     groups: tuple[tuple[WorldConfig, int], ...]  # (world config, K worlds) per group
     scenario: Scenario
-    algorithm: type[BaseAlgorithm]  # SB3's class, or its teacher-term subclass (searchrl/train/teacher_term.py)
+    algorithm: type[BaseAlgorithm]  # SB3's class, or its teacher-term subclass (searchrl/imitation/teacher_term.py)
     teacher_term: bool  # RL with the teacher term or critic warm-up
     rollout: int  # agent-steps of one rollout: algo.n_steps × every group's K·N
     notes: tuple[str, ...]  # what the run will not use, or rounds, said before it starts
@@ -83,7 +83,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     """Check every setting of `cfg` (a composed train config) and read it into a Plan holding its typed settings;
     ConfigError naming the first bad value. `overrides` (the command line's) only choose the notes on settings the
     run will not use."""
-    extensions.import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
+    import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
     check_known_keys(cfg)  # `+total_timestep=...` composes: refused here, not trained past
     check_model(cfg)
     algorithm = check_algo(cfg)
@@ -101,7 +101,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     rollout = s.algo.n_steps * sum(k * world.n_agents for world, k in groups)
     batch = getattr(s.algo, "batch_size", None)
     need(batch is None or 1 <= batch <= rollout, "algo.batch_size", batch, f"1 <= batch_size <= rollout size {rollout}")
-    # A minibatch is whole slots' rollouts (searchrl/train/slot_buffer.py): a whole number of n_steps.
+    # A minibatch is whole slots' rollouts (searchrl/policies/slot_buffer.py): a whole number of n_steps.
     need(
         batch is None or batch % s.algo.n_steps == 0,
         "algo.batch_size",
@@ -139,7 +139,7 @@ def draw_walls(scenario: Scenario | ScenarioMix, groups: Sequence[tuple[WorldCon
 
 def check_model(cfg: DictConfig) -> None:
     """A model chosen with +model= (or an experiment that sets one); the command line named one that exists
-    (`schema.check_group_choices`)."""
+    (`command_line.check_group_choices`)."""
     if cfg.model is None:
         raise ConfigError(
             f"choose a model to train with +model=<name>; trainable models: {', '.join(TRAINABLE_MODELS)}"

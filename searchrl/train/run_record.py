@@ -1,5 +1,6 @@
-"""What a run's files say of themselves (its config record, the identity every model it saves carries), and the
-resume that reads them: the newest checkpoint that is this run's, or a finished run left untouched.
+"""What a run's files say of themselves: its config record, the identity every model it saves carries, and its
+score; a resume reads them to continue from the newest checkpoint that is this run's, or to leave a finished run
+untouched.
 
 A run folder is trusted by what its files hold, not by their names. Each model.zip, imitation.zip and
 `checkpoints/step_<n>.zip` a run writes holds `searchrl.json` (searchrl/policies/checkpoint.py): the step it was
@@ -7,24 +8,27 @@ saved at and the run's settings as `config.yaml` records them, less those a resu
 A resume checks the checkpoint it would continue from against both the file's name and the run's config.yaml, and
 refuses, in one line naming both sides, a checkpoint of another run (another model, seed or network: a file copied
 in under a step name) or a config.yaml edited since the checkpoint was saved.
+
+The run's score is one number a Hydra sweeper can optimise, written beside the run as `score.json`: the validation
+found fraction (`val/found_fraction` in `progress.csv`, fixed validation worlds) averaged over the last
+`validation.score_last` validations of the run, resumed segments included; the final model is always among them
+(the validation callback runs once more when training ends). `score.json` says which validations, at which
+agent-steps, were averaged.
 """
 
 from __future__ import annotations
 
-import sys
+import json
+import math
 from pathlib import Path
 from typing import Any
 
+import pandas as pd
 from omegaconf import OmegaConf
-from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.vec_env import VecEnv
 
+from searchrl.atomic import write_text_atomic
 from searchrl.policies.checkpoint import saved_identity, saved_step
-from searchrl.train.build import load_algorithm
-from searchrl.train.callbacks import checkpoints
-from searchrl.train.command_line import fail
-from searchrl.train.csv_log import log_digest
-from searchrl.train.plan import Plan
+from searchrl.train.logs import log_digest
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig
 from searchrl.world.scenario import Scenario
 
@@ -120,26 +124,66 @@ def set_aside_logs(run_dir: Path) -> Path | None:
     return aside
 
 
-def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[BaseAlgorithm | None, Path | None]:
-    """The newest checkpoint of the run that loads, with its step count and optimiser state. One that cannot be
-    read (truncated by a full disk, a broken copy) is set aside as `<name>.unreadable`, said so, and the one
-    before it is tried. (None, None) if the run has none: it was killed before its first checkpoint."""
-    found = sorted(checkpoints(run_dir / "checkpoints"), reverse=True)
-    if not found:
-        return None, None
-    for step, path in found:
-        try:
-            problem = foreign_checkpoint(path, step, plan.settings)  # a whole file of another run is not set aside
-            if problem:
-                fail(f"resume={plan.settings.resume!r}: checkpoints/{path.name} {problem}; nothing was changed")
-            return load_algorithm(plan, str(path), env), path
-        except OSError as err:  # cannot be read now (permission, I/O): maybe whole, so nothing is set aside
-            fail(
-                f"resume={plan.settings.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
-                f"{err.strerror or err}); nothing was renamed: restore access and resume again"
-            )
-        except ValueError as err:
-            aside = path.with_name(f"{path.name}.unreadable")
-            path.rename(aside)
-            print(f"warning: {err}; set aside as {aside.name}, trying the checkpoint before it", file=sys.stderr)
-    fail(f"resume={plan.settings.resume!r}: no checkpoint under checkpoints/ can be read (set aside as *.unreadable)")
+METRIC = "val/found_fraction"
+STEP = "time/total_timesteps"
+
+
+def run_score(run_dir: Path, last: int) -> dict[str, object]:
+    """{"score", "metric", "validations" (how many were averaged), "steps" (their agent-steps), "last"} from
+    `run_dir/progress.csv`; score is NaN when the run logged no validation."""
+    path = Path(run_dir) / "progress.csv"
+    frame = pd.read_csv(path) if path.is_file() and path.stat().st_size else pd.DataFrame()
+    points = frame.reindex(columns=[STEP, METRIC]).dropna().tail(last)  # no validation logged: no rows
+    score = float(points[METRIC].mean()) if len(points) else math.nan
+    return {
+        "score": score,
+        "metric": METRIC,
+        "last": last,
+        "validations": len(points),
+        "steps": [int(s) for s in points[STEP]],
+    }
+
+
+def write_score(run_dir: Path, last: int) -> dict[str, object]:
+    """Compute the run's score, write `score.json` atomically, and return its record."""
+    record = run_score(run_dir, last)
+    write_text_atomic(Path(run_dir) / "score.json", json.dumps(record, indent=1) + "\n")
+    return record
+
+
+def stored_score(run_dir: Path) -> dict[str, object]:
+    """`score.json` of `run_dir` once checked against the run's own log: the record `run_score` computes from its
+    progress.csv over the validations the file says it averaged. ValueError in one line when the file cannot be
+    read, or is not the score of this log (another run's, an edited one, or the log changed since)."""
+    path = Path(run_dir) / "score.json"
+    try:
+        record = json.loads(path.read_text())
+        last = int(record["last"])
+        recorded = (float(record["score"]), [int(s) for s in record["steps"]])
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError):
+        raise ValueError(
+            f"{path} cannot be read as a run's score; python -m searchrl.train resume={run_dir} "
+            "writes it again from the run's progress.csv"
+        ) from None
+    try:
+        own = run_score(run_dir, last)
+    except (UnicodeDecodeError, ValueError) as err:  # pandas' parser errors are ValueErrors
+        raise ValueError(
+            f"{Path(run_dir) / 'progress.csv'} cannot be read as a run's log ({type(err).__name__})"
+        ) from None
+    same = recorded[1] == own["steps"] and (
+        recorded[0] == own["score"] or (math.isnan(recorded[0]) and math.isnan(own["score"]))
+    )
+    if not same:
+        raise ValueError(
+            f"{path} is not the score of {Path(run_dir) / 'progress.csv'} (it says {recorded[0]:.4f} at "
+            f"steps {recorded[1]}, the log gives {own['score']:.4f} at {own['steps']}): another run's "
+            "file or an edited log; resume the run to write it again"
+        )
+    return own
+
+
+def read_score(run_dir: Path) -> float:
+    """The score recorded in `run_dir/score.json` (NaN if the run has none: it did not finish)."""
+    path = Path(run_dir) / "score.json"
+    return float(json.loads(path.read_text())["score"]) if path.is_file() else math.nan

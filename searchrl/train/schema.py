@@ -17,8 +17,14 @@ from typing import Any
 
 from omegaconf import MISSING, DictConfig, OmegaConf
 
-from searchrl.paths import repository_root
-from searchrl.shared_schema import EnvConfig, ModelConfig, override_keys, register_shared_configs, scenario_default
+from searchrl.shared_schema import (
+    EnvConfig,
+    ModelConfig,
+    override_keys,
+    register_shared_configs,
+    repository_root,
+    scenario_default,
+)
 
 
 @dataclass
@@ -40,7 +46,7 @@ class CriticConfig:
 @dataclass
 class LoggerConfig:
     """Where the run's metrics go besides progress.csv and TensorBoard (always written): `wandb` also logs every row
-    to Weights & Biases (searchrl/train/wandb_log.py; `pip install -e '.[track]'`)."""
+    to Weights & Biases (searchrl/train/logs.py; `pip install -e '.[track]'`)."""
 
     name: str = "default"  # default: progress.csv and TensorBoard; wandb: those and a W&B run
     project: str = "searchrl"
@@ -87,7 +93,7 @@ class ValidationConfig:
 
 @dataclass
 class ImitationConfig:
-    """Warm start by cloning a heuristic before RL (`searchrl/train/imitation.py`); not in the paper."""
+    """Warm start by cloning a heuristic before RL (`searchrl/imitation/clone.py`); not in the paper."""
 
     # A heuristic of searchrl/controllers/registry.py but random (registry.TEACHERS); null
     # trains from scratch as the paper does
@@ -102,7 +108,7 @@ class ImitationConfig:
     learning_rate: float = 1e-3
     # "linear": each fit's rate falls from learning_rate to 0 over its minibatches; "constant" keeps it.
     lr_schedule: str = "constant"
-    # During RL (searchrl/train/teacher_term.py): PPO's loss gains rl_weight × the cross-entropy toward the
+    # During RL (searchrl/imitation/teacher_term.py): PPO's loss gains rl_weight × the cross-entropy toward the
     # teacher's action on every state the learner visits (0: plain PPO); "linear" takes the weight to 0 by the end
     # of the run. epochs=0 skips the clone (say with init= a clone made before).
     rl_weight: float = 0.0
@@ -138,7 +144,7 @@ class TrainConfig:
     device: str = "cpu"
     progress_bar: bool = True
     log_interval: int = 1  # rollouts between log rows
-    extensions: list[str] = field(default_factory=list)  # modules that register parts (searchrl/extensions.py)
+    extensions: list[str] = field(default_factory=list)  # modules that register parts (searchrl/command_line.py)
     reward: str = "paper"  # what the env pays per step, by name (searchrl/envs/rewards.py); paper: the world's
 
 
@@ -181,7 +187,7 @@ def job_name(num: int, overrides: list[str]) -> str:
 def job_subdir(sweep_dir: str, num: int, overrides: Any) -> str:
     """A multirun job's folder under `sweep_dir` (`hydra.sweep.subdir`): `job_name` when that folder is new or was
     made for the same overrides (a multirun continued into its folder continues its jobs: searchrl/train/
-    sweep_job.py), else `<name>.1`, `<name>.2`, ... the first that is (an Optuna study continued into its folder
+    app.py), else `<name>.1`, `<name>.2`, ... the first that is (an Optuna study continued into its folder
     numbers its new trials' jobs from 0 again: a trial of the same parameters goes beside the earlier one)."""
     wanted = [str(o) for o in overrides]
     name = job_name(int(num), wanted)

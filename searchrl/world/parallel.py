@@ -39,7 +39,7 @@ from searchrl.world.kernels import CACHE
 # parent's OpenMP threads started steps its worlds on one thread, in the calling thread (`chunk_count`), and never
 # opens one. Hydra's multirun launchers start their jobs as new processes (joblib's loky executes a fresh
 # interpreter; submitit runs a command), not as forks. OpenMP's workers wait as OMP_WAIT_POLICY says
-# (searchrl/omp_wait.py, set by the apps: in a multirun they sleep at once).
+# (searchrl/threads.py, set by the apps: in a multirun they sleep at once).
 def _one_thread_after_fork() -> None:
     """In a child forked from a process whose OpenMP threads started, run the world's kernels in one thread."""
     try:

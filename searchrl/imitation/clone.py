@@ -31,7 +31,7 @@ from sb3_contrib.common.recurrent.policies import RecurrentActorCriticPolicy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 from searchrl.controllers.registry import make_teacher
-from searchrl.train.teacher_term import value_parameters
+from searchrl.imitation.teacher_term import value_parameters
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.scenario import PAPER, Scenario

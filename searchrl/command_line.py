@@ -1,20 +1,124 @@
-"""Every job of a command line composes, checked before Hydra runs it.
+"""What the entry points check on a command line before Hydra runs it, each refused in one line naming the value
+(`multirun.refuse`, exit status 2) where Hydra's own message is a traceback or a page of search paths.
 
-Hydra composes a run's config from its command line when the run starts, and a multirun's jobs one at a time as the
-launcher reaches them. A value its setting cannot take (`grid.repeats=1.5`, `controller.w_p=abc`, one value of a
-sweep's list) is then five lines of Hydra's, and in a multirun it ends the sweep at that job: the valid jobs after
-it never run. `check_jobs_compose` composes the command line with Hydra's own compose API first, each value of each
-swept setting in turn, and refuses in one line naming the value.
+- **`extensions=[module, ...]`**: a user's modules, imported before a config is checked, that register their own
+  parts. What rl-baselines3-zoo's `--gym-packages` does for environments, for every kind of part searchrl names: a
+  module of a user's package (or a research script in `analysis/`) registers networks and critics
+  (searchrl/policies/networks.py), observation parts (searchrl/envs/parts.py) and heuristics or teachers
+  (searchrl/controllers/registry.py) where it defines them, and a command line uses them by name:
+
+      python -m searchrl.train +model=b extensions=[my_pkg.parts] network.extractor=my_cnn
+
+  The entry points import the modules named on the command line before Hydra composes (a heuristic's settings
+  become a config group option), and every app imports those of its config again (`import_modules`), so the jobs a
+  launcher starts in other processes (joblib, SLURM) register the same parts. A run records its extensions in
+  config.yaml; evaluating its checkpoint needs them on the command line again: nothing a folder holds is imported
+  on its own word.
+- **`resume=`** names a folder, and every **`[+]group=option`** an option that exists (with the nearest one).
+- **Every job composes.** Hydra composes a run's config from its command line when the run starts, and a
+  multirun's jobs one at a time as the launcher reaches them. A value its setting cannot take (`grid.repeats=1.5`,
+  `controller.w_p=abc`, one value of a sweep's list) is then five lines of Hydra's, and in a multirun it ends the
+  sweep at that job: the valid jobs after it never run. `check_jobs_compose` composes the command line with Hydra's
+  own compose API first, each value of each swept setting in turn.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
 import re
+from collections.abc import Iterable
 from pathlib import Path
+
+from searchrl.multirun import refuse
+from searchrl.shared_schema import nearest
+from searchrl.world.config import ConfigError
 
 # Hydra's flags that take no value; any other flag (`--cfg job`, `--config-name x`, `--info`) leaves the check to Hydra
 _PLAIN_FLAGS = {"-m", "--multirun"}
+
+
+def from_command_line(argv: Iterable[str]) -> list[str]:
+    """The modules an `extensions=` (or `+extensions=`) argument names: `extensions=[a.b,c]` or `extensions=a.b`."""
+    modules: list[str] = []
+    for arg in argv:
+        key, _, value = arg.lstrip("+~").partition("=")
+        if key == "extensions" and value not in ("", "[]", "null"):
+            inner = value[1:-1] if value.startswith("[") and value.endswith("]") else value
+            modules += [m.strip().strip("'\"") for m in inner.split(",") if m.strip()]
+    return modules
+
+
+def import_modules(modules: Iterable[str]) -> None:
+    """Import each module (once; Python keeps them); ConfigError in one line naming one that cannot be imported."""
+    for name in modules:
+        try:
+            importlib.import_module(str(name))
+        except Exception as err:  # ModuleNotFoundError, or the module's own error while registering
+            detail = str(err).splitlines()[0] if str(err) else ""
+            raise ConfigError(
+                f"extensions: {name!r} cannot be imported ({type(err).__name__}: {detail}); give "
+                "importable module names, e.g. extensions=[my_package.parts]"
+            ) from None
+
+
+def import_from_command_line(argv: Iterable[str]) -> None:
+    """`import_modules` of the command line's `extensions=`; a module that cannot be imported is refused in one line
+    (`searchrl.multirun.refuse`), before Hydra runs."""
+    try:
+        import_modules(from_command_line(argv))
+    except ConfigError as err:
+        refuse(str(err))
+
+
+def check_resume_argument(argv: list[str]) -> None:
+    """Hydra makes `<resume>/resumed/<date>/` before the app starts: a resume= that is not a folder is named here
+    first, in one line, instead of in Hydra's traceback."""
+    for arg in argv:
+        value = arg.split("=", 1)[1] if arg.startswith("resume=") else "null"
+        if len(value) >= 2 and value[0] == value[-1] and value[0] in "'\"":  # quoted for Hydra: a path with spaces
+            value = value[1:-1]
+        if value != "null" and not (value and Path(value).is_dir()):
+            refuse(f"{arg} is not allowed: a run folder (with config.yaml and checkpoints/)")
+
+
+def check_group_choices(argv: list[str]) -> None:
+    """Before Hydra reads the command line: every `[+]group=option` names an option that exists, else a refusal
+    (`multirun.Refused`) in one line with the nearest option, where Hydra's own is a page of search paths. A sweep's
+    comma-separated options are each checked; sweep functions (`choice(...)`) and Hydra's own groups are left to
+    Hydra. A heuristic asked for as a model is pointed to `controller=`."""
+    from searchrl.controllers.registry import HEURISTICS
+    from searchrl.shared_schema import CONF_DIR, group_options
+
+    for arg in argv:
+        key, eq, value = arg.lstrip("+").partition("=")
+        if not eq or not key or key.split("/")[0] == "hydra" or not (CONF_DIR / key).is_dir() or "(" in value:
+            continue
+        options = group_options(key) + stored_options(key)
+        for option in value.split(","):
+            option = option.strip().strip("'\"")
+            if option in options or option == "null":
+                continue
+            listed = ", ".join(options) if len(options) <= 12 else f"the {len(options)} files of conf/{key}/"
+            if key == "model" and option in HEURISTICS:
+                refuse(
+                    f"{arg} is not allowed: {option} is a heuristic controller, not a model; evaluate it with "
+                    f"`python -m searchrl.evaluate controller={option}`; models: {listed}"
+                )
+            hint = nearest(option, options, f"{key}=")
+            refuse(f"{arg} is not allowed: conf/{key}/ has no {option!r}{hint}; options: {listed}")
+
+
+def stored_options(group: str) -> list[str]:
+    """The options of `group` a module stored in Hydra's ConfigStore (an extension's scenario, say), less the
+    schemas."""
+    from hydra.core.config_store import ConfigStore
+
+    try:
+        names = ConfigStore.instance().list(group)
+    except OSError:  # no such group stored
+        return []
+    return [n.removesuffix(".yaml") for n in names if not n.removesuffix(".yaml").endswith("_schema")]
 
 
 def job_variants(argv: list[str]) -> list[tuple[str, list[str]]] | None:
@@ -59,8 +163,7 @@ def check_jobs_compose(argv: list[str], config_name: str) -> None:
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
-    from searchrl.multirun import refuse
-    from searchrl.paths import CONF_DIR
+    from searchrl.shared_schema import CONF_DIR
 
     variants = job_variants(argv)
     if variants is None:
@@ -132,8 +235,7 @@ def _misspelt_hints(compose, config_name: str, overrides: list[str]) -> dict[str
     lacks (a misspelt setting: Hydra says only "Key 'leaf' not in 'Schema'"); {} if that config does not compose."""
     from omegaconf import DictConfig, OmegaConf
 
-    from searchrl.paths import CONF_DIR
-    from searchrl.shared_schema import nearest
+    from searchrl.shared_schema import CONF_DIR
 
     keys = [
         o.partition("=")[0]

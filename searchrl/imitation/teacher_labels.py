@@ -1,6 +1,6 @@
 """`TeacherLabels`: a VecEnv wrapper that labels every observation the learner acts on with the teacher's action.
 
-The teacher term of `searchrl/train/teacher_term.py` needs, for each step of each rollout, what the teacher would
+The teacher term of `searchrl/imitation/teacher_term.py` needs, for each step of each rollout, what the teacher would
 have done in the state the learner was in (DAgger's labels, on the learner's own states). The heuristic teachers
 read only the world state and the agents' observations, so they can label online: after every reset and step the
 wrapper asks each group's teacher for its (K, N) actions, and when the learner acts (`step_async`) it files the

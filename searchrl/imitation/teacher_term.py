@@ -7,7 +7,7 @@ kickstarting (Schmitt et al. 2018), which distils toward the teacher with a weig
 
 - **the teacher term**: every minibatch's loss gains `w · CE(π(·|s), a_teacher(s))` on the states the learner itself
   visited (DAgger's labels, Ross et al. 2011). The teacher reads only the world state, so a VecEnv wrapper labels
-  every rollout step online (`searchrl/train/teacher_labels.py`). `w` is constant, falls linearly to 0 over the
+  every rollout step online (`searchrl/imitation/teacher_labels.py`). `w` is constant, falls linearly to 0 over the
   run, or (`anneal`) falls linearly to 0 over its first `anneal_steps` agent-steps, whatever the run's budget. It
   is added to the loss rather than taken as a step of its own because Adam is blind to a loss's scale: only in one
   loss does `w` weigh imitation against the PPO terms.
@@ -17,7 +17,7 @@ kickstarting (Schmitt et al. 2018), which distils toward the teacher with a weig
 
 With `w = 0` and no warm-up the update is SB3's PPO update exactly (tests/test_teacher_term.py compares parameters).
 The labels come from a `LabelSource` and reach the minibatches through the rollout buffer, whose minibatches are
-whole slots' rollouts with no padding (`searchrl/train/slot_buffer.py`); every RecurrentPPO run trains with this
+whole slots' rollouts with no padding (`searchrl/policies/slot_buffer.py`); every RecurrentPPO run trains with this
 class, the term off (w = 0, no warm-up) where the recipe has none.
 """
 
@@ -31,7 +31,7 @@ from sb3_contrib import RecurrentPPO
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.utils import explained_variance
 
-from searchrl.train.slot_buffer import SlotRolloutBuffer
+from searchrl.policies.slot_buffer import SlotRolloutBuffer
 
 SCHEDULES = ("constant", "linear", "anneal")
 
