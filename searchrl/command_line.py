@@ -169,7 +169,7 @@ def check_jobs_compose(argv: list[str], config_name: str) -> None:
     if variants is None:
         return
     failure = None
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3", job_name="compose_check"):
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3", job_name="command_line"):
         for what, overrides in variants:
             try:
                 compose(config_name=config_name, overrides=overrides)

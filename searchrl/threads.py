@@ -18,8 +18,8 @@ a parallel sweep once slowed 20x). So a multirun (Hydra's -m: its jobs may share
 spins briefly; an OMP_WAIT_POLICY already set is left alone.
 
 Importing this module loads neither torch nor numba (`use_threads` does), and importing the world or the package
-sets nothing: the world package imports neither torch nor this module, and the entry points (training, evaluation,
-render, the benches) call both functions.
+sets nothing: the world package imports neither torch nor this module. The Hydra apps' entry points call
+`set_wait_policy`; training, evaluation and the benches call `use_threads`.
 """
 
 from __future__ import annotations

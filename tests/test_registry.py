@@ -61,8 +61,8 @@ def _imports(path: Path) -> set[str]:
 
 
 def test_controllers_import_no_hydra_and_no_app_layer():
-    """Layering: world <- envs <- controllers <- imitation <- train/evaluate; Hydra and its config library stay in
-    the app layer."""
+    """Layering: world <- envs <- policies <- controllers <- imitation <- train/evaluate; Hydra and its config
+    library stay in the app layer."""
     for path in (ROOT / "searchrl" / "controllers").glob("*.py"):
         app = [m for m in _imports(path) if m.split(".")[0] in ("hydra", "omegaconf")
                or m.startswith(("searchrl.imitation", "searchrl.train", "searchrl.evaluate"))]  # fmt: skip
@@ -75,11 +75,12 @@ def _upward(layers: tuple[str, ...], above: tuple[str, ...]) -> list[tuple[str, 
             for m in sorted(_imports(path)) if m.startswith(above)]  # fmt: skip
 
 
-def test_the_parts_import_no_app_and_policies_no_imitation():
-    """The parts the apps build (envs, policies, imitation) import neither app, and the policies not the imitation
-    layer that trains them: world <- envs <- policies/controllers <- imitation <- train/evaluate."""
+def test_the_parts_import_only_the_layers_below_them():
+    """The parts the apps build import neither app, and each only the parts below it: world <- envs <- policies <-
+    controllers (a trained policy is one) <- imitation (its teachers are controllers) <- train/evaluate."""
     assert not _upward(("envs", "policies", "imitation"), ("searchrl.train", "searchrl.evaluate"))
-    assert not _upward(("envs", "policies"), ("searchrl.imitation",))
+    assert not _upward(("envs", "policies"), ("searchrl.controllers", "searchrl.imitation"))
+    assert not _upward(("envs",), ("searchrl.policies",))
 
 
 def test_the_layer_check_finds_an_upward_import(tmp_path, monkeypatch):
@@ -103,6 +104,17 @@ def test_the_world_imports_no_rl_library_no_hydra_and_no_layer_above_it():
     for path in (ROOT / "searchrl" / "world").glob("*.py"):
         bad = [m for m in _imports(path) if m.split(".")[0] in libraries or m.startswith(above)]
         assert not bad, (path, bad)
+
+
+def test_what_runs_before_the_wait_policy_loads_no_torch():
+    """The entry points set torch's OpenMP wait policy before torch loads (libgomp reads it once): what they import
+    first, the thread settings and the command-line checks, must not load it, nor numba's OpenMP runtime."""
+    code = (
+        "import sys, searchrl.threads, searchrl.command_line, searchrl.multirun; "
+        "print(sorted({'torch', 'numba'} & set(sys.modules)))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "[]", (out.stdout, out.stderr)
 
 
 def test_importing_the_package_sets_no_environment_variable():

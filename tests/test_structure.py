@@ -230,7 +230,8 @@ def _root(node: ast.AST) -> str | None:
 def _patches_and_environment_reads(source: str) -> tuple[list[int], list[int]]:
     """(lines that assign or delete an attribute of something imported from searchrl, or setattr it; lines that
     read os.environ or os.getenv, except to hand the whole environment to a child process, `{**os.environ, ...}`,
-    or to give a library's own variable a default, `os.environ.setdefault(...)`: it switches nothing of searchrl)."""
+    or to give a library's own variable a default, `os.environ.setdefault(...)` as a statement of its own: it
+    switches nothing of searchrl)."""
     tree = ast.parse(source)
     imported, patches, reads = _searchrl_names(tree), [], []
     handed_on = {
@@ -239,10 +240,13 @@ def _patches_and_environment_reads(source: str) -> tuple[list[int], list[int]]:
         if isinstance(d, ast.Dict)
         for k, v in zip(d.keys, d.values, strict=True)
         if k is None
-    } | {
-        id(c.func.value)
-        for c in ast.walk(tree)
-        if isinstance(c, ast.Call) and isinstance(c.func, ast.Attribute) and c.func.attr == "setdefault"
+    } | {  # a statement of its own: a default given, its value not read
+        id(e.value.func.value)
+        for e in ast.walk(tree)
+        if isinstance(e, ast.Expr)
+        and isinstance(e.value, ast.Call)
+        and isinstance(e.value.func, ast.Attribute)
+        and e.value.func.attr == "setdefault"
     }
     for node in ast.walk(tree):
         targets = (node.targets if isinstance(node, ast.Assign | ast.Delete)
@@ -297,9 +301,10 @@ flag = os.environ.get("X") or os.getenv("Y")
 child = {**os.environ, "A": "1"}
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 wait = os.environ.get("OMP_WAIT_POLICY", "ACTIVE")
+switch = os.environ.setdefault("SEARCHRL_X", "0") == "1"
 """
     patches, reads = _patches_and_environment_reads(source)
-    assert patches == [7, 8, 9, 10, 11] and sorted(reads) == [14, 14, 17]
+    assert patches == [7, 8, 9, 10, 11] and sorted(reads) == [14, 14, 17, 18]
 
 
 def test_no_code_points_into_the_lab_notebook():

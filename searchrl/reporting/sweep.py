@@ -17,8 +17,6 @@ import yaml
 from omegaconf import DictConfig, ListConfig, OmegaConf
 from scipy import stats
 
-from searchrl.train.run_record import stored_score
-
 SEED = "seed"
 IGNORED_PREFIXES = ("hydra.", "hydra/")  # the launcher's and sweeper's own settings
 
@@ -53,6 +51,8 @@ def load_jobs(sweep_dir: Path) -> pd.DataFrame:
     be readable and say what its run's config.yaml holds, and its score.json must be the score of its own
     progress.csv (searchrl/train/run_record.py `stored_score`), so a job's files swapped for another's or damaged never
     enter the table."""
+    from searchrl.train.run_record import stored_score  # here: the module loads torch, a sweep table needs none
+
     rows = []
     for job in job_folders(sweep_dir):
         row: dict[str, object] = {"job": job.name}

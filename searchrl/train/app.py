@@ -274,7 +274,7 @@ def continued_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple
             f"{run_dir} holds a run of other settings ({key}: {before.get(key, '<absent>')} there, "
             f"{now.get(key, '<absent>')} now): sweep into another hydra.sweep.dir"
         )
-    # model.zip is written once the budget is trained; its score.json is checked by the app (run_record.py stored_score)
+    # model.zip is written once the budget is trained; its score.json is checked by `main` above (`stored_score`)
     if (run_dir / "model.zip").is_file() and saved.total_timesteps == cfg.total_timesteps:
         return cfg, overrides, True
     resumed = cfg.copy()

@@ -1,6 +1,6 @@
 """What a run's files say of themselves: its config record, the identity every model it saves carries, and its
-score; a resume reads them to continue from the newest checkpoint that is this run's, or to leave a finished run
-untouched.
+score; a resume reads them to continue from the newest checkpoint that is this run's (build.py's
+`load_newest_checkpoint`), or to leave a finished run untouched.
 
 A run folder is trusted by what its files hold, not by their names. Each model.zip, imitation.zip and
 `checkpoints/step_<n>.zip` a run writes holds `searchrl.json` (searchrl/policies/checkpoint.py): the step it was
