@@ -104,6 +104,17 @@ def nearest(word: str, options: list[str], prefix: str = "") -> str:
     return f" (did you mean {prefix}{near[0]}?)" if near else ""
 
 
+def dotted_leaves(tree: Any, prefix: str = "", keep_empty: bool = False) -> dict[str, Any]:
+    """{dotted key: value} of a nested mapping, as a command line names its settings (lists are values); an empty
+    mapping leaves no key, or with `keep_empty` is a value of its own ({})."""
+    if not isinstance(tree, dict) or (keep_empty and prefix and not tree):
+        return {prefix: tree}
+    out: dict[str, Any] = {}
+    for key, value in tree.items():
+        out |= dotted_leaves(value, f"{prefix}.{key}" if prefix else str(key), keep_empty)
+    return out
+
+
 def override_keys(overrides: list[str]) -> list[str]:
     """The keys a command line's Hydra overrides set: `+a.b=1`, `~a.b`, `a.b=1` -> `a.b`."""
     return [o.split("=", 1)[0].lstrip("+~") for o in overrides]

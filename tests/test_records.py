@@ -18,14 +18,13 @@ from searchrl.controllers.episodes import episode_streams
 from searchrl.evaluate.grid import Cell, map_seed, table2_cells
 from searchrl.evaluate.record import (
     RECORD,
-    _flatten,
     claim_folder,
     evaluation_settings,
     file_sha256,
     option_defaults,
 )
 from searchrl.evaluate.runner import cell_config, episode_keys, run_cell, worlds_per_batch
-from searchrl.shared_schema import CONF_DIR
+from searchrl.shared_schema import CONF_DIR, dotted_leaves
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.streams import WorldStreams, random_source
 
@@ -120,8 +119,8 @@ def test_option_defaults_are_the_worlds_and_the_controllers_schema_defaults_flat
 
 
 def test_flatten_joins_nested_keys_with_dots():
-    assert _flatten({"a": {"b": 1, "c": {"d": [2]}}, "e": "x"}) == {"a.b": 1, "a.c.d": [2], "e": "x"}
-    assert _flatten(3, "top") == {"top": 3}
+    assert dotted_leaves({"a": {"b": 1, "c": {"d": [2]}}, "e": "x"}) == {"a.b": 1, "a.c.d": [2], "e": "x"}
+    assert dotted_leaves(3, "top") == {"top": 3}
 
 
 def test_claim_records_then_accepts_the_same_settings_and_names_every_difference(tmp_path, capsys):

@@ -24,6 +24,7 @@ from omegaconf import OmegaConf
 
 from searchrl.atomic import write_text_atomic
 from searchrl.policies.device import resolve_device
+from searchrl.shared_schema import dotted_leaves
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.scenario import PAPER, Scenario
 
@@ -70,24 +71,15 @@ def option_defaults(cfg: EvaluateConfig) -> dict[str, Any]:
     an option added to a controller or the world after a folder was recorded is absent there, and at its default
     it plays the episodes the record describes. A record made before scenarios existed ran the paper's, one made
     before `device` existed on the CPU."""
-    defaults = _flatten({"scenario": PAPER.to_dict(), "grid": {"agents": None}})
+    defaults = dotted_leaves({"scenario": PAPER.to_dict(), "grid": {"agents": None}})
     if cfg.checkpoint is not None:
         return defaults | {"device": "cpu"}
     world = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default for f in fields(WorldConfig)}
-    defaults |= _flatten({"world": world})
+    defaults |= dotted_leaves({"world": world})
     schema = type(cfg.controller)
     if is_dataclass(schema):
-        defaults.update(_flatten({"controller_args": OmegaConf.to_container(OmegaConf.structured(schema))}))
+        defaults.update(dotted_leaves({"controller_args": OmegaConf.to_container(OmegaConf.structured(schema))}))
     return defaults
-
-
-def _flatten(tree: Any, prefix: str = "") -> dict[str, Any]:
-    if not isinstance(tree, dict):
-        return {prefix: tree}
-    flat: dict[str, Any] = {}
-    for key, value in tree.items():
-        flat.update(_flatten(value, f"{prefix}.{key}" if prefix else str(key)))
-    return flat
 
 
 # The key of a cell frame's `attrs` (kept in its parquet file's metadata) that holds the settings it ran under.
@@ -109,7 +101,7 @@ def cell_settings(path: str | Path) -> dict[str, Any] | None:
 def setting_differences(theirs: dict[str, Any], ours: dict[str, Any], defaults: dict[str, Any]) -> list[str]:
     """`key: A there, B here` for each flattened setting that differs; one a side lacks matches the other side's
     value when that is its default (a setting added since the side was recorded)."""
-    theirs, ours = _flatten(theirs), _flatten(ours)
+    theirs, ours = dotted_leaves(theirs), dotted_leaves(ours)
     keys = sorted(theirs.keys() | ours.keys())
     absent = {key: defaults.get(key, "(absent)") for key in keys}
     return [

@@ -33,7 +33,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from searchrl.atomic import FolderBusy, hold, storage_message
 from searchrl.multirun import Stopped, in_sweep, refuse
 from searchrl.policies.checkpoint import save_model
-from searchrl.shared_schema import CONF_DIR, override_keys
+from searchrl.shared_schema import CONF_DIR, dotted_leaves, override_keys
 from searchrl.train.build import make_vec_env, prepare_folder, record_config, set_logs, start_model, warm_start
 from searchrl.train.callbacks import (
     AtomicCheckpointCallback,
@@ -239,20 +239,15 @@ def continue_sweep_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> 
         refuse(str(err))
 
 
-def _flat(node: Any, prefix: str = "") -> dict[str, Any]:
-    if isinstance(node, dict):
-        out: dict[str, Any] = {}
-        for key, value in node.items():
-            out |= _flat(value, f"{prefix}{key}.")
-        return out or {prefix[:-1]: {}}
-    return {prefix[:-1]: node}
-
-
 def _settings(cfg: DictConfig) -> dict[str, Any]:
     """The settings that decide a run, flat, its scenario as a run records it (every part written out)."""
     values = OmegaConf.to_container(cfg, resolve=True)
     values["scenario"] = Scenario.from_dict(values.get("scenario")).to_dict()
-    return {k: v for k, v in _flat(values).items() if k.split(".")[0] not in (*RESUME_OVERRIDES, "resume")}
+    return {
+        k: v
+        for k, v in dotted_leaves(values, keep_empty=True).items()
+        if k.split(".")[0] not in (*RESUME_OVERRIDES, "resume")
+    }
 
 
 def continued_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple[DictConfig, list[str], bool]:

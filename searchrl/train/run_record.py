@@ -28,6 +28,7 @@ from omegaconf import OmegaConf
 
 from searchrl.atomic import write_text_atomic
 from searchrl.policies.checkpoint import saved_identity, saved_step
+from searchrl.shared_schema import dotted_leaves
 from searchrl.train.logs import log_digest
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig
 from searchrl.world.scenario import Scenario
@@ -49,16 +50,6 @@ def run_identity(settings: TrainConfig) -> dict[str, Any]:
     return {k: v for k, v in config_record(settings).items() if k not in (*RESUME_OVERRIDES, "resume", "hydra")}
 
 
-def _leaves(node: Any, prefix: str = "") -> dict[str, Any]:
-    """{dotted key: value} of a nested mapping (lists are values)."""
-    if not isinstance(node, dict):
-        return {prefix: node}
-    out: dict[str, Any] = {}
-    for key, value in node.items():
-        out |= _leaves(value, f"{prefix}.{key}" if prefix else str(key))
-    return out
-
-
 def foreign_checkpoint(path: Path, step: int, settings: TrainConfig) -> str | None:
     """Why the checkpoint `path`, named for `step`, cannot be this run's (of `settings`), or None: the step
     it was saved at is another, or a setting it records differs from the run's config.yaml. Settings one side lacks
@@ -72,7 +63,7 @@ def foreign_checkpoint(path: Path, step: int, settings: TrainConfig) -> str | No
         return None
     if identity.get("step") != step:
         return f"records step {identity.get('step')}, not {step} (move it out of checkpoints/)"
-    theirs, ours = _leaves(identity.get("run", {})), _leaves(run_identity(settings))
+    theirs, ours = dotted_leaves(identity.get("run", {})), dotted_leaves(run_identity(settings))
     differ = sorted(k for k in theirs.keys() & ours.keys() if theirs[k] != ours[k])
     if differ:
         key = differ[0]
