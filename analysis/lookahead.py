@@ -81,9 +81,7 @@ class Lookahead:
 
     def reset(self, state: WorldState, mask: np.ndarray) -> None:
         self.teacher.reset(state, mask)
-        if self.prior_u.shape != state.u.shape:
-            self.prior_u, mask = np.zeros(state.u.shape), np.ones(state.n_worlds, bool)
-        self.prior_u[mask] = state.u[mask]  # §4.1.4 keeps a target by the prior's u, before any sensing
+        self.prior_u = remember_prior_u(self.prior_u, state, mask)
 
     def act(self, state: WorldState, maps, vector, active: np.ndarray | None = None) -> np.ndarray:
         if self.prior_u.shape != state.u.shape:
@@ -134,6 +132,15 @@ class Lookahead:
         draws = posterior_targets(state.p[inner], self.prior_u[inner], free, len(lost), self.samples, rng)
         for w in range(world.n_worlds):
             world.state.target_pos[w, lost] = draws[w % self.samples]
+
+
+def remember_prior_u(prior_u: np.ndarray, state: WorldState, mask: np.ndarray) -> np.ndarray:
+    """prior_u (K, S, S) with the worlds of `mask` (K,) set to their u as reset drew it (§4.1.4 keeps a target by
+    the prior's u, before any sensing); all worlds afresh when the batch's shape changed."""
+    if prior_u.shape != state.u.shape:
+        prior_u, mask = np.zeros(state.u.shape), np.ones(state.n_worlds, bool)
+    prior_u[mask] = state.u[mask]
+    return prior_u
 
 
 def posterior_targets(

@@ -36,9 +36,10 @@ NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 # `python -m searchrl.bench` (their kernels' results are the golden slice's and tests/test_threads.py's;
 # compile_time.py's one signature a function is tests/test_structure.py's); carry_runs.py and team_reward.py (the
 # lab's long trainings: a carry and a reward) and lookahead.py (an extension module: a planner) by
-# tests/test_lab_parts.py
+# tests/test_lab_parts.py; rollout.py (an extension module: the rollout planner) by tests/test_rollout.py
 EXPERIMENTS = ("carry_runs.py", "compile_time.py", "context_probe.py", "guided_b.py", "label_speed.py",
-               "lookahead.py", "module_trace.py", "one_world.py", "team_reward.py", "world_profile.py")  # fmt: skip
+               "lookahead.py", "module_trace.py", "one_world.py", "rollout.py", "team_reward.py",
+               "world_profile.py")  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -92,6 +93,10 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
         args = ["mine", "--probe", str(out_dir / "probe"), "--out", str(out_dir)]
     if notebook == "lookahead_probe.py":  # worlds only: two samples of the smallest cell, two continuations per move
         args = ["--cells", "20x1", "--samples", "2", "--continuations", "2"]
+    if notebook == "rollout_table.py":  # a "planner" folder, then the rule folders, the teacher first
+        args = [str(eval_dirs[0]), "--rules", str(eval_dirs[1]), str(eval_dirs[2]), "--out", str(out_dir)]
+    if notebook == "rollout_probe.py":  # worlds only: two maps of the smallest team cell, one short budget
+        args = ["--cells", "20x2", "--maps", "2", "--budgets", "1:3"]
     if notebook == "beyond.py":  # the teacher's folder first, then the policies'
         args = [str(eval_dirs[0]), str(eval_dirs[2]), str(eval_dirs[1]), "--out", str(out_dir)]
     if notebook == "calibration.py":  # folders <root>/<world>/<controller>: here <base>/eval/<controller>
@@ -212,6 +217,10 @@ def test_notebook_runs_on_the_fixture(fixture_dirs, notebook, tmp_path):
                      "quality.md": ("Mean found fraction per bin of prior quality (the same episodes for every", None)},
         "oracle_teacher.py": {},
         "lookahead_probe.py": {"samples.csv": (2, 12), "probe.md": ("| n | N | samples | found_by_teacher |", 3)},
+        "rollout_table.py": {"rollout.csv": (4, 22),
+                             "rollout.md": ("# The rollout planner against coverage and the best of coverage", 6)},
+        "rollout_probe.py": {"episodes.csv": (4, 8), "probe.csv": (1, 14),
+                             "probe.md": ("| n | N | budget | maps | teacher_found |", 3)},
         "guided_summary.py": {"summary.md": ("Mean found fraction per scenario; beside each baseline: mine", 5),
                               "best_rule.md": ("mine against the best rule of each scenario", 5),
                               "tail.md": ("Worst-10 % tail: per scenario and cell", 5)},

@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "searchrl"
 MODULES = {
@@ -318,3 +320,14 @@ def test_no_code_points_into_the_lab_notebook():
     found = [f"{p.relative_to(ROOT)}:{n}" for p in sorted(files) if p.name not in ("test_docs.py", "test_structure.py")
              for n, line in enumerate(p.read_text().splitlines(), 1) if pattern.search(line)]  # fmt: skip
     assert names[1:] and not found, found
+
+
+def test_no_tracked_file_is_a_link_out_of_the_repository():
+    """A link that git tracks resolves inside the checkout: a link to a path of one machine (a virtual environment
+    elsewhere) breaks every other clone, and `python -m venv .venv` there fails on it."""
+    listing = subprocess.run(["git", "ls-files", "-s"], cwd=ROOT, capture_output=True, text=True, check=False)
+    if listing.returncode != 0:
+        pytest.skip("not a git checkout")
+    links = [line.split("\t", 1)[1] for line in listing.stdout.splitlines() if line.startswith("120000 ")]
+    outside = [link for link in links if not (ROOT / link).resolve().is_relative_to(ROOT.resolve())]
+    assert not outside, f"tracked links that point out of the repository: {outside}"

@@ -13,6 +13,11 @@ from searchrl.bench import options
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    error = options.import_extensions(argv)  # before the parser lists the controllers
+    if error:
+        print(f"python -m searchrl.bench: error: {error}", file=sys.stderr)
+        return 2
     parser = options.parser()
     args = parser.parse_args(argv)
     device, threads = options.checked(parser, args)
@@ -37,6 +42,7 @@ def main(argv: list[str] | None = None) -> int:
             log=log,
             repeats=args.repeats,
             cells=args.cells,
+            settings=options.settings(parser, args),
         )
     elif args.suite == "policy":
         from searchrl.bench import policy

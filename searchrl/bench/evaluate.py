@@ -6,6 +6,7 @@ a cell than the full run's make the projection pessimistic: the cell's batch hol
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import TextIO
 
@@ -31,10 +32,14 @@ def run(
     log: TextIO | None = None,
     repeats: int = 1,
     cells: str | None = None,
+    settings: dict | None = None,
 ) -> list[dict]:
     """One row: agent-steps/s of `controller`, or of `checkpoint`'s policy with its network on `device` (a checked
     one, searchrl/policies/device.py), over the Table 2 cells (`cells`, comma-separated keys: all by default) with
-    `maps` maps of `repeats` repeats, as the evaluation runs them (its memory budget per batch)."""
+    `maps` maps of `repeats` repeats, as the evaluation runs them (its memory budget per batch). A heuristic takes
+    `settings`. A controller that plays worlds of its own (a planner's rollouts) and counts them in `work`
+    (`agent_steps`, `seconds`, `steps`, `worlds`, `agents`) has their rate reported beside the engine's own on
+    batches of the same size, random actions, in the same run (`inner_share`)."""
     keys = None if cells is None else set(cells.split(","))
     if checkpoint:
         use_threads(threads, network_on_cpu=str(device) == "cpu")
@@ -44,7 +49,13 @@ def run(
         controller = f"policy:{checkpoint_label(checkpoint)}"
     else:
         name, world = controller, WorldConfig()
-        factory = heuristic_factory(name, check=world)
+        factory = heuristic_factory(name, settings, check=world)
+    made: list = []  # the controllers each cell made, for their own work
+
+    def making(config: WorldConfig, seed, inner=factory):
+        made.append((config, inner(config, seed)))
+        return made[-1][1]
+
     observed = checkpoint is not None
     run_cell(factory, world, GRID[0], 0, 1, 1, 0, needs_observation=observed)  # warm-up: numba cache
     steps, world_steps, episode_steps = [0], [0], 0
@@ -59,7 +70,7 @@ def run(
             world_steps[0] += slots
 
         frame = run_cell(
-            factory, world, cell, index, maps, repeats, 7_000_000, needs_observation=observed, on_steps=tally
+            making, world, cell, index, maps, repeats, 7_000_000, needs_observation=observed, on_steps=tally
         )
         episode_steps += int(frame["L"].sum())
     elapsed = time.perf_counter() - start
@@ -77,6 +88,8 @@ def run(
         "episode_steps": episode_steps,
         "busy_share": round(episode_steps / max(1, world_steps[0]), 4),
     }
+    if any(isinstance(getattr(c, "work", None), dict) for _, c in made):
+        row.update(inner_work(made))
     if log:
         print(
             f"{row['case']}: {rate:,.0f} agent-steps/s over {len(GRID) if keys is None else len(keys)} cells "
@@ -85,4 +98,41 @@ def run(
         )
         if keys is None:
             print(f"full grid (3000 maps x 5 repeats) projected {projected / 60:.1f} min, limit 20 min", file=log)
+        if "inner_share" in row:
+            print(
+                f"its own worlds: {row['inner_agent_steps_per_s']:,.0f} agent-steps/s over {row['inner_seconds']:.1f} s"
+                f" ({row['inner_share']:.0%} of the engine's {row['engine_agent_steps_per_s']:,.0f} on batches of "
+                f"{row['inner_batch']} worlds, random actions); {row['agent_steps_per_s']:,.1f} decisions/s",
+                file=log,
+            )
     return [row]
+
+
+def inner_work(made: list) -> dict:
+    """The worlds the controllers played on their own (`work`), against the engine stepping batches of the same size
+    in the same worlds with random actions: agent-steps/s each, and their ratio `inner_share` (how near the
+    controller's own stepping comes to the world's speed; the rest is its rule and Python)."""
+    from searchrl.bench.world import measure
+    from searchrl.world.step import step
+
+    steps = seconds = engine_seconds = 0.0
+    batch = 1
+    for config, controller in made:
+        work = getattr(controller, "work", None)
+        if not isinstance(work, dict) or not work.get("steps"):
+            continue
+        batch = max(1, round(work["worlds"] / work["steps"]))
+        inner = dataclasses.replace(config, n_agents=int(work["agents"]))
+        engine = measure(inner, batch, step, lambda c, s: None, seconds=1.0, min_steps=5)[0][0]
+        steps += work["agent_steps"]
+        seconds += work["seconds"]
+        engine_seconds += work["agent_steps"] / engine
+    if not seconds:
+        return {}
+    return {
+        "inner_agent_steps_per_s": round(steps / seconds, 1),
+        "inner_seconds": round(seconds, 1),
+        "inner_batch": batch,
+        "engine_agent_steps_per_s": round(steps / engine_seconds, 1),
+        "inner_share": round(engine_seconds / seconds, 4),
+    }

@@ -67,6 +67,14 @@ def parser() -> argparse.ArgumentParser:
         "--cells", metavar="KEY[,KEY...]", help="only these Table 2 cells, e.g. n160_N256,n80_N128 (default: all 30)"
     )
     sub["eval"].add_argument("--checkpoint", help="a policy model.zip instead of --controller")
+    sub["eval"].add_argument(
+        "--settings", default="{}", help="the controller's settings as a JSON object, e.g. '{\"reach\": 2}'"
+    )
+    sub["eval"].add_argument(
+        "--extensions",
+        metavar="MODULE[,MODULE...]",
+        help="modules that register controllers, imported first (as the apps' extensions=)",
+    )
     sub["policy"].add_argument("--checkpoint", required=True, help="a model.zip, e.g. runs/reference/b/model.zip")
     for name in ("eval", "policy"):  # of a checkpoint's network: a heuristic runs on the CPU
         sub[name].add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:<index>, mps or auto")
@@ -148,3 +156,45 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
         for t in (t for t in threads if not 1 <= t <= world.max_threads()):
             parser.error(f"--threads={t} is not allowed: 1 <= threads <= {world.max_threads()} (numba's threads here)")
     return device, threads
+
+
+def settings(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict:
+    """eval's --settings: a JSON object of the controller's settings, checked by building the controller once."""
+    import json
+
+    from searchrl.controllers.factory import heuristic_factory
+    from searchrl.world.config import ConfigError, WorldConfig
+
+    try:
+        values = json.loads(args.settings)
+    except ValueError:
+        values = None
+    if not isinstance(values, dict):
+        parser.error(f"--settings={args.settings} is not allowed: a JSON object, e.g. '{{\"reach\": 2}}'")
+    if values and args.checkpoint:
+        parser.error("--settings is not allowed with --checkpoint: a policy takes its run's settings")
+    if values:
+        try:
+            heuristic_factory(args.controller or "surfing", values, check=WorldConfig())
+        except (ConfigError, ValueError, TypeError) as err:
+            parser.error(f"--settings={args.settings} is not allowed: {err}")
+    return values
+
+
+def import_extensions(argv: list[str]) -> str | None:
+    """Import the modules of `--extensions A,B` (or `--extensions=A,B`) in `argv`, as the apps' `extensions=` does;
+    the one-line refusal of a module that cannot be imported, else None."""
+    from searchrl.command_line import import_modules
+    from searchrl.world.config import ConfigError
+
+    modules: list[str] = []
+    for i, arg in enumerate(argv):
+        if arg == "--extensions" and i + 1 < len(argv):
+            modules = [m for m in argv[i + 1].split(",") if m]
+        elif arg.startswith("--extensions="):
+            modules = [m for m in arg.partition("=")[2].split(",") if m]
+    try:
+        import_modules(modules)
+    except ConfigError as err:
+        return str(err)
+    return None

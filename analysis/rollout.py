@@ -1,0 +1,379 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
+
+# %% [markdown]
+# # A rollout planner on the team's posterior, one agent at a time (an experiment)
+#
+# `controller=rollout`: at every step the agents of a world choose their moves one at a time (Bertsekas' multiagent
+# rollout, arXiv 1910.00120): agent i scores each of its moves with the moves already chosen by agents 0..i−1 fixed
+# and agents i+1..N−1 on the base rule (B's teacher by default), everyone then playing the base rule for the rest of
+# `horizon` steps (0: to the episode's end) in imagined copies of the world whose unfound targets are redrawn from
+# the team's posterior (§4.1.4's placement from the probability map after every sensing so far, as
+# `analysis/lookahead.py` draws them). A move's score (`value=expected`) is the targets the team can expect to find
+# along the path it imagines: with λk = 1 the map after sensing is exactly the chance a target there was missed, so
+# the expectation over where the unfound targets lie needs no sample, and the score's only noise is the rule's own
+# random moves and tie-breaks (`value=sampled` counts the imagined targets found instead: the lab's earlier
+# lookahead, whose noise made the agent dither). Every move is scored with the same random numbers (common random
+# numbers); every candidate × sample × world of the batch is one world of one `SearchWorld`, stepped by the compiled
+# engine. With more than one sample, sampling stops early, in rounds of `chunk`, where one move leads every other by
+# `stop` standard errors of the paired difference; an agent leaves the base move only for a move whose mean gain
+# exceeds `confidence` standard errors (0: any higher mean). `team` limits the imagined worlds to the deciding agent
+# and its nearest teammates, for large teams. Centralised: it reads the whole team's positions and knowledge, never
+# the true targets (unless `truth`, the privileged probe's scores, for tests and probes only).
+#
+#     python -m searchrl.evaluate controller=rollout extensions=[analysis.rollout] +model=b cell=n40_N2 \
+#         grid.maps_per_cell=10 grid.repeats=1 threads=1
+#
+# Cost: N × 5 × samples imagined worlds per step of a real world (× team/N agents each), each stepped up to
+# `horizon` steps; `python -m searchrl.bench eval --extensions analysis.rollout --controller rollout` times it.
+
+# %%
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field, fields, replace
+from typing import Any
+
+import numpy as np
+
+from analysis.lookahead import posterior_targets, remember_prior_u
+from searchrl.controllers.base import ControllerConfig
+from searchrl.controllers.registry import HEURISTICS, make_controller, register
+from searchrl.world.config import WorldConfig
+from searchrl.world.engine import SearchWorld
+from searchrl.world.state import WorldState
+from searchrl.world.streams import WorldStreams, random_source
+
+
+# %%
+@dataclass
+class RolloutConfig(ControllerConfig):
+    name: str = "rollout"
+    base: str = "greedy_target"  # the rule the imagined worlds play on (any registered heuristic)
+    base_settings: dict[str, Any] = field(default_factory=lambda: {"reach": 2.0})  # B's teacher
+    # Imagined worlds per move, at most. With value=expected a score's only noise is the rule's random moves and
+    # tie-breaks: 4 samples score as 1 does at 6.6 times the cost (analysis/rollout_probe.py, 80 x 4)
+    samples: int = 1
+    horizon: int = 0  # steps imagined from the decision, the decision's included (0: to the episode's end)
+    chunk: int = 8  # samples per round of the early stop
+    stop: float = 3.0  # stop sampling once the leading move leads every other by this many standard errors (0: never)
+    confidence: float = 0.0  # leave the base move only for one better by this many standard errors
+    # expected: a path's expected finds under the team's posterior (no sampling noise; tests/test_rollout.py checks
+    # it against the sampled mean); sampled: the imagined targets' finds
+    value: str = "expected"
+    # Who is rolled out with the deciding agent: 0, the whole team; k, the agent and its k − 1 nearest teammates
+    # (the others leave the imagined worlds: k agents stepped instead of N, their sensing not counted)
+    team: int = 0
+    truth: bool = False  # score moves in the true world (the privileged probe): tests and probes only
+
+
+class CommonStreams(WorldStreams):
+    """The random numbers of an imagined batch laid out as world index (g·M + j)·C + c: group g (a real world), sample
+    j, candidate c. Rows of sample j of group g come from group g's generator and are the same for every candidate
+    (common random numbers); what a group draws does not depend on the groups beside it."""
+
+    def __init__(self, keys: list[list[int]], samples: int, candidates: int) -> None:
+        super().__init__(keys)
+        self.samples, self.candidates = samples, candidates
+
+    def __len__(self) -> int:
+        return len(self.generators) * self.samples * self.candidates
+
+    def _rows(self, size: int | tuple[int, ...]) -> tuple[int, ...]:
+        size = (size,) if isinstance(size, (int, np.integer)) else tuple(size)
+        if not size or size[0] != len(self):
+            raise ValueError(
+                f"a draw of size {size} from {len(self)} imagined worlds: its first axis must be {len(self)}"
+            )
+        return size[1:]
+
+    def random(self, size: int | tuple[int, ...]) -> np.ndarray:
+        rest = self._rows(size)
+        draws = np.concatenate([g.random((self.samples, *rest)) for g in self.generators])
+        return np.repeat(draws, self.candidates, axis=0)
+
+    def integers(self, low: int, high: int, size: int | tuple[int, ...]) -> np.ndarray:
+        rest = self._rows(size)
+        draws = np.concatenate([g.integers(low, high, size=(self.samples, *rest)) for g in self.generators])
+        return np.repeat(draws, self.candidates, axis=0)
+
+
+# WorldState's fields with an agent axis after the world axis: (K, N, ...)
+PER_AGENT = ("belief", "belief_box", "belief_news", "merge_pos", "belief_time", "belief_seen", "pos")
+
+
+def copy_base_memory(base: Any, into: Any, index: np.ndarray, agents: np.ndarray | None = None) -> None:
+    """The base rule's per-world memory (footprint-greedy's sightings, weights) of the real worlds `index` (len =
+    the imagined batch) copied into the imagined batch's controller, so the rule plays on as it would have; of the
+    agents `agents` (len, k) only where given (the per-agent arrays: sightings)."""
+    for name in ("_weights", "_seen", "_known", "_rates", "_flat"):
+        source = getattr(base, name, None)
+        if isinstance(source, np.ndarray) and source.ndim >= 1 and source.shape[0] > int(index.max(initial=0)):
+            per_agent = name in ("_seen", "_known") and agents is not None
+            setattr(into, name, source[index[:, None], agents].copy() if per_agent else source[index].copy())
+
+
+class Rollout:
+    """One-agent-at-a-time rollout of a base rule on the team's posterior; `Controller` protocol."""
+
+    def __init__(self, config: WorldConfig, seed: int | WorldStreams = 0, **settings: Any) -> None:
+        values = {**asdict(RolloutConfig()), **settings}
+        values["base_settings"] = dict(values["base_settings"] or {})
+        if values["base"] not in HEURISTICS or values["base"] == "rollout":
+            raise ValueError(f"base={values['base']!r} is not allowed: a registered rule other than rollout")
+        samples, horizon, chunk = int(values["samples"]), int(values["horizon"]), int(values["chunk"])
+        if samples < 1 or horizon < 0 or chunk < 1 or values["stop"] < 0 or values["confidence"] < 0:
+            raise ValueError(
+                f"samples={samples}, horizon={horizon}, chunk={chunk}, stop={values['stop']}, confidence="
+                f"{values['confidence']} are not allowed: samples >= 1, horizon >= 0, chunk >= 1, stop >= 0,"
+                " confidence >= 0"
+            )
+        self.config, self.samples, self.horizon, self.chunk = config, samples, horizon, min(chunk, samples)
+        self.stop, self.confidence, self.truth = (
+            float(values["stop"]),
+            float(values["confidence"]),
+            bool(values["truth"]),
+        )
+        if values["value"] not in ("expected", "sampled") or (values["truth"] and values["value"] != "sampled"):
+            raise ValueError(f"value={values['value']!r} is not allowed: expected or sampled (truth needs sampled)")
+        self.value = values["value"]
+        if not 0 <= int(values["team"]) <= config.n_agents:
+            raise ValueError(f"team={values['team']!r} is not allowed: 0 (the whole team) to N = {config.n_agents}")
+        self.team = int(values["team"]) if 0 < int(values["team"]) < config.n_agents else 0
+        self.base_name, self.base_settings = values["base"], values["base_settings"]
+        self.base = make_controller(self.base_name, config, seed=seed, settings=self.base_settings)
+        self.rng = random_source(seed)  # one key per world and step: the episode's own stream
+        self.prior_u = np.zeros((0, 0, 0))
+        # The rollouts' work, for `python -m searchrl.bench eval`: imagined agent-steps, the seconds spent stepping
+        # the imagined worlds and their rule, imagined batch steps, Σ their batch sizes, agents per imagined world
+        self.work = {"agent_steps": 0, "seconds": 0.0, "steps": 0, "worlds": 0, "agents": config.n_agents}
+        self._imagined: dict[tuple[int, int], tuple[SearchWorld, Any]] = {}
+
+    def reset(self, state: WorldState, mask: np.ndarray) -> None:
+        self.base.reset(state, mask)
+        self.prior_u = remember_prior_u(self.prior_u, state, mask)
+
+    def act(self, state: WorldState, maps, vector, active: np.ndarray | None = None) -> np.ndarray:
+        if self.prior_u.shape != state.u.shape:
+            self.reset(state, np.ones(state.n_worlds, bool))
+        base = self.base.act(state, maps, vector)
+        keys = self.rng.integers(0, 2**31, size=(state.n_worlds, 1))[:, 0]
+        live = state.n_found < state.n_targets
+        if active is not None:
+            live &= active
+        return self.plan(state, np.flatnonzero(live), base, keys)
+
+    def plan(self, state: WorldState, worlds: np.ndarray, base: np.ndarray, keys: np.ndarray) -> np.ndarray:
+        """(K, N) moves: base (K, N) with the agents of `worlds` choosing one at a time, world k's samples drawn
+        from keys[k] (the same samples for every agent of a step, so each agent sees the moves before its own
+        played out in the worlds it imagines)."""
+        chosen = base.copy()
+        if worlds.size == 0:
+            return chosen
+        targets = self.imagine(state, worlds, keys)
+        for agent in range(state.n_agents):
+            members = self.members(state, worlds, agent)  # (W, k) ascending
+            first = self.first(chosen, worlds, np.full(worlds.size, agent), members)
+            scores = self.score(state, worlds, first, targets, [[int(keys[w])] for w in worlds], members)
+            chosen[worlds, agent] = choose(scores, base[worlds, agent], self.confidence)
+        return chosen
+
+    def first(self, moves: np.ndarray, worlds: np.ndarray, agents: np.ndarray, members: np.ndarray) -> np.ndarray:
+        """(G, A, k) the first joint moves of group g: its members' moves[worlds[g]], agent agents[g] taking each
+        of the A moves."""
+        n_actions = self.config.n_actions
+        first = np.repeat(moves[worlds[:, None], members][:, None, :], n_actions, axis=1)
+        rows, choices = np.arange(worlds.size)[:, None], np.arange(n_actions)[None, :]
+        first[rows, choices, np.argmax(members == agents[:, None], axis=1)[:, None]] = choices
+        return first
+
+    def members(self, state: WorldState, worlds: np.ndarray, agent: int) -> np.ndarray:
+        """(W, k) the agents rolled out when `agent` decides in each world of `worlds`, in index order: the whole
+        team, or the agent and its team − 1 nearest teammates (Chebyshev distance, ties to the lower index)."""
+        n_agents = state.n_agents
+        if not self.team:
+            return np.tile(np.arange(n_agents), (worlds.size, 1))
+        gap = np.abs(state.pos[worlds] - state.pos[worlds, agent][:, None, :]).max(axis=2)  # (W, N)
+        gap[:, agent] = -1  # the agent itself first
+        nearest = np.argsort(gap * n_agents + np.arange(n_agents), axis=1, kind="stable")[:, : self.team]
+        return np.sort(nearest, axis=1)
+
+    def imagine(self, state: WorldState, worlds: np.ndarray, keys: np.ndarray) -> list[np.ndarray]:
+        """Per world of `worlds`, (samples, T, 2) int64 target cells: the unfound ones redrawn from the team's
+        posterior per sample (or the true ones with `truth`), the found ones where they are."""
+        h, out = state.halo, []
+        for w in worlds:
+            n = int(state.size[w])
+            inner = (w, slice(h, h + n), slice(h, h + n))
+            cells = np.repeat(state.target_pos[w][None], self.samples, axis=0)
+            lost = np.flatnonzero(state.target_valid[w] & ~state.target_found[w])
+            if not self.truth and lost.size:
+                free = ~state.blocked[inner] & ~state.found_grid[inner]
+                rng = np.random.default_rng([int(keys[w]), 1 << 20])
+                draws = posterior_targets(state.p[inner], self.prior_u[inner], free, lost.size, self.samples, rng)
+                cells[:, lost] = np.stack(draws)
+            out.append(cells)
+        return out
+
+    def score(
+        self,
+        state: WorldState,
+        worlds: np.ndarray,
+        first: np.ndarray,
+        targets: list[np.ndarray],
+        keys: list,
+        members: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """(W, C, M) targets found by the end of the horizon when world worlds[g] starts with joint move first[g, c]
+        (W, C, k) of its agents members[g] (W, k) (default: the whole team) and the base rule plays on, in
+        M <= samples imagined copies (NaN past the early stop); sample j of world g draws the same numbers for every
+        candidate. `keys[g]` seeds world g's numbers."""
+        n_groups, n_cand = first.shape[:2]
+        if members is None:
+            members = np.tile(np.arange(state.n_agents), (n_groups, 1))
+        rounds = []
+        todo = np.arange(n_groups)
+        for start in range(0, self.samples, self.chunk):
+            m = min(self.chunk, self.samples - start)
+            found = self.play(state, worlds[todo], first[todo], [t[start : start + m] for t in _pick(targets, todo)],
+                              [[*keys[g], start] for g in todo], m, members[todo])  # fmt: skip
+            block = np.full((n_groups, n_cand, m), np.nan)
+            block[todo] = found
+            rounds.append(block)
+            scores = np.concatenate(rounds, axis=2)
+            todo = todo[~clear(scores[todo], self.stop)] if self.stop > 0 else todo
+            if todo.size == 0:
+                break
+        return scores
+
+    def play(
+        self,
+        state: WorldState,
+        worlds: np.ndarray,
+        first: np.ndarray,
+        targets: list[np.ndarray],
+        keys: list,
+        m: int,
+        members: np.ndarray,
+    ) -> np.ndarray:
+        """(G, C, m) found at the horizon's end: imagined world (g·m + j)·C + c is real world worlds[g] with its
+        agents members[g] (G, k) only, sample j's targets and first joint move first[g, c] (G, C, k)."""
+        n_groups, n_cand, k = first.shape
+        count = n_groups * m * n_cand
+        if (count, k) not in self._imagined:  # one imagined batch and base rule per size, made once
+            config = replace(self.config, n_agents=k)
+            world = SearchWorld(config, count, auto_reset=False, observe=False)
+            base = make_controller(self.base_name, config, settings=self.base_settings)
+            base.reset(world.state, np.ones(count, bool))
+            self._imagined[count, k] = (world, base)
+        world, base = self._imagined[count, k]
+        world.started = True
+        source = np.repeat(worlds, m * n_cand)
+        agents = np.repeat(members, m * n_cand, axis=0)  # (count, k)
+        whole = k == state.n_agents
+        for f in fields(WorldState):
+            value = getattr(state, f.name)
+            if not (isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == state.n_worlds):
+                continue
+            if f.name in PER_AGENT and not whole:
+                getattr(world.state, f.name)[:] = value[source[:, None], agents]
+            else:
+                np.take(value, source, axis=0, out=getattr(world.state, f.name))
+        if not whole:  # the occupancy grid of the agents kept, numbered as in the imagined world
+            h, occupant, pos = state.halo, world.state.occupant, world.state.pos
+            occupant.fill(-1)
+            occupant[np.arange(count)[:, None], pos[..., 0] + h, pos[..., 1] + h] = np.arange(k)[None, :]
+        world.state.target_pos[:] = np.repeat(np.concatenate(targets), n_cand, axis=0)
+        world.rng = CommonStreams([[*key, 0] for key in keys], m, n_cand)
+        base.rng = CommonStreams([[*key, 1] for key in keys], m, n_cand)
+        copy_base_memory(self.base, base, source, None if whole else agents)
+        # Worlds of one batch may be at different steps (an evaluation starts an episode where one ends): each
+        # imagined world's score is its finds when its own horizon ends.
+        end = np.full(count, self.config.max_steps)
+        if self.horizon:
+            end = np.minimum(end, state.t[source] + self.horizon)
+        p_start = world.state.p.copy() if self.value == "expected" else None
+        p_end = np.empty_like(p_start) if p_start is not None else None
+        clock = time.perf_counter()
+        world.step(_layout(first, m))
+        found = world.state.n_found.copy()
+        while ((world.state.t < end) & ((world.state.n_found < world.state.n_targets) | (p_end is not None))).any():
+            if p_end is not None:
+                ending = world.state.t == end
+                p_end[ending] = world.state.p[ending]
+            world.step(base.act(world.state, None, None))
+            counts = world.state.t <= end
+            found[counts] = world.state.n_found[counts]
+        steps = int(world.state.t.max() - state.t[source].min())
+        self.work["seconds"] += time.perf_counter() - clock
+        self.work["steps"] += steps
+        self.work["worlds"] += steps * count
+        self.work["agent_steps"] += steps * count * k
+        self.work["agents"] = k
+        if p_end is not None:
+            ending = world.state.t == end
+            p_end[ending] = world.state.p[ending]
+            found = state.n_found[source] + self.expected_finds(state, source, p_start, p_end)
+        return found.reshape(n_groups, m, n_cand).transpose(0, 2, 1).astype(np.float64)
+
+    def expected_finds(
+        self, state: WorldState, source: np.ndarray, p_start: np.ndarray, p_end: np.ndarray
+    ) -> np.ndarray:
+        """(count,) the unfound targets' expected finds along each imagined path, replacing its sampled finds: a
+        target lies in cell c with the team's posterior q(c) ∝ p(c)·(1 − u0(c)/max u0) over the free cells without
+        a found target (p after all sensing so far, u0 the prior's u: §4.1.4's placement), and escapes the path's
+        footprints with probability p_end(c)/p_start(c) (with λk = 1 a footprint multiplies p by exactly the
+        chance it misses a target there), so R unfound targets add R·Σ_c q(c)·(1 − p_end(c)/p_start(c)) =
+        R·Σ_c w(c)·(p_start − p_end)(c) / Σ_c w(c)·p_start(c), w = 1 − u0/max u0 on those cells. The base rule reads
+        no find, so a path does not depend on where the imagined targets lie: the score has no sampling noise
+        but the rule's random moves and tie-breaks."""
+        u0 = self.prior_u[source]
+        keep = 1.0 - u0 / np.maximum(u0.max(axis=(1, 2), keepdims=True), 1e-30)
+        weight = np.where(state.blocked[source] | state.found_grid[source], 0.0, keep)
+        lost = (state.target_valid & ~state.target_found).sum(axis=1)[source]
+        mass = (weight * p_start).sum(axis=(1, 2), dtype=np.float64)
+        swept = (weight * (p_start - p_end)).sum(axis=(1, 2), dtype=np.float64)
+        return lost * swept / np.maximum(mass, 1e-30)
+
+
+def _pick(items: list, index: np.ndarray) -> list:
+    return [items[int(i)] for i in index]
+
+
+def _layout(first: np.ndarray, m: int) -> np.ndarray:
+    """(G·m·C, N): first (G, C, N) repeated for each sample j, in the imagined batch's order (g·m + j)·C + c."""
+    return np.repeat(first[:, None], m, axis=1).reshape(-1, first.shape[2])
+
+
+def clear(scores: np.ndarray, stop: float) -> np.ndarray:
+    """(G,) bool: the leading candidate's paired lead over every other exceeds `stop` standard errors, or no
+    candidate differs from another in any sample; scores (G, C, M) with NaN for samples not drawn."""
+    m = np.isfinite(scores[:, 0]).sum(axis=1)
+    mean = np.nanmean(scores, axis=2)
+    lead = mean.argmax(axis=1)
+    gap = scores[np.arange(len(scores)), lead][:, None, :] - scores  # (G, C, M)
+    spread = np.nanstd(gap, axis=2, ddof=1) if scores.shape[2] > 1 else np.zeros(mean.shape)
+    sure = np.nanmean(gap, axis=2) > stop * spread / np.sqrt(np.maximum(m, 1))[:, None]
+    sure[np.arange(len(scores)), lead] = True
+    same = np.nanmax(np.abs(gap), axis=(1, 2)) == 0
+    return (sure.all(axis=1) & (m > 1)) | same
+
+
+def choose(scores: np.ndarray, base: np.ndarray, confidence: float) -> np.ndarray:
+    """(G,) the chosen candidate from scores (G, C, M) (NaN for samples not drawn): the base candidate `base` (G,)
+    unless another's mean paired gain over it is positive and above `confidence` standard errors; then the best."""
+    rows = np.arange(len(scores))
+    gain = scores - scores[rows, base][:, None, :]
+    m = np.isfinite(gain).sum(axis=2)
+    mean = np.nanmean(gain, axis=2)
+    error = (np.nanstd(gain, axis=2, ddof=1) if gain.shape[2] > 1 else np.zeros(mean.shape)) / np.sqrt(np.maximum(m, 1))
+    sure = np.where((mean > 0) & (mean > confidence * error), mean, 0.0)
+    return np.where(sure.max(axis=1) > 0, sure.argmax(axis=1), base)
+
+
+# %% The controller joins the registry for this process only: `controller=rollout`
+if "rollout" not in HEURISTICS:
+    register("rollout", Rollout, RolloutConfig)
