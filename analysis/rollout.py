@@ -263,12 +263,13 @@ class Rollout:
         agents members[g] (G, k) only, sample j's targets and first joint move first[g, c] (G, C, k)."""
         n_groups, n_cand, k = first.shape
         count = n_groups * m * n_cand
-        if (count, k) not in self._imagined:  # one imagined batch and base rule per size, made once
+        if (count, k) not in self._imagined:  # the imagined batch and its rule, kept while the size holds (only
+            # the last size: an evaluation's batch shrinks as episodes end, and each size is a copy of every map)
             config = replace(self.config, n_agents=k)
             world = SearchWorld(config, count, auto_reset=False, observe=False)
             base = make_controller(self.base_name, config, settings=self.base_settings)
             base.reset(world.state, np.ones(count, bool))
-            self._imagined[count, k] = (world, base)
+            self._imagined = {(count, k): (world, base)}
         world, base = self._imagined[count, k]
         world.started = True
         source = np.repeat(worlds, m * n_cand)
@@ -295,8 +296,7 @@ class Rollout:
         end = np.full(count, self.config.max_steps)
         if self.horizon:
             end = np.minimum(end, state.t[source] + self.horizon)
-        p_start = world.state.p.copy() if self.value == "expected" else None
-        p_end = np.empty_like(p_start) if p_start is not None else None
+        p_end = np.empty_like(world.state.p) if self.value == "expected" else None
         clock = time.perf_counter()
         world.step(_layout(first, m))
         found = world.state.n_found.copy()
@@ -316,13 +316,12 @@ class Rollout:
         if p_end is not None:
             ending = world.state.t == end
             p_end[ending] = world.state.p[ending]
-            found = state.n_found[source] + self.expected_finds(state, source, p_start, p_end)
+            found = state.n_found[source] + self.expected_finds(state, worlds, p_end).reshape(-1)
         return found.reshape(n_groups, m, n_cand).transpose(0, 2, 1).astype(np.float64)
 
-    def expected_finds(
-        self, state: WorldState, source: np.ndarray, p_start: np.ndarray, p_end: np.ndarray
-    ) -> np.ndarray:
-        """(count,) the unfound targets' expected finds along each imagined path, replacing its sampled finds: a
+    def expected_finds(self, state: WorldState, worlds: np.ndarray, p_end: np.ndarray) -> np.ndarray:
+        """(G, m·C) the unfound targets' expected finds along each imagined path of real world worlds[g] (p_end
+        (G·m·C, S, S) its map at the horizon's end, in the imagined batch's order), replacing its sampled finds: a
         target lies in cell c with the team's posterior q(c) ∝ p(c)·(1 − u0(c)/max u0) over the free cells without
         a found target (p after all sensing so far, u0 the prior's u: §4.1.4's placement), and escapes the path's
         footprints with probability p_end(c)/p_start(c) (with λk = 1 a footprint multiplies p by exactly the
@@ -330,13 +329,14 @@ class Rollout:
         R·Σ_c w(c)·(p_start − p_end)(c) / Σ_c w(c)·p_start(c), w = 1 − u0/max u0 on those cells. The base rule reads
         no find, so a path does not depend on where the imagined targets lie: the score has no sampling noise
         but the rule's random moves and tie-breaks."""
-        u0 = self.prior_u[source]
+        u0, p_start = self.prior_u[worlds], state.p[worlds]  # the weights once per real world, not per copy
         keep = 1.0 - u0 / np.maximum(u0.max(axis=(1, 2), keepdims=True), 1e-30)
-        weight = np.where(state.blocked[source] | state.found_grid[source], 0.0, keep)
-        lost = (state.target_valid & ~state.target_found).sum(axis=1)[source]
+        weight = np.where(state.blocked[worlds] | state.found_grid[worlds], 0.0, keep)  # (G, S, S)
+        lost = (state.target_valid[worlds] & ~state.target_found[worlds]).sum(axis=1)
         mass = (weight * p_start).sum(axis=(1, 2), dtype=np.float64)
-        swept = (weight * (p_start - p_end)).sum(axis=(1, 2), dtype=np.float64)
-        return lost * swept / np.maximum(mass, 1e-30)
+        ends = p_end.reshape(len(worlds), -1, *p_end.shape[1:])  # (G, m·C, S, S)
+        swept = mass[:, None] - np.einsum("gxy,gjxy->gj", weight, ends)
+        return lost[:, None] * swept / np.maximum(mass, 1e-30)[:, None]
 
 
 def _pick(items: list, index: np.ndarray) -> list:
