@@ -9,6 +9,14 @@ on one (`python -m searchrl.bench train`), where the world is 5 % of the time. S
 where torch does not compute on the CPU (a policy on a GPU, a heuristic without a network) and one thread where it
 does. Results do not depend on the world's count (tests/test_threads.py).
 
+**When**: before torch's first parallel work. torch's OpenMP pool starts with the thread count of that moment (every
+core by default) and keeps its workers when `set_num_threads` lowers the count later; beside a busy core those
+workers, spinning, took the core the work needed. A policy's evaluation on one thread whose actor was built before
+the count was set ran at 243 agent-steps/s beside another job on a two-core machine, against 15,101 with the count
+set first (`python -m searchrl.bench eval --checkpoint runs/reference/term/b/model.zip --maps 2 --threads 1 --cells
+n40_N2,n80_N8,n80_N32,n160_N64`), and at 5,053 with PASSIVE waiting (two of those cells). So the apps and benches
+call `use_threads` before they load a checkpoint.
+
 **How they wait** (`set_wait_policy`), set by the Hydra apps' entry points before torch loads (libgomp reads
 OMP_WAIT_POLICY once, when it starts). A waiting thread spins briefly, then sleeps (libgomp's default), or sleeps at
 once (PASSIVE). PPO's update is many small parallel regions: on two idle cores B's shipped recipe trained at 3,760

@@ -37,9 +37,9 @@ NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 # compile_time.py's one signature a function is tests/test_structure.py's); carry_runs.py and team_reward.py (the
 # lab's long trainings: a carry and a reward) and lookahead.py (an extension module: a planner) by
 # tests/test_lab_parts.py; rollout.py (an extension module: the rollout planner) by tests/test_rollout.py
-EXPERIMENTS = ("carry_runs.py", "compile_time.py", "context_probe.py", "guided_b.py", "label_speed.py",
-               "lookahead.py", "module_trace.py", "one_world.py", "rollout.py", "team_reward.py",
-               "world_profile.py")  # fmt: skip
+EXPERIMENTS = ("carry_runs.py", "compile_time.py", "context_probe.py", "exit_labels.py", "exit_train.py",
+               "guided_b.py", "label_speed.py", "lookahead.py", "module_trace.py", "one_world.py", "rollout.py",
+               "team_reward.py", "world_profile.py")  # fmt: skip
 
 
 @pytest.fixture(scope="module")

@@ -72,7 +72,7 @@ def test_a_checkpoints_record_names_its_file_by_hash_and_how_it_acts(tmp_path):
                                     "scenario.obstacles.connected": False,
                                     "scenario.prior.kind": "mixture", "scenario.prior.variance_scale": None,
                                     "scenario.targets.kind": "prior", "grid.agents": None,
-                                    "device": "cpu"}  # fmt: skip
+                                    "device": "cpu", "inference": "torch"}  # fmt: skip
     walls = evaluation_settings(_cfg(f"checkpoint={model}", "scenario=walls"), "policy:run", "b")
     assert walls["scenario"]["obstacles"] == {"kind": "iid", "density": 0.2, "connected": True}
 

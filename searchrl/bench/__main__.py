@@ -43,6 +43,7 @@ def main(argv: list[str] | None = None) -> int:
             repeats=args.repeats,
             cells=args.cells,
             settings=options.settings(parser, args),
+            inference=args.inference,
         )
     elif args.suite == "policy":
         from searchrl.bench import policy

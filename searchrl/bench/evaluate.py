@@ -33,18 +33,19 @@ def run(
     repeats: int = 1,
     cells: str | None = None,
     settings: dict | None = None,
+    inference: str = "torch",
 ) -> list[dict]:
     """One row: agent-steps/s of `controller`, or of `checkpoint`'s policy with its network on `device` (a checked
     one, searchrl/policies/device.py), over the Table 2 cells (`cells`, comma-separated keys: all by default) with
     `maps` maps of `repeats` repeats, as the evaluation runs them (its memory budget per batch). A heuristic takes
-    `settings`. A controller that plays worlds of its own (a planner's rollouts) and counts them in `work`
-    (`agent_steps`, `seconds`, `steps`, `worlds`, `agents`) has their rate reported beside the engine's own on
-    batches of the same size, random actions, in the same run (`inner_share`)."""
+    `settings`, a policy runs on its `inference` path. A controller that plays worlds of its own (a planner's
+    rollouts) and counts them in `work` (`agent_steps`, `seconds`, `steps`, `worlds`, `agents`) has their rate
+    reported beside the engine's own on batches of the same size, random actions, in the same run (`inner_share`)."""
     keys = None if cells is None else set(cells.split(","))
     if checkpoint:
         use_threads(threads, network_on_cpu=str(device) == "cpu")
         world = WorldConfig.from_dict(checkpoint_config(checkpoint)[0])
-        actor = load_actor(checkpoint, world, device=device)
+        actor = load_actor(checkpoint, world, device=device, inference=inference)
         factory = policy_factory(actor)
         controller = f"policy:{checkpoint_label(checkpoint)}"
     else:
@@ -78,7 +79,7 @@ def run(
     projected = elapsed * FULL_EPISODES_PER_CELL / (maps * repeats)
     what = "table2" if keys is None else "+".join(sorted(keys))
     row = {
-        "case": f"{controller}_{what}_{maps}maps_{repeats}repeats",
+        "case": f"{controller}_{what}_{maps}maps_{repeats}repeats" + ("_onnx" if inference == "onnx" else ""),
         "engine": "evaluate",
         "device": str(device),
         "agent_steps_per_s": round(rate, 1),

@@ -75,6 +75,12 @@ def parser() -> argparse.ArgumentParser:
         metavar="MODULE[,MODULE...]",
         help="modules that register controllers, imported first (as the apps' extensions=)",
     )
+    sub["eval"].add_argument(
+        "--inference",
+        choices=["torch", "onnx"],
+        default="torch",
+        help="a policy's path on the CPU (docs/performance.md)",
+    )
     sub["policy"].add_argument("--checkpoint", required=True, help="a model.zip, e.g. runs/reference/b/model.zip")
     for name in ("eval", "policy"):  # of a checkpoint's network: a heuristic runs on the CPU
         sub[name].add_argument("--device", default="cpu", help="torch device: cpu, cuda, cuda:<index>, mps or auto")
@@ -134,6 +140,8 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
         except Refused as refusal:
             parser.error(refusal.message)
     checkpoint = getattr(args, "checkpoint", None)
+    if getattr(args, "inference", "torch") != "torch" and not (checkpoint and args.device == "cpu"):
+        parser.error(f"--inference={args.inference} is for --checkpoint on --device cpu")
     if checkpoint and getattr(args, "controller", None):
         parser.error("--controller cannot apply with --checkpoint: give one of them")
     device, threads = "cpu", []
@@ -141,6 +149,11 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
         device = _device(parser, args.device, checkpoint)
     if checkpoint:  # read it now: a corrupt file or run config is named before any measurement
         from searchrl.policies.checkpoint import load_checkpoint
+        from searchrl.threads import use_threads
+
+        # torch's threads set before its first work (building the policy): a pool started on every core and cut to
+        # fewer afterwards ran the network 2.5 times slower beside a busy core (searchrl/threads.py)
+        use_threads(args.threads or 2, network_on_cpu=device == "cpu")
 
         try:
             load_checkpoint(checkpoint, device="cpu")

@@ -37,6 +37,7 @@ from searchrl.multirun import Stopped, refuse
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor, training_scenario
 from searchrl.policies.device import resolve_device
 from searchrl.shared_schema import check_known_keys
+from searchrl.threads import use_threads
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.obstacles import IidObstacles
 from searchrl.world.scenario import Scenario, ScenarioMix
@@ -57,7 +58,10 @@ def make_controller_factory(cfg: EvaluateConfig) -> tuple[WorldConfig, str, str,
         world = WorldConfig.from_dict(world_dict)
         run_name = checkpoint_label(cfg.checkpoint)
         device = resolve_device(cfg.device)  # checked here too: analysis scripts call this function alone
-        actor = load_actor(cfg.checkpoint, world, device=device)  # loaded once, serves every cell
+        # The thread counts before torch's first work (tracing the actor): a pool started on every core and cut to
+        # fewer afterwards ran the network 2.5 times slower beside a busy core (searchrl/threads.py)
+        use_threads(cfg.threads, network_on_cpu=device.type == "cpu")
+        actor = load_actor(cfg.checkpoint, world, device=device, inference=cfg.inference)  # serves every cell
 
         return world, f"policy:{run_name}", model_name, policy_factory(actor, cfg.deterministic), True
     world = WorldConfig.from_dict(asdict(cfg.env.world))
@@ -156,8 +160,6 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
 
 def run_evaluation(plan: Evaluation) -> Path:
     """Run the plan's cells of this shard that have no result yet (its folder claimed); returns the folder."""
-    from searchrl.threads import use_threads
-
     cfg, out_dir, scenario, world = plan.settings, plan.out_dir, plan.scenario, plan.world
     on_cpu = cfg.checkpoint is not None and resolve_device(cfg.device).type == "cpu"
     use_threads(cfg.threads, network_on_cpu=on_cpu)  # a heuristic's or a GPU policy's world: every thread

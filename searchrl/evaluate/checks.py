@@ -12,6 +12,7 @@ from searchrl.evaluate.grid import Cell, table2_cells
 from searchrl.evaluate.results import coverage
 from searchrl.evaluate.schema import EvaluateConfig
 from searchrl.multirun import refuse
+from searchrl.policies.actor import INFERENCE
 from searchrl.policies.device import check_device
 from searchrl.shared_schema import MAX_THREADS, override_keys
 from searchrl.world.config import ConfigError, need
@@ -68,6 +69,13 @@ def check_evaluation(cfg: EvaluateConfig, overrides: list[str]) -> tuple[list[tu
         "device",
         cfg.device,
         f"cpu: controller={cfg.controller.name} runs on the CPU (device is for checkpoint=<model.zip>)",
+    )
+    need(cfg.inference in INFERENCE, "inference", cfg.inference, f"one of {', '.join(INFERENCE)}")
+    need(
+        cfg.inference == "torch" or (cfg.checkpoint is not None and cfg.device == "cpu"),
+        "inference",
+        cfg.inference,
+        "torch: onnx runs a checkpoint's network on the CPU (device=cpu)",
     )
     need(0 <= cfg.seed <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
     need(1 <= cfg.threads <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")

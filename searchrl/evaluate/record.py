@@ -7,7 +7,9 @@ its episodes; every later run compares its own with them and stops, naming what 
 Settings that do not change an episode (shard, num_shards, threads, batch_mb, progress_bar) are not recorded.
 A checkpoint's `device` is, as its kind (cpu, cuda, mps; not the index of a card): CUDA rounds the logits otherwise
 than the CPU (searchrl/policies/actor.py), an action may then flip (31 of 32 episodes of a slice alike on an H200),
-and a folder mixing both would hold cells no one command reproduces. A record made before `device` ran on the CPU.
+and a folder mixing both would hold cells no one command reproduces; so is its `inference` path on the CPU (ONNX
+Runtime rounds otherwise than torch). A record made before `device` ran on the CPU, one made before `inference` with
+torch.
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ def evaluation_settings(cfg: EvaluateConfig, label: str, model_name: str) -> dic
         settings["checkpoint_sha256"] = file_sha256(cfg.checkpoint)
         settings["deterministic"] = cfg.deterministic
         settings["device"] = resolve_device(cfg.device).type  # auto recorded as what it ran on
+        settings["inference"] = cfg.inference
     else:
         # Named by the label: a preset (controller=greedy_target) records the controller it sets (greedy) and every
         # setting, as the same settings spelled out do, so either may resume the other's folder.
@@ -70,10 +73,10 @@ def option_defaults(cfg: EvaluateConfig) -> dict[str, Any]:
     """Flattened defaults of the heuristic's own schema (`controller_args.<name>`) and of the world (`world.<name>`):
     an option added to a controller or the world after a folder was recorded is absent there, and at its default
     it plays the episodes the record describes. A record made before scenarios existed ran the paper's, one made
-    before `device` existed on the CPU."""
+    before `device` existed on the CPU, one before `inference` with torch."""
     defaults = dotted_leaves({"scenario": PAPER.to_dict(), "grid": {"agents": None}})
     if cfg.checkpoint is not None:
-        return defaults | {"device": "cpu"}
+        return defaults | {"device": "cpu", "inference": "torch"}
     world = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default for f in fields(WorldConfig)}
     defaults |= dotted_leaves({"world": world})
     schema = type(cfg.controller)

@@ -52,6 +52,9 @@ class EvaluateConfig:
     # torch device of a checkpoint's network: cpu, cuda, cuda:<index>, mps or auto (heuristics run on the CPU).
     # Recorded: CUDA rounds the logits otherwise than the CPU, so a folder's cells all come from one kind of device.
     device: str = "cpu"
+    # a checkpoint's network on the CPU: torch (the traced TorchScript path, bit for bit the golden episodes) or onnx
+    # (ONNX Runtime, about 1.4x faster, rounds otherwise: searchrl/policies/onnx_extractor.py). Recorded.
+    inference: str = "torch"
     progress_bar: bool = True
 
 

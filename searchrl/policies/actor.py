@@ -2,8 +2,9 @@
 
 SB3's `predict` runs the whole policy through its generic path and samples with torch's global generator. For
 evaluation we need only the actor, on large batches, with reproducible sampling, so `Actor`
-- traces and freezes the features extractor (TorchScript with the conv layers fused for inference: about 3x
-  faster than eager on CPU for the paper network),
+- traces and freezes the features extractor (TorchScript with the conv layers fused for inference; once about 3x
+  faster than eager on the CPU, now as fast as eager's channels-last convolutions: `python -m searchrl.bench
+  policy`), or runs it with ONNX Runtime (`inference="onnx"`, searchrl/policies/onnx_extractor.py),
 - calls the actor LSTM (RecurrentPPO) and the action head directly, on any subset of rows, and
 - leaves sampling to the caller (`sample_actions`, from uniforms the caller draws).
 Its logits equal the policy's own distribution logits to float32 rounding (tested).
@@ -28,6 +29,19 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
 
 from searchrl.envs.parts import make_parts
+
+# The inference paths of a CPU actor: "torch", the traced and frozen TorchScript extractor every golden episode was
+# recorded with; "onnx", the extractor run by ONNX Runtime, faster and not bit for bit (searchrl/policies/
+# onnx_extractor.py). An evaluation records its path.
+INFERENCE = ("torch", "onnx")
+
+
+def check_inference(inference: str, device: str | torch.device = "cpu") -> None:
+    """ValueError in one line for an unknown path, or the onnx path on a device that is not the CPU."""
+    if inference not in INFERENCE:
+        raise ValueError(f"inference={inference!r} is not allowed: one of {', '.join(INFERENCE)}")
+    if inference == "onnx" and torch.device(device).type != "cpu":
+        raise ValueError(f"inference=onnx runs on the CPU, not device={str(device)!r}: use inference=torch there")
 
 
 def _optimized(extractor: nn.Module, example: dict[str, torch.Tensor]) -> nn.Module:
@@ -73,9 +87,17 @@ class Actor:
     Stateless: the caller keeps each slot's LSTM state (`initial_state`) and passes the rows it acts for.
     """
 
-    def __init__(self, policy: ActorCriticPolicy, optimize: bool = True, device: str | torch.device = "cpu") -> None:
+    def __init__(
+        self,
+        policy: ActorCriticPolicy,
+        optimize: bool = True,
+        device: str | torch.device = "cpu",
+        inference: str = "torch",
+    ) -> None:
         """Act with `policy`, moved to `device` and put in evaluation mode: the actor owns it from now on (pass
-        `policy_copy(model)` to keep a policy that trains on as it is)."""
+        `policy_copy(model)` to keep a policy that trains on as it is). `inference` is the extractor's path
+        (INFERENCE); `optimize=False` keeps torch's eager extractor (the reference the others are checked against)."""
+        check_inference(inference, device)
         if not isinstance(policy, ActorCriticPolicy):
             raise TypeError(f"policy of type {type(policy).__name__} is not an SB3 ActorCriticPolicy")
         self.device = torch.device(device)
@@ -96,7 +118,13 @@ class Actor:
         example = {
             k: torch.as_tensor(np.stack([space[k].sample() for _ in range(4)]), device=self.device) for k in self.keys
         }
-        self._extract = _optimized(extractor, example) if optimize else extractor
+        self.inference = inference
+        if inference == "onnx":
+            from searchrl.policies.onnx_extractor import OnnxExtractor  # onnxruntime loads only for this path
+
+            self._extract = OnnxExtractor(extractor, self.keys, example)
+        else:
+            self._extract = _optimized(extractor, example) if optimize else extractor
 
     def initial_state(self, batch: int) -> torch.Tensor | None:
         """Zero LSTM state (2, layers, batch, hidden) float32 — hidden and cell — on the actor's device (it stays

@@ -240,11 +240,15 @@ def load_checkpoint(
 
 
 def load_actor(
-    path: str | Path, config: WorldConfig, optimize: bool = True, device: str | torch.device = "cpu"
+    path: str | Path,
+    config: WorldConfig,
+    optimize: bool = True,
+    device: str | torch.device = "cpu",
+    inference: str = "torch",
 ) -> Actor:
     """The actor of a saved RecurrentPPO / PPO / A2C model.zip, its network on `device` (a checked one:
     searchrl/policies/device.py); ValueError if it sees another field of view (channels, side) or acts in another
-    action set than `config`'s world."""
+    action set than `config`'s world. `inference`: the extractor's path on the CPU (searchrl/policies/actor.py)."""
     # Loaded on the CPU and moved to `device` by the Actor: one path for every device.
     model = load_checkpoint(path, device="cpu")
     space = observation_space(config)
@@ -254,7 +258,7 @@ def load_actor(
             f"checkpoint={str(path)!r} sees a {seen} field of view but the world shows {shown}"
             " (channels, side, side: fov and belief_age_channel must be the checkpoint's)"
         )
-    actor = Actor(model.policy, optimize=optimize, device=device)
+    actor = Actor(model.policy, optimize=optimize, device=device, inference=inference)
     if actor.n_actions != config.n_actions:
         raise ValueError(
             f"checkpoint={str(path)!r} acts with {actor.n_actions} actions but the world has {config.n_actions}"
