@@ -16,7 +16,8 @@
 # the shard's seed, one sequence per agent and episode (S sequences of T steps, padded, `mask` the real steps):
 # `maps` (S, T, C, F, F) float16, `vector` (S, T, 3), `actions` (S, T) the student's, `values` (S, T, A) the
 # planner's (NaN where it did not decide: a world whose targets are all found). A killed collection keeps its
-# shards and a rerun writes only the missing ones; `--shards` may grow between runs.
+# shards and a rerun writes only the missing ones; `--shards` may grow between runs. A shard's index seeds its cell
+# and maps: a later round starts at another `--first`, so it labels other maps.
 #
 #     python -m analysis.exit_labels --student runs/reference/term/b/model.zip --out runs/exit/round1/labels \
 #         --shards 40 --worlds 4 --cells n40_N2,n40_N4,n80_N4,n80_N8 --settings '{"horizon": 32, "team": 8}'
@@ -161,6 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--student", required=True, help="the student's model.zip")
     parser.add_argument("--out", required=True, help="the labels' folder (shards already there are kept)")
     parser.add_argument("--shards", type=int, default=40)
+    parser.add_argument("--first", type=int, default=0, help="the first shard's index (its maps): another round's")
     parser.add_argument("--worlds", type=int, default=4, help="maps per shard")
     parser.add_argument("--cells", default="n40_N2,n40_N4,n80_N4,n80_N8")
     parser.add_argument("--settings", default="{}", help="the planner's settings as JSON")
@@ -171,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(err))
     use_threads(1)
     out = Path(args.out)
-    for shard in range(args.shards):
+    for shard in range(args.first, args.first + args.shards):
         path = out / f"shard_{shard:04d}.npz"
         if path.exists():
             continue
