@@ -111,14 +111,14 @@ def test_a_cell_finished_by_another_job_meanwhile_is_not_run_again(tmp_path, mon
     @contextmanager
     def other_job_finishes_n20_N2_first(lock_file, what, wait_s=0.0):
         if "n20_N2" in str(lock_file):
-            done = theirs[theirs.N == 2].assign(L=-1)  # marked, to tell it from a rerun's rows
+            done = theirs[theirs.N == 2].assign(R=-12345.0)  # marked, to tell it from a rerun's rows
             done.to_parquet(tmp_path / "mine" / "cells" / "n20_N2.parquet")
         with real_hold(lock_file, what, wait_s):
             yield
 
     monkeypatch.setattr(app, "hold", other_job_finishes_n20_N2_first)
     mine = load(_evaluate(tmp_path / "mine"))
-    assert (mine[mine.N == 2].L == -1).all() and (mine[mine.N == 1].L > 0).all()
+    assert (mine[mine.N == 2].R == -12345.0).all() and (mine[mine.N == 1].R != -12345.0).all()
 
 
 def test_evaluation_killed_at_any_moment_resumes_to_the_same_results(tmp_path):

@@ -8,6 +8,7 @@ from pathlib import Path
 import pandas as pd
 from omegaconf import OmegaConf
 
+from searchrl.evaluate.cell_checks import check_cell
 from searchrl.evaluate.grid import CELL_FILE_RE
 from searchrl.evaluate.record import CELL_SETTINGS, setting_differences
 from searchrl.world.config import WorldConfig
@@ -69,6 +70,7 @@ def load(*out_dirs: str | Path) -> pd.DataFrame:
                 frame.insert(2, "world", world_of(d))
             if "scenario" not in frame:  # cells made before scenarios existed ran the paper's
                 frame.insert(3, "scenario", PAPER.label)
+            check_cell(frame, f)  # a damaged or edited cell is refused, never summarised
             frame["folder"] = str(d)
             frames.append(frame)
     if not frames:

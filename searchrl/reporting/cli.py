@@ -15,8 +15,10 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import pandas as pd
 import pyarrow.parquet as pq
 
+from searchrl.evaluate.cell_checks import DamagedCell, check_cell
 from searchrl.evaluate.results import cell_files
 
 
@@ -101,6 +103,10 @@ def check_eval_dirs(dirs: Sequence[Path], min_dirs: int = 1) -> None:
                     f"{cell} cannot be read as a cell's results ({type(err).__name__}); remove it and rerun the "
                     f"evaluation into {d} to write it again"
                 )
+            try:  # and every row one an episode can have (searchrl/evaluate/cell_checks.py), before any output
+                check_cell(pd.read_parquet(cell), cell)
+            except DamagedCell as err:
+                stop(str(err))
 
 
 def check_run_dirs(dirs: Sequence[Path]) -> None:
