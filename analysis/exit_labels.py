@@ -47,27 +47,20 @@ SEED = 9_000_000  # label maps: disjoint from evaluation (7,000,000 + …) and v
 
 
 class ValueRecorder(Rollout):
-    """The rollout planner that keeps each decision's move values: `scored[i]` (W, A), the i-th agent's."""
+    """The rollout planner that keeps each decision's move values: `scored[i]` (worlds, (W, A)), the i-th agent's."""
 
-    def score(self, *args, **kwargs) -> np.ndarray:
-        scores = super().score(*args, **kwargs)
-        self.scored.append(np.nanmean(scores, axis=2))
+    def score(self, state, worlds, *args, **kwargs) -> np.ndarray:
+        scores = super().score(state, worlds, *args, **kwargs)
+        self.scored.append((worlds, np.nanmean(scores, axis=2)))
         return scores
 
     def values(self, state, maps, vector, active: np.ndarray | None) -> np.ndarray:
-        """(K, N, A) the move values of this step (NaN where no agent decides), the planner's memory advanced."""
-        self.scored: list[np.ndarray] = []
-        if self.prior_u.shape != state.u.shape:
-            self.reset(state, np.ones(state.n_worlds, bool))
-        base = self.base.act(state, maps, vector)
-        keys = self.rng.integers(0, 2**31, size=(state.n_worlds, 1))[:, 0]
-        live = state.n_found < state.n_targets
-        if active is not None:
-            live &= active
-        worlds = np.flatnonzero(live)
-        self.plan(state, worlds, base, keys)
+        """(K, N, A) the move values of this step (NaN where no agent decides), the planner's memory advanced as
+        its own `act` advances it (its chosen moves are not played)."""
+        self.scored: list[tuple[np.ndarray, np.ndarray]] = []
+        self.act(state, maps, vector, active)
         out = np.full((state.n_worlds, state.n_agents, self.config.n_actions), np.nan, np.float32)
-        for agent, scored in enumerate(self.scored):
+        for agent, (worlds, scored) in enumerate(self.scored):
             out[worlds, agent] = scored
         return out
 
