@@ -31,6 +31,7 @@ from pathlib import Path
 import pandas as pd
 
 from searchrl.atomic import write_atomic, write_text_atomic
+from searchrl.evaluate.comparable import comparison_note
 from searchrl.evaluate.results import load
 from searchrl.reporting import cli
 from searchrl.reporting.stats import markdown, paired_margins
@@ -74,7 +75,7 @@ def tally(block: pd.DataFrame) -> str:
 
 
 metric = "" if args.metric == "found_fraction" else f", {args.metric} (better: higher)"
-lines = [f"# {mine} against {', '.join(d.name for d in EVAL_DIRS[1:])}{metric}\n"]
+lines = [f"# {mine} against {', '.join(d.name for d in EVAL_DIRS[1:])}{metric}\n", f"{comparison_note(EVAL_DIRS)}\n"]
 for other, block in margins.groupby("baseline", sort=False):
     lines.append(f"## {mine} − {other}\n")
     lines.append(f"{tally(block)} of {len(block)} cells\n")

@@ -15,7 +15,8 @@
 # A shard is `shard_<i>.npz` in `--out`, written atomically: the episodes of `--worlds` maps of one cell drawn by
 # the shard's seed, one sequence per agent and episode (S sequences of T steps, padded, `mask` the real steps):
 # `maps` (S, T, C, F, F) float16, `vector` (S, T, 3), `actions` (S, T) the student's, `values` (S, T, A) the
-# planner's (NaN where it did not decide: a world whose targets are all found). A killed collection keeps its
+# planner's (NaN where it did not decide: a world whose targets are all found), and `part_<key>` (S, T, ...) float16
+# for each observation part the student's network reads (a whole-map student's `own_map`). A killed collection keeps its
 # shards and a rerun writes only the missing ones; `--shards` may grow between runs. A shard's index seeds its cell
 # and maps: a later round starts at another `--first`, so it labels other maps.
 #
@@ -26,6 +27,7 @@
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import sys
 import time
@@ -40,6 +42,7 @@ from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.runner import run_cell
 from searchrl.policies.checkpoint import checkpoint_config, load_actor
 from searchrl.threads import use_threads
+from searchrl.world.coarse import reset_parts
 from searchrl.world.config import WorldConfig
 
 TARGETS = {40: (8, 16), 80: (16, 32), 160: (32, 64)}  # Table 2's targets and Gaussians per world size
@@ -72,10 +75,14 @@ class Labeller:
     def __init__(self, student, planner: ValueRecorder, episodes: list) -> None:
         self.student, self.planner, self.episodes = student, planner, episodes
         self.open: dict[int, list] = {}
+        # The student's observation parts, observed again here (its own copies are its memory, not the record's).
+        self.parts = tuple(copy.deepcopy(part) for part in student.actor.parts)
+        self.buffers: dict[str, np.ndarray] = {}
 
     def reset(self, state, mask) -> None:
         self.student.reset(state, mask)
         self.planner.reset(state, mask)
+        reset_parts(self.parts, state, self.planner.config, np.flatnonzero(mask))
         for k in np.flatnonzero(mask):
             self.file(int(k))
 
@@ -88,23 +95,31 @@ class Labeller:
         values = self.planner.values(state, maps, vector, active)
         actions = self.student.act(state, maps, vector, active)
         playing = np.arange(state.n_worlds) if active is None else np.flatnonzero(active)
+        for part in self.parts:
+            buffer = self.buffers.get(part.key)
+            if buffer is None or buffer.shape[0] != state.n_worlds:
+                shape = (state.n_worlds, *part.shape(self.planner.config))
+                buffer = self.buffers[part.key] = np.zeros(shape, np.float32)
+            part.fill(state, self.planner.config, buffer, playing)
         for k in playing:
             step = (maps[k].astype(np.float16), vector[k].astype(np.float32), actions[k].astype(np.int8), values[k])
+            step += tuple(self.buffers[part.key][k].astype(np.float16) for part in self.parts)
             self.open.setdefault(int(k), []).append(step)
         return actions
 
 
-def pad(episodes: list) -> dict[str, np.ndarray]:
-    """The episodes' sequences (one per agent) padded to the longest: maps, vector, actions, values, mask."""
+def pad(episodes: list, part_keys: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
+    """The episodes' sequences (one per agent) padded to the longest: maps, vector, actions, values, the parts
+    (`part_<key>`), mask."""
     length = max(e[0].shape[1] for e in episodes)
-    out: dict[str, list] = {"maps": [], "vector": [], "actions": [], "values": [], "mask": []}
-    for maps, vector, actions, values in episodes:
-        n, t = actions.shape
+    keys = ("maps", "vector", "actions", "values", *(f"part_{key}" for key in part_keys))
+    out: dict[str, list] = {key: [] for key in (*keys, "mask")}
+    for episode in episodes:
+        n, t = episode[2].shape
         grow = [(0, 0), (0, length - t)]
-        out["maps"].append(np.pad(maps, grow + [(0, 0)] * (maps.ndim - 2)))
-        out["vector"].append(np.pad(vector, [*grow, (0, 0)]))
-        out["actions"].append(np.pad(actions, grow))
-        out["values"].append(np.pad(values, [*grow, (0, 0)], constant_values=np.nan))
+        for key, array in zip(keys, episode, strict=True):
+            fill = np.nan if key == "values" else 0
+            out[key].append(np.pad(array, grow + [(0, 0)] * (array.ndim - 2), constant_values=fill))
         out["mask"].append(np.pad(np.ones((n, t), bool), grow))
     return {key: np.concatenate(parts) for key, parts in out.items()}
 
@@ -131,7 +146,8 @@ def collect_shard(student: str, cells: list[Cell], shard: int, worlds: int, sett
     for made in labeller:
         for k in list(made.open):
             made.file(k)
-    return {**pad(episodes), "cell": np.array([cell.n, cell.n_agents])}
+    part_keys = tuple(part.key for part in labeller[0].parts) if labeller else ()
+    return {**pad(episodes, part_keys), "cell": np.array([cell.n, cell.n_agents])}
 
 
 def save_npz(path: Path, data: dict[str, np.ndarray]) -> None:

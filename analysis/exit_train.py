@@ -42,13 +42,15 @@ KEYS = ("maps", "vector", "actions", "values", "mask")
 
 def load_labels(folders: list[str]) -> dict[str, np.ndarray]:
     """Every shard of `folders`, padded to the longest sequence: maps (S, T, C, F, F) float16, vector, actions,
-    values (S, T, A), mask (S, T) of the steps the planner labelled."""
+    values (S, T, A), mask (S, T) of the steps the planner labelled, and the observation parts every shard holds
+    (`part_<key>`, a whole-map student's)."""
     shards = [np.load(path) for folder in folders for path in sorted(Path(folder).glob("shard_*.npz"))]
     if not shards:
         raise ValueError(f"--labels {folders} hold no shard_*.npz")
     length = max(s["mask"].shape[1] for s in shards)
+    parts = set.intersection(*({key for key in s.files if key.startswith("part_")} for s in shards))
     out = {}
-    for key in KEYS:
+    for key in (*KEYS, *sorted(parts)):
         parts = []
         for s in shards:
             grow = [(0, 0), (0, length - s[key].shape[1])] + [(0, 0)] * (s[key].ndim - 2)
@@ -71,9 +73,11 @@ def targets(values: np.ndarray, tau: float, prior: torch.Tensor | None) -> torch
 def logits(policy, data: dict[str, np.ndarray], rows: np.ndarray) -> torch.Tensor:
     """(B, T, A) the actor's logits over whole sequences `rows`, its LSTM from zeros at t = 0."""
     b, t = len(rows), data["mask"].shape[1]
+    sources = {"map": "maps", "vector": "vector"} | {key.removeprefix("part_"): key for key in data if "part_" in key}
+    reads = getattr(policy.pi_features_extractor, "keys", ("map", "vector"))
     obs = {
-        "map": torch.from_numpy(data["maps"][rows].reshape(b * t, *data["maps"].shape[2:]).astype(np.float32)),
-        "vector": torch.from_numpy(data["vector"][rows].reshape(b * t, -1).astype(np.float32)),
+        key: torch.from_numpy(data[sources[key]][rows].reshape(b * t, *data[sources[key]].shape[2:]).astype(np.float32))
+        for key in reads
     }
     features = policy.pi_features_extractor(obs)
     starts = torch.zeros(b, t)
@@ -108,6 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--epochs", type=int, default=4)
     parser.add_argument("--tau", type=float, default=0.01, help="softmax temperature, in targets")
     parser.add_argument("--lr", type=float, default=1e-4)
+    parser.add_argument("--branch-lr", type=float, help="learning rate of a whole-map branch and its gate (--lr)")
     parser.add_argument("--batch", type=int, default=16, help="sequences per minibatch")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-prior", action="store_true", help="softmax(values / tau) alone, not around --init")
@@ -124,7 +129,12 @@ def main(argv: list[str] | None = None) -> int:
     rng = np.random.default_rng(args.seed)
     order = rng.permutation(len(data["mask"]))
     held, train = order[: max(1, len(order) // 10)], order[max(1, len(order) // 10) :]
-    optimizer = torch.optim.Adam(policy.parameters(), lr=args.lr)
+    # A whole-map branch (own_map_cnn's grid encoder and gate) starts closed: its own rate lets it open in few steps.
+    extractor = policy.pi_features_extractor
+    branch = [*extractor.grid.parameters(), extractor.gate] if getattr(extractor, "gate", None) is not None else []
+    rest = [p for p in policy.parameters() if all(p is not q for q in branch)]
+    groups = [{"params": rest}] + ([{"params": branch, "lr": args.branch_lr or args.lr}] if branch else [])
+    optimizer = torch.optim.Adam(groups, lr=args.lr)
     print(f"{len(train)} sequences to train on, {len(held)} held out; {int(data['mask'].sum())} labelled steps",
           file=sys.stderr)  # fmt: skip
     for epoch in range(args.epochs + 1):

@@ -33,6 +33,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from searchrl.atomic import write_atomic, write_text_atomic
+from searchrl.evaluate.comparable import comparison_note
 from searchrl.evaluate.results import coverage_line, load
 from searchrl.reporting import cli
 from searchrl.reporting.aggregate import (
@@ -100,6 +101,7 @@ write_atomic(OUT / "improvement.csv", lambda tmp: improvement.to_csv(tmp, index=
 heads = "\n".join(f"- {coverage_line(d)}" for d in EVAL_DIRS)
 pair_table = markdown(improvement.set_index(["policy", "rule"])) if len(improvement) else "no policy and rule pair\n"
 report = (f"Over {len(tasks)} cells and {maps} maps common to every folder:\n{heads}\n\n"
+          f"{comparison_note(EVAL_DIRS)}\n\n"
           f"Interquartile mean of the found fraction (95 % stratified-bootstrap interval over maps):\n\n"
           f"{markdown(table.set_index('controller'))}\n"
           f"Probability of improvement P(policy > rule), per cell over every pair of maps, averaged over cells:\n\n"

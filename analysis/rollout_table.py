@@ -35,6 +35,7 @@ parser.add_argument("--rules", nargs="+", required=True, metavar="RULE_DIR",
 PLANNERS, OUT, args = cli.eval_args(parser, Path("analysis") / "out" / "rollout_planner", default_dirs=list)
 RULES = [Path(d) for d in args.rules]
 cli.check_eval_dirs(RULES, 1)
+cli.check_comparable([*PLANNERS, *RULES])
 names = [d.name for d in [*PLANNERS, *RULES]]
 if len(set(names)) < len(names):
     cli.stop(f"folders {names}: their names label the sides; make them differ")

@@ -42,7 +42,7 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from searchrl.atomic import write_atomic, write_text_atomic
-from searchrl.evaluate.results import cell_files, load
+from searchrl.evaluate.results import cell_files, coverage, load
 from searchrl.reporting import cli
 from searchrl.reporting.stats import bootstrap_mean_ci, worst_tenth
 
@@ -57,6 +57,8 @@ folders = {f: root for f, root in sorted(folders.items()) if cell_files(f)}
 if not folders:
     cli.stop(f"no results under {[str(r) for r in roots]}: run the suite first (docs/evaluation.md, Suites)")
 cli.check_eval_dirs(list(folders))  # a damaged cell file named in one line, before any output
+for scenario in {coverage(f).get("scenario") for f in folders}:  # the controllers of one scenario: the same worlds
+    cli.check_comparable([f for f in folders if coverage(f).get("scenario") == scenario])
 
 
 def labelled(folder: Path, root: Path) -> pd.DataFrame:

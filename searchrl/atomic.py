@@ -74,6 +74,24 @@ def check_writable(path: str | Path, name: str, folder: bool = False) -> None:
 STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS)  # a full disk, a quota, a read-only file system
 
 
+def check_own_files(folder: str | Path, name: str) -> None:
+    """ValueError in one line unless every entry of `folder` and of its subfolders one level down (a run's
+    checkpoints/, an evaluation's cells/) is its own: a link out of the folder would be written through, and a
+    resume's pruning would delete what it finds there."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return
+    inside = folder.resolve()
+    entries = [*folder.iterdir()]
+    entries += [part for entry in entries if entry.is_dir() and not entry.is_symlink() for part in entry.iterdir()]
+    for entry in sorted(entries):
+        if entry.is_symlink() and not entry.resolve().is_relative_to(inside):
+            raise ValueError(
+                f"{name}={str(folder)!r} is not allowed: its {entry.relative_to(folder)} is a link out of it (to "
+                f"{entry.resolve()}); a run's or an evaluation's files stay in its folder, so replace the link by them"
+            )
+
+
 def storage_message(err: OSError) -> str | None:
     """One line for an OSError the storage gave (full, over quota, read-only), naming the file; None for others,
     which are bugs or faults to show whole."""

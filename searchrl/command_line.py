@@ -54,8 +54,10 @@ def import_modules(modules: Iterable[str]) -> None:
     for name in modules:
         try:
             importlib.import_module(str(name))
-        except Exception as err:  # ModuleNotFoundError, or the module's own error while registering
+        except (Exception, SystemExit) as err:  # ModuleNotFoundError, the module's own error, or its sys.exit()
             detail = str(err).splitlines()[0] if str(err) else ""
+            if isinstance(err, SystemExit):
+                detail = f"it calls sys.exit({err.code!r}) when imported"
             raise ConfigError(
                 f"extensions: {name!r} cannot be imported ({type(err).__name__}: {detail}); give "
                 "importable module names, e.g. extensions=[my_package.parts]"
@@ -71,15 +73,36 @@ def import_from_command_line(argv: Iterable[str]) -> None:
         refuse(str(err))
 
 
+def _unquoted(value: str) -> str:
+    if len(value) >= 2 and value[0] == value[-1] and value[0] in "'\"":  # quoted for Hydra: a path with spaces
+        return value[1:-1]
+    return value
+
+
 def check_resume_argument(argv: list[str]) -> None:
-    """Hydra makes `<resume>/resumed/<date>/` before the app starts: a resume= that is not a folder is named here
-    first, in one line, instead of in Hydra's traceback."""
+    """Hydra makes `<resume>/resumed/<date>/` before the app starts: a resume= that is not a run folder is named
+    here first, in one line, and nothing is made in it."""
     for arg in argv:
-        value = arg.split("=", 1)[1] if arg.startswith("resume=") else "null"
-        if len(value) >= 2 and value[0] == value[-1] and value[0] in "'\"":  # quoted for Hydra: a path with spaces
-            value = value[1:-1]
+        value = _unquoted(arg.split("=", 1)[1]) if arg.startswith("resume=") else "null"
         if value != "null" and not (value and Path(value).is_dir()):
             refuse(f"{arg} is not allowed: a run folder (with config.yaml and checkpoints/)")
+        if value != "null" and not (Path(value) / "config.yaml").is_file():
+            refuse(f"resume={value!r} is not a run directory: it has no config.yaml")
+
+
+def check_run_dir_argument(argv: list[str]) -> None:
+    """A new run into `hydra.run.dir=<a folder that holds a run>` is refused before Hydra writes its record there
+    (its `.hydra/`), so the finished run's folder stays as it was; `resume=` continues a run instead."""
+    resumes = [arg for arg in argv if arg.startswith("resume=") and _unquoted(arg[len("resume=") :]) != "null"]
+    if resumes or any(arg in ("-m", "--multirun") for arg in argv):
+        return
+    for arg in argv:
+        if arg.startswith("hydra.run.dir="):
+            run_dir = Path(_unquoted(arg.split("=", 1)[1]))
+            if (run_dir / "config.yaml").exists() or any((run_dir / "checkpoints").glob("step_*.zip")):
+                refuse(
+                    f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder"
+                )
 
 
 def check_group_choices(argv: list[str]) -> None:

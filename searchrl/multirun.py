@@ -23,6 +23,7 @@ from typing import Any, NoReturn, TypeVar
 
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.utils import JobReturn, JobStatus
+from hydra.errors import CompactHydraException
 from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig
@@ -51,8 +52,9 @@ class Stopped(Exception):
         self.code = code
 
 
-class JobFailed(RuntimeError):
-    """A multirun job that was refused or stopped: Hydra goes on to the next."""
+class JobFailed(CompactHydraException):
+    """A multirun job that was refused or stopped: Hydra goes on to the next. Compact: when Hydra raises the first
+    failure at the batch's end it prints its one line, not a traceback."""
 
 
 def refuse(message: str) -> NoReturn:

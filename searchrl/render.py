@@ -1,9 +1,8 @@
 """`python -m searchrl.render [--controller NAME | --checkpoint model.zip [--device cuda]] [--out episode.gif]`
 
-NAME: a heuristic of searchrl/controllers/registry.py (docs/controllers.md lists them).
-
-Writes one episode as an animated GIF in the paper's colours (Fig. 1, Fig. 4): left, the true maps with all agents
-(purple), hidden (green) and found (brown) targets; right, one agent's belief, the agent ringed in black.
+Writes one episode (NAME: a heuristic, docs/controllers.md) as an animated GIF in the paper's colours (Fig. 1,
+Fig. 4): left, the true maps with all agents (purple), hidden (green) and found (brown) targets; right, one agent's
+belief, the agent ringed in black; a caption names the controller, scenario and world, a legend the colours.
 """
 
 from __future__ import annotations
@@ -65,12 +64,14 @@ def main(argv: list[str] | None = None) -> int:
     }
     try:
         check_writable(args.out, "--out")
-        config, scenario, factory = episode_setup(
+        config, scenario, factory, label = episode_setup(
             args.checkpoint, args.model, args.controller, sizes, args.scenario, args.device
         )
     except (ConfigError, FileNotFoundError, ValueError) as err:
         p.error(str(err))
-    state, frames = render_episode(config, scenario, factory, args.seed, args.agent, args.cell, args.fps, args.out)
+    state, frames = render_episode(
+        config, scenario, factory, args.seed, args.agent, args.cell, args.fps, args.out, label
+    )
     print(f"wrote {args.out}: {frames} frames, found {int(state.n_found[0])}/{int(state.n_targets[0])}")
     return 0
 

@@ -69,6 +69,14 @@ class TeamConfig:
     world_size: Any = None
 
 
+def check_world_node(env: EnvConfig) -> None:
+    """ConfigError unless `env.world` holds the world's settings (its node is untyped: `env.world=5` composes)."""
+    if not is_dataclass(env.world):
+        raise ConfigError(
+            f"env.world={env.world!r} is not allowed: the world's settings, each set as env.world.<name>=<value>"
+        )
+
+
 @dataclass
 class EnvConfig:
     world: Any = field(default_factory=_world_node)

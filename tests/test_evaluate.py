@@ -371,8 +371,11 @@ def test_one_cell_plays_the_grids_maps_and_pairs_with_a_baseline_on_them(tmp_pat
 
 @pytest.mark.parametrize("bad, message", [
     ("cell=n20_N3", "cell='n20_N3' is not allowed: a cell of the grid: one of n20_N1, n20_N2, n40_N1"),
-    ("seed=5", "a folder of this seed (5); it holds seed 7000000"),
-    ("scenario=walls", "a folder of this scenario"),
+    ("seed=5", "a folder of this evaluation's worlds, whose map seeds name the same maps; it differs in seed: "
+               "7000000 there, 5 here"),
+    ("scenario=walls", "scenario.obstacles.density: 0.0 there, 0.2 here"),
+    ("grid.n_targets=[2,4]", "grid.n_targets: [4, 8] there, [2, 4] here"),
+    ("env.world.k=3", "world.k: 1000.0 there, 3.0 here"),
     ("baseline=/nonexistent", "baseline='/nonexistent' is not allowed: an evaluation folder"),
 ])  # fmt: skip
 def test_a_cell_off_the_grid_or_a_baseline_of_other_maps_is_refused_before_work(tmp_path, bad, message, capsys):

@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from searchrl.evaluate.grid import Cell
-from searchrl.policies.checkpoint import checkpoint_config, load_actor
+from searchrl.policies.checkpoint import checkpoint_config, load_actor, load_checkpoint
 from searchrl.world.config import WorldConfig
 from tests.registries import isolated_registries
 from tests.test_faults import REFERENCE_B
@@ -66,3 +66,24 @@ def test_a_bad_cell_is_one_line(exit_parts):
     with pytest.raises(ValueError, match=r"--cells: 'n50_N2' is not allowed"):
         exit_labels.parse_cells("n40_N2,n50_N2")
     assert exit_labels.parse_cells("n80_N4") == [Cell(80, 4, 16, 32)]
+
+
+def test_a_whole_map_student_records_its_map_and_opens_its_gate(tmp_path, exit_parts):
+    """A student whose network reads the coarse whole belief map (own_map_cnn) has that map in every labelled step,
+    and its training reads it: the branch's gate moves at the branch's own learning rate."""
+    from tests.test_faults import TINY, _compose, train
+
+    exit_labels, exit_train = exit_parts
+    overrides = [*TINY, "network.extractor=own_map_cnn", "total_timesteps=1024"]
+    model = train(_compose("train", overrides), tmp_path / "run", overrides)
+    labels = tmp_path / "labels"
+    args = ["--student", str(model), "--out", str(labels), "--shards", "1", "--worlds", "2", "--cells", "n40_N2"]
+    assert exit_labels.main([*args, "--settings", '{"horizon": 2}']) == 0  # 4 sequences: 3 to train on
+    data = np.load(labels / "shard_0000.npz")
+    assert data["part_own_map"].shape == (*data["mask"].shape, 3, 16, 16)
+    assert data["part_own_map"][data["mask"]].max() > 0  # the agent's own cell at least
+    out = tmp_path / "student"
+    argv = ["--labels", str(labels), "--init", str(model), "--out", str(out), "--epochs", "1", "--branch-lr", "0.01"]
+    assert exit_train.main(argv) == 0
+    gates = [load_checkpoint(m, device="cpu").policy.features_extractor.gate.item() for m in (model, out / "model.zip")]
+    assert abs(gates[1] - gates[0]) > 1e-3  # an Adam step at 0.01, where the rest moves at 1e-4

@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import torch
+from gymnasium.error import ResetNeeded
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 from sb3_contrib import RecurrentPPO
@@ -28,10 +29,11 @@ from searchrl.envs.parallel_env import SearchParallelEnv
 from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.results import load
 from searchrl.multirun import exits
-from searchrl.policies.checkpoint import REBUILT, load_checkpoint
+from searchrl.policies.checkpoint import REBUILT, load_checkpoint, run_config
 from searchrl.shared_schema import CONF_DIR
 from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
+from tests.scripts import run_script
 from tests.test_untrusted_checkpoints import SHIPPED, poisoned
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -766,6 +768,24 @@ def test_cli_flags_and_world_bounds_are_checked_before_work(tmp_path, capsys):
             WorldConfig(**kwargs)
 
 
+def test_a_module_that_exits_an_out_file_and_a_world_that_is_a_number_are_refused_in_one_line(tmp_path, capsys):
+    (tmp_path / "exits.py").write_text("import sys\nsys.exit(3)\n")
+    sys.path.insert(0, str(tmp_path))
+    try:
+        from searchrl.command_line import import_from_command_line
+
+        _refused(capsys, lambda: import_from_command_line(["extensions=[exits]"]), "'exits'", "sys.exit(3)")
+    finally:
+        sys.path.remove(str(tmp_path))
+    _refused(capsys, lambda: _evaluate(tmp_path / "eval", "controller=surfing", "env.world=5"), "env.world=5")
+    _refused(capsys, lambda: train(_compose("train", ["+model=b", "env.world=5"]), tmp_path / "run"), "env.world=5")
+    (tmp_path / "table.md").write_text("")
+    out = _evaluate(tmp_path / "surfing", "controller=surfing")
+    result = run_script("table3.py", str(out), "--out", str(tmp_path / "table.md"))
+    assert result.returncode == 1 and result.stderr.strip().splitlines()[-1].endswith("is a file, not a folder; give "
+                                                                                    "a folder for the tables")
+
+
 def test_env_apis_refuse_wrong_arguments_with_value_errors():
     from searchrl.envs.single_env import SearchEnv
     from searchrl.envs.vec_env import SearchVecEnv
@@ -784,7 +804,14 @@ def test_env_apis_refuse_wrong_arguments_with_value_errors():
     for call, needle in ((lambda: env.step([0, 0]), "a dict"), (lambda: env.observation_space("agent_9"), "agent_9")):
         with pytest.raises(ValueError, match=needle):
             call()
-    vec = SearchVecEnv(config, 2, seed=0)
+    for env in (SearchParallelEnv(config, render_mode="rgb_array"), SearchEnv(config, render_mode="rgb_array")):
+        with pytest.raises(RuntimeError, match=r"render\(\) called before reset\(\)"):
+            env.render()
+    vec = SearchVecEnv(config, 2, seed=0, render_mode="rgb_array")
+    with pytest.raises(ResetNeeded, match=r"before calling env\.reset"):
+        vec.get_images()
+    with pytest.raises(ValueError, match="seed='3' is not allowed"):
+        vec.seed("3")
     vec.reset()
     for actions, needle in ((np.full(4, 1.7), "dtype float64"), (np.zeros(3, np.int64), r"one action per slot")):
         with pytest.raises(ValueError, match=needle):
@@ -809,6 +836,20 @@ def test_a_damaged_log_is_refused_before_anything_is_rewritten(tmp_path, tiny_ru
     assert (run / "config.yaml").read_bytes() == record and log.read_bytes() == text
 
 
+def test_a_deleted_log_is_refused_and_a_cut_final_row_is_validated_again(tmp_path, tiny_run, capsys):
+    run = _copy(tiny_run, tmp_path / "run")
+    (run / "progress.csv").unlink()
+    overrides = [f"resume={run}", "total_timesteps=2048"]
+    _refused(capsys, lambda: train(_compose("train", overrides), run / "resumed", overrides), "progress.csv is missing")
+    assert not (run / "progress.csv").exists()
+    run = _copy(tiny_run, tmp_path / "cut")
+    text = (run / "progress.csv").read_text()
+    (run / "progress.csv").write_text(text[: text.rstrip("\n").rfind("\n") + 40])  # the final row cut by a kill
+    train(_compose("train", overrides := [f"resume={run}", "total_timesteps=2048"]), run / "resumed", overrides)
+    assert "the final validation at step 2048 is missing from its log: run again" in capsys.readouterr().err
+    assert (run / "score.json").read_text() == (tiny_run / "score.json").read_text()  # the same worlds and weights
+
+
 def test_a_resumed_log_continues_the_runs_clock(tmp_path, tiny_run):
     """time/time_elapsed and time/iterations go on from the checkpoint's row instead of starting again."""
     run = _copy(tiny_run, tmp_path / "run")
@@ -818,6 +859,60 @@ def test_a_resumed_log_continues_the_runs_clock(tmp_path, tiny_run):
     rollouts = rows[rows["time/iterations"].notna()]
     assert rollouts["time/iterations"].tolist() == list(range(1, len(rollouts) + 1))
     assert rollouts["time/time_elapsed"].is_monotonic_increasing
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() if p.is_file() else b"<dir>" for p in sorted(folder.rglob("*"))}
+
+
+def test_a_refused_training_writes_nothing_in_the_folder_it_names(tmp_path):
+    """Hydra's record of a run (.hydra/) is written once the run's checks pass: a new run into a finished run's
+    folder, or a resume of a folder that is no run, is refused before Hydra touches either folder."""
+    run, app = tmp_path / "run", [sys.executable, "-m", "searchrl.train"]
+    made = subprocess.run([*app, *TINY, f"hydra.run.dir={run}"], capture_output=True, text=True, cwd=ROOT)
+    assert made.returncode == 0, made.stderr[-2000:]
+    assert "- network=small" in (run / ".hydra" / "overrides.yaml").read_text()
+    assert "seed: 0" in (run / ".hydra" / "config.yaml").read_text()
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    before = {run: _snapshot(run), other: _snapshot(other)}
+    for args, folder, needle in (
+        ([*TINY, "seed=5", f"hydra.run.dir={run}"], run, f"{run} already holds a run: continue it with resume="),
+        ([f"resume={other}"], other, f"resume='{other}' is not a run directory: it has no config.yaml"),
+    ):
+        refused = subprocess.run([*app, *args], capture_output=True, text=True, cwd=ROOT)
+        lines = refused.stderr.strip().splitlines()
+        assert refused.returncode == 2 and lines[-1].startswith(f"error: {needle}"), refused.stderr
+        assert "Traceback" not in refused.stderr and _snapshot(folder) == before[folder]
+
+
+def test_a_folder_whose_parts_link_out_of_it_is_refused_and_nothing_there_is_touched(tmp_path, tiny_run, capsys):
+    run = _copy(tiny_run, tmp_path / "run")
+    elsewhere = tmp_path / "elsewhere"
+    (run / "checkpoints").rename(elsewhere)
+    (run / "checkpoints").symlink_to(elsewhere)
+    kept = _snapshot(elsewhere)
+    overrides = [f"resume={run}", "total_timesteps=4096"]
+    resume = lambda: train(_compose("train", overrides), run / "resumed", overrides)  # noqa: E731
+    _refused(capsys, resume, "checkpoints is a link out")
+    assert _snapshot(elsewhere) == kept
+    out = _evaluate(tmp_path / "eval")
+    (out / "cells").rename(tmp_path / "cells")
+    (out / "cells").symlink_to(tmp_path / "cells")
+    _refused(capsys, lambda: _evaluate(out, "controller=coverage"), "out_dir=", "cells is a link out")
+    assert len(list((tmp_path / "cells").iterdir())) == 2  # its two cells, no third
+
+
+def test_a_model_zip_with_an_entry_twice_is_refused(tmp_path):
+    import zipfile
+
+    twice = tmp_path / "model.zip"
+    shutil.copyfile(REFERENCE_B / "model.zip", twice)
+    with zipfile.ZipFile(twice, "a") as archive, pytest.warns(UserWarning, match="Duplicate name"):
+        archive.writestr("data", "{}")
+    with pytest.raises(ValueError, match="holds the entry 'data' twice"):
+        load_checkpoint(twice, run_config(REFERENCE_B / "model.zip"))
 
 
 def test_a_run_folder_with_a_space_in_its_path_resumes(tmp_path, tiny_run, capsys):

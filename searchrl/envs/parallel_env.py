@@ -119,6 +119,8 @@ class SearchParallelEnv(ParallelEnv):
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
+        if not self.world.started:
+            raise RuntimeError("render() called before reset(): call reset() first")
         return world_frame(self.world_state, 0)
 
     def close(self) -> None:

@@ -21,7 +21,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvO
 from searchrl.envs.rewards import RewardFn
 from searchrl.envs.spaces import action_space, observation_space
 from searchrl.world.coarse import ObservationPart
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import WorldConfig, check_seed
 from searchrl.world.engine import SearchWorld
 from searchrl.world.frames import world_frames
 from searchrl.world.scenario import PAPER, Scenario
@@ -57,6 +57,11 @@ class SearchVecEnv(VecEnv):
         super().__init__(n_worlds * config.n_agents, observation_space(config, parts), action_space(config))
 
     # --- core contract -------------------------------------------------------------------------------------
+    def seed(self, seed: int | None = None) -> Sequence[int | None]:
+        """SB3's: the seed of the next reset (slot i: seed + i); ValueError unless None or an integer >= 0."""
+        check_seed(seed)
+        return super().seed(seed)
+
     def reset(self) -> VecEnvObs:
         seed = self._seeds[0] if self._seeds and self._seeds[0] is not None else None
         maps, vector = self.world.reset(seed=seed)
@@ -122,6 +127,8 @@ class SearchVecEnv(VecEnv):
         """One RGB frame per world (not per slot), padded to the largest world."""
         if self.render_mode != "rgb_array":
             raise ValueError(f"render_mode is {self.render_mode!r}; create the env with render_mode='rgb_array'")
+        if not self.world.started:  # as step_async says it
+            raise ResetNeeded("Cannot call env.render() before calling env.reset()")
         return world_frames(self.world.state)
 
     # --- attribute access (shared by all slots) ------------------------------------------------------------

@@ -36,7 +36,7 @@ from searchrl.evaluate.schema import EvaluateConfig, register_configs
 from searchrl.multirun import Stopped, refuse
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor, training_scenario
 from searchrl.policies.device import resolve_device
-from searchrl.shared_schema import check_known_keys
+from searchrl.shared_schema import check_known_keys, check_world_node
 from searchrl.threads import use_threads
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.obstacles import IidObstacles
@@ -98,6 +98,7 @@ def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | N
     import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
     check_known_keys(cfg)  # `+grid.map_per_cell=50` composes: refused here, not run without
     cfg = OmegaConf.to_object(cfg)  # typed from here on: the schema checked every value's type
+    check_world_node(cfg.env)
     cells, out_dir, scenario = check_evaluation(cfg, overrides)
     world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
     for index, cell in cells:  # a cell impossible for its n or N fails now, not when reached

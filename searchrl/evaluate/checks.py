@@ -7,7 +7,8 @@ import math
 from dataclasses import asdict
 from pathlib import Path
 
-from searchrl.atomic import check_writable
+from searchrl.atomic import check_own_files, check_writable
+from searchrl.evaluate.comparable import identity_of, world_differences, world_identity
 from searchrl.evaluate.grid import Cell, table2_cells
 from searchrl.evaluate.results import coverage
 from searchrl.evaluate.schema import EvaluateConfig
@@ -107,23 +108,27 @@ def check_evaluation(cfg: EvaluateConfig, overrides: list[str]) -> tuple[list[tu
 
 
 def check_baseline(cfg: EvaluateConfig, scenario: Scenario) -> None:
-    """`baseline=` names an evaluation folder whose record says it played this evaluation's maps (its seed and
-    scenario); ConfigError naming what differs."""
+    """`baseline=` names an evaluation folder of this evaluation's worlds (searchrl/evaluate/comparable.py: its
+    seed, scenario, grid and, for a heuristic, the world's map and sensing settings); ConfigError naming the
+    difference."""
     if cfg.baseline is None:
         return
-    record = coverage(cfg.baseline)
-    need(bool(record), "baseline", cfg.baseline, "an evaluation folder (one with evaluation.yaml and cells/)")
     need(
-        record["seed"] == cfg.seed,
+        bool(coverage(cfg.baseline)),
         "baseline",
         cfg.baseline,
-        f"a folder of this seed ({cfg.seed}); it holds seed {record['seed']}, whose maps are others",
+        "an evaluation folder (one with evaluation.yaml and cells/)",
     )
+    ours: dict = {"seed": cfg.seed, "grid": asdict(cfg.grid), "scenario": scenario.to_dict()}
+    if cfg.checkpoint is None:  # a policy's world is its run's, read once the policy loads
+        ours["world"] = asdict(cfg.env.world)
+    differ = world_differences(world_identity(cfg.baseline), identity_of(ours))
     need(
-        record["scenario"] == scenario.label,
+        not differ,
         "baseline",
         cfg.baseline,
-        f"a folder of this scenario ({scenario.label}); it holds {record['scenario']}",
+        "a folder of this evaluation's worlds, whose map seeds name the same maps; it differs in "
+        + "; ".join(f"{key}: {theirs!r} there, {mine!r} here" for key, theirs, mine in differ),
     )
 
 
@@ -141,6 +146,7 @@ def given_out_dir(cfg: EvaluateConfig, default: str) -> Path | None:
 def check_out_dir(out_dir: Path) -> None:
     """ConfigError unless the evaluation can write its folder, cells and locks there."""
     try:
+        check_own_files(out_dir, "out_dir")
         check_writable(out_dir, "out_dir", folder=True)
         for part in ("cells", LOCKS):
             check_writable(out_dir / part, f"out_dir/{part}", folder=True)

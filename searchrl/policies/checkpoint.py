@@ -181,7 +181,10 @@ def _member(path: str | Path, name: str) -> bytes | None:
     """A member of the zip at `path`, None if it has none; ValueError in one line if it is no zip."""
     try:
         with zipfile.ZipFile(path) as archive:
-            return archive.read(name) if name in archive.namelist() else None
+            names = archive.namelist()
+            twice = sorted({n for n in names if names.count(n) > 1})
+            if not twice:
+                return archive.read(name) if name in names else None
     except OSError:
         raise
     except Exception as err:  # BadZipFile, a truncated member
@@ -190,6 +193,10 @@ def _member(path: str | Path, name: str) -> bytes | None:
             f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a "
             "searchrl model"
         ) from None
+    raise ValueError(
+        f"checkpoint={str(path)!r} holds the entry {twice[0]!r} twice: one copy would hide the other; not a file "
+        "searchrl or SB3 wrote"
+    )
 
 
 def saved_identity(path: str | Path) -> dict[str, Any] | None:

@@ -4,7 +4,8 @@ Positional folders come first; without them the environment variable (SEARCHRL_E
 comma-separated), then the script's default. `--out` falls back to SEARCHRL_ANALYSIS_OUT, then the script's
 default. The same files run as Jupyter notebooks, whose kernel is started with its own flags (`-f <connection
 file>`, `--HistoryManager.hist_file=...`): those are dropped, so a notebook reads the environment variables.
-A folder that is missing or holds no results ends the script with one line naming it.
+A folder that is missing or holds no results ends the script with one line naming it, as do folders of other
+worlds put side by side (searchrl/evaluate/comparable.py).
 """
 
 from __future__ import annotations
@@ -19,6 +20,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 
 from searchrl.evaluate.cell_checks import DamagedCell, check_cell
+from searchrl.evaluate.comparable import Incomparable
+from searchrl.evaluate.comparable import check_comparable as _check_comparable
 from searchrl.evaluate.results import cell_files
 
 
@@ -65,8 +68,12 @@ def setting(given: str | None, variable: str, default: str = "") -> str:
 
 
 def out_dir(given: str | None, default: Path) -> Path:
-    """`--out`, else SEARCHRL_ANALYSIS_OUT, else `default`."""
-    return Path(setting(given, "SEARCHRL_ANALYSIS_OUT") or default)
+    """`--out`, else SEARCHRL_ANALYSIS_OUT, else `default`; a script stops in one line where it cannot be a folder."""
+    out = Path(setting(given, "SEARCHRL_ANALYSIS_OUT") or default)
+    blocked = next((p for p in (out, *out.parents) if p.exists() and not p.is_dir()), None)
+    if blocked is not None:
+        stop(f"--out={str(out)!r} is not allowed: {blocked} is a file, not a folder; give a folder for the tables")
+    return out
 
 
 def stop(message: str) -> None:
@@ -107,6 +114,14 @@ def check_eval_dirs(dirs: Sequence[Path], min_dirs: int = 1) -> None:
                 check_cell(pd.read_parquet(cell), cell)
             except DamagedCell as err:
                 stop(str(err))
+
+
+def check_comparable(dirs: Sequence[Path]) -> None:
+    """Stop, naming both folders and what differs, unless every one of `dirs` holds results of the same worlds."""
+    try:
+        _check_comparable(dirs)
+    except Incomparable as err:
+        stop(str(err))
 
 
 def check_run_dirs(dirs: Sequence[Path]) -> None:
@@ -160,6 +175,7 @@ def eval_args(
     default = default_dirs or (lambda: with_results(Path.cwd() / "runs" / "eval"))
     dirs = folders(args.dirs, "SEARCHRL_EVAL_DIRS", default)
     check_eval_dirs(dirs, min_dirs)
+    check_comparable(dirs)  # every script puts its folders side by side
     return dirs, out_dir(args.out, default_out), args
 
 

@@ -15,6 +15,7 @@ from searchrl.command_line import (  # noqa: E402
     check_group_choices,
     check_jobs_compose,
     check_resume_argument,
+    check_run_dir_argument,
     import_from_command_line,
 )
 from searchrl.multirun import exits  # noqa: E402
@@ -24,6 +25,7 @@ if __name__ == "__main__":
     with exits():
         import_from_command_line(sys.argv[1:])  # the extensions' parts, before any name is checked
         check_resume_argument(sys.argv[1:])
+        check_run_dir_argument(sys.argv[1:])
         check_group_choices(sys.argv[1:])
         check_jobs_compose(sys.argv[1:], "train")
     main()

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import signal
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -30,8 +31,8 @@ from omegaconf.errors import OmegaConfBaseException
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
-from searchrl.atomic import FolderBusy, hold, storage_message
-from searchrl.multirun import Stopped, in_sweep, refuse
+from searchrl.atomic import FolderBusy, hold, storage_message, write_text_atomic
+from searchrl.multirun import JobFailed, Stopped, in_sweep, refuse
 from searchrl.policies.checkpoint import save_model
 from searchrl.shared_schema import CONF_DIR, dotted_leaves, override_keys
 from searchrl.train.build import make_vec_env, prepare_folder, record_config, set_logs, start_model, warm_start
@@ -43,7 +44,7 @@ from searchrl.train.callbacks import (
     ValidationCallback,
     run_hparams,
 )
-from searchrl.train.logs import check_log
+from searchrl.train.logs import check_log, validated_at
 from searchrl.train.plan import Plan, make_plan
 from searchrl.train.run_record import is_finished, other_log, read_score, run_identity, stored_score, write_score
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig, register_configs, saved_config
@@ -84,11 +85,14 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     return saved, run_dir, True
 
 
-def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None) -> Path:
+def train(
+    cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None, started: Callable[[], None] | None = None
+) -> Path:
     """Run (or resume) one training run; returns the path of the final model.zip. Every setting is checked before
     any file is written (`make_plan`), and the run folder is locked for the whole run (a second resume of it is
     refused). The run, top to bottom: the folder, the env, the algorithm (fresh or from the newest checkpoint), the
-    config record, the clone, the logs, the callbacks, RL, the final model and score."""
+    config record (then `started()`: Hydra's record, `hydra_record`), the clone, the logs, the callbacks, RL, the
+    final model and score."""
     cfg, run_dir, resuming = resolve_run(cfg, Path(output_dir), overrides or [])
     try:
         plan = make_plan(cfg, [] if resuming else overrides or [])
@@ -98,7 +102,7 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
         print(f"note: {note}", file=sys.stderr)
     try:
         with hold(run_dir / ".lock", f"run folder {str(run_dir)!r}"):
-            return _train_locked(plan, run_dir, resuming)
+            return _train_locked(plan, run_dir, resuming, started)
     except FolderBusy as err:
         refuse(str(err))
     except OSError as err:  # a full disk mid-run: the last checkpoint stands, resume once there is space
@@ -108,7 +112,7 @@ def train(cfg: DictConfig, output_dir: Path, overrides: list[str] | None = None)
         refuse(f"{message}; the run resumes from its last checkpoint with resume={run_dir}")
 
 
-def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
+def _train_locked(plan: Plan, run_dir: Path, resuming: bool, started: Callable[[], None] | None) -> Path:
     cfg = plan.settings
     prepare_folder(cfg, run_dir, resuming)
     env = make_vec_env(plan)
@@ -136,8 +140,15 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
         if problem:
             refuse(f"resume={cfg.resume!r}: {problem}; nothing was changed")
     record_config(plan, run_dir)
+    if started is not None:
+        started()
     if not resuming and plan.clones:
         warm_start(plan, model, run_dir)
+    # A resume with nothing left to train whose final validation row was lost (a kill while it was written) logs
+    # it again: the same weights on the same worlds give the same row, so the score is the run's own.
+    validate_final = not resuming or not validated_at(run_dir / "progress.csv", start_step)
+    if resuming and validate_final and start_step >= cfg.total_timesteps:
+        print(f"note: the final validation at step {start_step} is missing from its log: run again", file=sys.stderr)
     set_logs(model, run_dir, start_step if resuming else None, cfg)
     preemption = Preemption()
     validation = ValidationCallback(
@@ -159,7 +170,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool) -> Path:
         validation,
     ]
     with preemption:
-        learn(plan, model, callbacks, validation, resuming)
+        learn(plan, model, callbacks, validation, resuming, validate_final)
     if preemption.stopped:
         env.close()
         name = signal.Signals(preemption.signal).name
@@ -194,10 +205,15 @@ def score_again(run_dir: Path, score_last: int, why: ValueError) -> dict[str, ob
 
 
 def learn(
-    plan: Plan, model: BaseAlgorithm, callbacks: list[BaseCallback], validation: ValidationCallback, resuming: bool
+    plan: Plan,
+    model: BaseAlgorithm,
+    callbacks: list[BaseCallback],
+    validation: ValidationCallback,
+    resuming: bool,
+    validate_final: bool = True,
 ) -> None:
-    """RL up to total_timesteps; a run without RL (total_timesteps=0, a clone only) is validated once for its
-    score."""
+    """RL up to total_timesteps; a run without RL (total_timesteps=0, a clone only), or a resumed one with none left
+    whose final validation is not in its log (`validate_final`), is validated once for its score."""
     cfg = plan.settings
     remaining = cfg.total_timesteps - model.num_timesteps
     if remaining > 0:
@@ -208,15 +224,16 @@ def learn(
             reset_num_timesteps=not resuming,
             progress_bar=cfg.progress_bar,
         )
-    elif not resuming:
+    elif validate_final:
         validation.init_callback(model)
+        validation.num_timesteps = model.num_timesteps  # the row's step: the final model's
         validation.on_training_end()
 
 
 @hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="train")
 def main(cfg: DictConfig) -> float:
     """Train, and return the run's score (run_record.py) for Hydra sweepers: `-m hydra/sweeper=optuna` maximises it."""
-    hydra_cfg = HydraConfig.get()
+    hydra_cfg, task_cfg = HydraConfig.get(), cfg
     run_dir, overrides = Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task)
     if hydra_cfg.mode == RunMode.MULTIRUN:  # a sweep started again into its folder continues it
         cfg, overrides, finished = in_sweep(continue_sweep_job, cfg, run_dir, overrides)
@@ -228,8 +245,41 @@ def main(cfg: DictConfig) -> float:
                 score = float(in_sweep(score_again, run_dir, cfg.validation.score_last, err)["score"])
                 print(f"{run_dir} holds this job's finished run: not trained again", file=sys.stderr)
             return score
-    final = in_sweep(train, cfg, run_dir, overrides)
+    try:
+        final = in_sweep(train, cfg, run_dir, overrides, hydra_record(task_cfg))
+    except (SystemExit, JobFailed):
+        remove_hydra_traces(run_dir, hydra_cfg)
+        raise
     return read_score(final.parent)
+
+
+def remove_hydra_traces(output_dir: Path, hydra_cfg: DictConfig) -> None:
+    """After a refusal, the folder Hydra made for this job before the app ran (its empty log in it; a resume's
+    `resumed/<date>/`) is removed, so a refused command leaves no folder behind. A folder the command named
+    (`hydra.run.dir=`, a sweep's job folder) or one holding anything else is left as it is."""
+    named = any(str(o).startswith("hydra.run.dir=") for o in hydra_cfg.overrides.hydra)
+    if named or hydra_cfg.mode == RunMode.MULTIRUN or not output_dir.is_dir():
+        return
+    log = output_dir / f"{hydra_cfg.job.name}.log"
+    if {p.name for p in output_dir.iterdir()} <= {log.name} and (not log.exists() or log.stat().st_size == 0):
+        log.unlink(missing_ok=True)
+        output_dir.rmdir()
+        if output_dir.parent.name == "resumed" and not any(output_dir.parent.iterdir()):
+            output_dir.parent.rmdir()
+
+
+def hydra_record(cfg: DictConfig) -> Callable[[], None]:
+    """What Hydra's `output_subdir` would write into the job's folder before the app runs (`.hydra/config.yaml`,
+    `hydra.yaml`, `overrides.yaml`), written once the run's checks pass (conf/train.yaml sets it to null)."""
+    hydra_cfg = HydraConfig.get()
+
+    def write() -> None:
+        folder = Path(hydra_cfg.runtime.output_dir) / ".hydra"
+        write_text_atomic(folder / "config.yaml", OmegaConf.to_yaml(cfg))
+        write_text_atomic(folder / "hydra.yaml", OmegaConf.to_yaml(OmegaConf.create({"hydra": hydra_cfg})))
+        write_text_atomic(folder / "overrides.yaml", OmegaConf.to_yaml(hydra_cfg.overrides.task))
+
+    return write
 
 
 def continue_sweep_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple[DictConfig, list[str], bool]:

@@ -14,7 +14,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import VecEnv
 
-from searchrl.atomic import check_writable, remove_temporaries, write_text_atomic
+from searchrl.atomic import check_own_files, check_writable, remove_temporaries, write_text_atomic
 from searchrl.envs.rewards import make_reward
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
@@ -42,6 +42,10 @@ def prepare_folder(cfg: TrainConfig, run_dir: Path, resuming: bool) -> None:
             f"resume={str(run_dir)!r} is a finished run with no checkpoints/ left (a shipped folder): start a new "
             f"run from its weights with init={run_dir / 'model.zip'}"
         )
+    try:  # a checkpoints/ linked elsewhere would be pruned there
+        check_own_files(run_dir, "resume" if resuming else "hydra.run.dir")
+    except ValueError as err:
+        refuse(str(err))
     for folder in (run_dir, run_dir / "checkpoints"):  # a folder made read-only: said now, not after a rollout
         try:
             check_writable(folder, "resume" if resuming else "hydra.run.dir", folder=True)

@@ -63,6 +63,16 @@ def check_log(path: Path, resume_step: int, every: int) -> None:
             )
 
 
+def validated_at(path: Path, step: int) -> bool:
+    """Whether the log `path` holds a validation row (`val/found_fraction`) at `step`; a last row cut short by a
+    kill does not count."""
+    if not path.exists():
+        return False
+    text = path.read_text(encoding="utf-8", errors="replace")
+    rows = csv.DictReader(io.StringIO(text[: text.rfind("\n") + 1], newline=""))
+    return any(_step(row) == step and row.get("val/found_fraction") for row in rows)
+
+
 def log_digest(path: Path, step: int) -> str | None:
     """sha256 of the log's rows before `step` (each row's non-empty values, by column name: a column added later
     leaves earlier rows as they were), None without a log. A checkpoint at `step` records it; the resume from it

@@ -32,7 +32,7 @@ from searchrl.policies.checkpoint import policy_class
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
 from searchrl.policies.networks import observation_parts
-from searchrl.shared_schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, override_keys
+from searchrl.shared_schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, check_world_node, override_keys
 from searchrl.train.logs import check_logger
 from searchrl.train.schema import A2CConfig, ImitationConfig, RecurrentPPOConfig, TrainConfig
 from searchrl.world.config import ConfigError, WorldConfig, need
@@ -91,6 +91,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     # A run's config.yaml merged into TrainConfig (resume=) leaves `algo` (Any) untyped: its group's schema types it.
     cfg.algo = OmegaConf.merge(OmegaConf.structured(ALGO_SCHEMAS[cfg.algo.name]), cfg.algo)
     s: TrainConfig = OmegaConf.to_object(cfg)  # typed from here on: the schema checked every value's type
+    check_world_node(s.env)
     groups = tuple(team_groups(s))
     scenario = Scenario.from_dict(s.scenario)
     for world, _ in groups:

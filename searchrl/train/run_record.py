@@ -18,6 +18,7 @@ agent-steps, were averaged.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -76,14 +77,24 @@ def foreign_checkpoint(path: Path, step: int, settings: TrainConfig) -> str | No
     return None
 
 
+NO_ROWS = hashlib.sha256().hexdigest()[:16]  # `log_digest` of a log with no row before the checkpoint's step
+
+
 def other_log(checkpoint: Path, step: int) -> str | None:
     """Why the run's progress.csv is not the log `checkpoint` (at `step`) was saved with, or None: its rows before
-    that step differ from those the checkpoint's digest covers (`log_digest`). A log the checkpoint saw none of, or
-    a missing one, is not compared."""
+    that step differ from those the checkpoint's digest covers (`log_digest`), or it is missing where the
+    checkpoint saw rows. A checkpoint saved with no digest is not compared."""
     identity = saved_identity(checkpoint) or {}
     log = log_digest(checkpoint.parent.parent / "progress.csv", step)
-    if identity.get("log") is None or log is None or log == identity["log"]:
+    if identity.get("log") is None or log == identity["log"]:
         return None
+    if log is None and identity["log"] == NO_ROWS:  # no log, and the checkpoint saw none: nothing is lost
+        return None
+    if log is None:
+        return (
+            f"progress.csv is missing, and checkpoints/{checkpoint.name} was saved with its rows before step {step}: "
+            "restore it to resume (a new log would start again at iteration 1 without the run's validations)"
+        )
     return (
         f"progress.csv is not the log checkpoints/{checkpoint.name} was saved with (its rows before step {step} "
         "differ: another run's log, or an edited one); move it aside to resume with a new log"
