@@ -116,8 +116,9 @@ def _run_notebook(notebook: str, eval_dirs: list[Path], run_dir: Path, out_dir: 
 @pytest.mark.slow  # beyond.py three times (about 10 s each)
 def test_beyond_fits_the_budget_curve_and_refuses_folders_that_did_not_play_the_teacher_s_maps(fixture_dirs, tmp_path):
     """Three checkpoints of a policy 0.01 better per million agent-steps than the one before (each map's found
-    fraction raised by that much): the line's slope is 0.01 per million, with no error; a policy folder that lost a
-    map is refused in one line; two folders of one name are refused."""
+    fraction scaled by 0.9, to stay in [0, 1], and raised by that much; its targets counted in thousandths, so each
+    is still a whole number of them): the line's slope is 0.01 per million, with no error; a policy folder that lost
+    a map is refused in one line; two folders of one name are refused."""
     from omegaconf import OmegaConf
 
     from searchrl.evaluate.results import cell_files
@@ -132,7 +133,8 @@ def test_beyond_fits_the_budget_curve_and_refuses_folders_that_did_not_play_the_
         OmegaConf.save(record, folder / "evaluation.yaml")
         for cell in cell_files(folder):
             frame = pd.read_parquet(cell)
-            frame["found_fraction"] += 0.01 * million
+            frame["found_fraction"] = 0.9 * frame["found_fraction"] + 0.01 * million
+            frame["targets"] *= 1000
             frame.to_parquet(cell)
         folders.append(str(folder))
     out = _script("beyond.py", str(teacher), *folders, "--out", str(tmp_path / "out"))

@@ -230,7 +230,7 @@ def _grid(sweep_dir: Path, *more: str) -> subprocess.CompletedProcess:
     return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
 
 
-@pytest.mark.slow  # three multiruns of two tiny trainings: about 30 s
+# In the default run (three multiruns of two tiny trainings, about 30 s): docs/training.md promises it.
 def test_a_grid_sweep_started_again_in_its_folder_continues_it(tmp_path):
     """Job 0 finished is not trained again, job 1 killed after a checkpoint resumes from it; a sweep of other
     overrides into the same folder trains each job beside the old one (named by its overrides); a job whose folder

@@ -22,7 +22,7 @@ from typing import Any
 import pyarrow.parquet as pq
 from omegaconf import OmegaConf
 
-from searchrl.evaluate.results import cell_files
+from searchrl.evaluate.grid import cell_files
 from searchrl.shared_schema import dotted_leaves
 from searchrl.world.scenario import PAPER, Scenario
 

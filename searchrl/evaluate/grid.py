@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from pathlib import Path
 
 CELL_FILE_RE = re.compile(r"n\d+_N\d+\.parquet")  # the file name of a finished cell (Cell.key)
 
@@ -53,3 +54,9 @@ def table2_cells(
 def map_seed(base: int, cell_index: int, map_index: int) -> int:
     """Seed of one evaluation map; cells never share maps, and the base keeps them apart from training seeds."""
     return base + 100_000 * cell_index + map_index
+
+
+def cell_files(out_dir: str | Path) -> list[Path]:
+    """The finished cells of an evaluation folder, `<out_dir>/cells/<cell>.parquet`, sorted. Only names a cell can
+    have count: a writer's hidden temporary (complete or not) or any other file there is never read."""
+    return sorted(p for p in Path(out_dir).glob("cells/*.parquet") if CELL_FILE_RE.fullmatch(p.name))

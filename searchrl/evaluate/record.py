@@ -25,6 +25,7 @@ import pyarrow.parquet as pq
 from omegaconf import OmegaConf
 
 from searchrl.atomic import write_text_atomic
+from searchrl.evaluate.grid import cell_files
 from searchrl.policies.device import resolve_device
 from searchrl.shared_schema import dotted_leaves
 from searchrl.world.config import ConfigError, WorldConfig
@@ -141,8 +142,6 @@ def _read_record(out_dir: Path, cells: dict[Path, dict[str, Any] | None]) -> dic
 def _cells_settings(out_dir: Path) -> dict[Path, dict[str, Any] | None]:
     """The settings each finished cell of the folder records (None: a cell made before cells recorded them). A cell
     that cannot be read is set aside as `<cell>.unreadable`, said so, and run again."""
-    from searchrl.evaluate.results import cell_files
-
     found = {}
     for path in cell_files(out_dir):
         try:

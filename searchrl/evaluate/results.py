@@ -9,16 +9,10 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from searchrl.evaluate.cell_checks import check_cell
-from searchrl.evaluate.grid import CELL_FILE_RE
+from searchrl.evaluate.grid import cell_files
 from searchrl.evaluate.record import CELL_SETTINGS, setting_differences
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import PAPER, Scenario
-
-
-def cell_files(out_dir: str | Path) -> list[Path]:
-    """The finished cells of an evaluation folder, `<out_dir>/cells/<cell>.parquet`, sorted. Only names a cell can
-    have count: a writer's hidden temporary (complete or not) or any other file there is never read."""
-    return sorted(p for p in Path(out_dir).glob("cells/*.parquet") if CELL_FILE_RE.fullmatch(p.name))
 
 
 def world_config_of(out_dir: str | Path) -> WorldConfig | None:
