@@ -88,6 +88,8 @@ def check_resume_argument(argv: list[str]) -> None:
             refuse(f"{arg} is not allowed: a run folder (with config.yaml and checkpoints/)")
         if value != "null" and not (Path(value) / "config.yaml").is_file():
             refuse(f"resume={value!r} is not a run directory: it has no config.yaml")
+        if value != "null" and not os.access(value, os.W_OK | os.X_OK):  # Hydra's resumed/<date>/ would fail in it
+            refuse(f"resume={value!r} is not allowed: the run folder cannot be written; make it writable to resume")
 
 
 def check_run_dir_argument(argv: list[str]) -> None:

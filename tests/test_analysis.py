@@ -478,6 +478,22 @@ def test_render_writes_an_episode_gif(tmp_path):
         render_main(["--out", str(tmp_path / "x.mp4")])
 
 
+def test_a_render_says_what_plays_where_and_what_each_colour_means(tmp_path, monkeypatch):
+    from PIL import ImageDraw
+
+    drawn: list[str] = []
+    original = ImageDraw.ImageDraw.text
+    monkeypatch.setattr(ImageDraw.ImageDraw, "text", lambda self, xy, text, *a, **k: drawn.append(text)
+                        or original(self, xy, text, *a, **k))  # fmt: skip
+    args = ["--controller", "coverage", "--scenario", "walls", "--n", "20", "--agents", "2", "--targets", "2",
+            "--distributions", "4", "--agent", "1", "--out", str(tmp_path / "w.gif")]  # fmt: skip
+    assert render_main(args) == 0
+    first = drawn[: drawn.index("uncertainty") + 1]  # the first frame's words
+    assert first[0].startswith("coverage, scenario iid0.2c, 20x20, N = 2   t = 0, found 0 of 2 targets")
+    assert first[1:3] == ["true world", "belief of agent 1 (ringed)"]
+    assert first[3:] == ["agent", "hidden target", "found target", "wall", "probability", "uncertainty"]
+
+
 def test_render_names_a_bad_size_by_its_flag(tmp_path, capsys):
     for flag, value in (("--n", "4"), ("--targets", "0")):
         with pytest.raises(SystemExit):

@@ -13,6 +13,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import pandas as pd
@@ -924,6 +925,8 @@ def test_a_run_folder_with_a_space_in_its_path_resumes(tmp_path, tiny_run, capsy
     with pytest.raises(SystemExit), exits():
         check_resume_argument([f"resume='{tmp_path / 'no run'}'"])
     assert "is not allowed: a run folder" in capsys.readouterr().err
+    with mock.patch("searchrl.command_line.os.access", return_value=False):  # a read-only folder (root writes any)
+        _refused(capsys, lambda: check_resume_argument([f"resume={run}"]), "the run folder cannot be written")
 
 
 @pytest.mark.parametrize("app", ["train", "evaluate"])

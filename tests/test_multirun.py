@@ -108,3 +108,16 @@ def test_a_multirun_job_refused_or_stopped_fails_alone(hydra_mode, capsys):
     with pytest.raises(JobFailed, match=r"^stopped with exit status 143$"):
         in_sweep(_stop)
     assert capsys.readouterr().err == ""
+
+
+def test_hydra_reports_a_failed_job_in_its_line_not_a_traceback(capsys):
+    """At a multirun's end Hydra raises the first failed job's exception and prints it: a refused job's is its line."""
+    from hydra._internal.utils import run_and_report
+
+    def sweep() -> None:
+        raise JobFailed("x=3 is not allowed: 1 or 2")
+
+    with pytest.raises(SystemExit):
+        run_and_report(sweep)
+    err = capsys.readouterr().err
+    assert "x=3 is not allowed: 1 or 2" in err and "Traceback" not in err

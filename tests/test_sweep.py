@@ -176,7 +176,8 @@ def test_the_sweep_notebook_writes_table_and_plot(tmp_path):
 
 def test_a_refused_trial_is_marked_failed_not_left_running(tmp_path):
     """A trial whose run is refused (here every trial: algo.n_epochs=0) is a failed job: the study records it FAIL,
-    where the refusal's exit used to end the sweep with the trial RUNNING for ever."""
+    where the refusal's exit used to end the sweep with the trial RUNNING for ever; its line, no traceback, and no
+    job folder left behind."""
     import optuna
 
     cmd = [sys.executable, "-m", "searchrl.train", "-m", "hydra/sweeper=optuna_searchrl", *TINY, "algo.n_epochs=0",
@@ -184,6 +185,7 @@ def test_a_refused_trial_is_marked_failed_not_left_running(tmp_path):
            f"hydra.sweep.dir={tmp_path / 'sweep'}"]  # fmt: skip
     out = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode != 0 and "error: algo.n_epochs=0 is not allowed: must be >= 1" in out.stderr
+    assert "Traceback" not in out.stderr and not [p for p in (tmp_path / "sweep").iterdir() if p.name[0].isdigit()]
     study = optuna.load_study(study_name="b_recurrent_ppo", storage=f"sqlite:///{tmp_path / 'study.db'}")
     assert [t.state for t in study.trials] == [optuna.trial.TrialState.FAIL]
 

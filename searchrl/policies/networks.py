@@ -17,7 +17,7 @@ observation parts the env must add for it (`parts`, searchrl/envs/parts.py). It 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from difflib import get_close_matches
 from typing import Any, ClassVar
 
@@ -92,14 +92,9 @@ class WithGrid(SearchCNN):
             cls.parts = (cls.part,)
         super().__init_subclass__(**kwargs)
 
-    def __init__(
-        self,
-        observation_space: spaces.Dict,
-        conv_channels: Sequence[int] = (32, 64, 128),
-        vector_size: int = 32,
-        fc_sizes: Sequence[int] = (256, 256),
-    ) -> None:
-        super().__init__(observation_space, conv_channels, vector_size, fc_sizes)
+    def __init__(self, observation_space: spaces.Dict, **sizes: Any) -> None:
+        """`sizes`: the paper network's (SearchCNN's conv_channels, vector_size, fc_sizes)."""
+        super().__init__(observation_space, **sizes)
         if self.part not in observation_space.spaces:
             raise ValueError(f"the {type(self).__name__} network reads {self.part!r}, which the env does not observe")
         channels, grid, _ = observation_space[self.part].shape

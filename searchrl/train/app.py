@@ -255,10 +255,12 @@ def main(cfg: DictConfig) -> float:
 
 def remove_hydra_traces(output_dir: Path, hydra_cfg: DictConfig) -> None:
     """After a refusal, the folder Hydra made for this job before the app ran (its empty log in it; a resume's
-    `resumed/<date>/`) is removed, so a refused command leaves no folder behind. A folder the command named
-    (`hydra.run.dir=`, a sweep's job folder) or one holding anything else is left as it is."""
-    named = any(str(o).startswith("hydra.run.dir=") for o in hydra_cfg.overrides.hydra)
-    if named or hydra_cfg.mode == RunMode.MULTIRUN or not output_dir.is_dir():
+    `resumed/<date>/`, a sweep's job folder) is removed, so a refused command leaves no folder behind. A folder the
+    command named (`hydra.run.dir=`) or one holding anything else is left as it is."""
+    named = hydra_cfg.mode != RunMode.MULTIRUN and any(
+        str(o).startswith("hydra.run.dir=") for o in hydra_cfg.overrides.hydra
+    )
+    if named or not output_dir.is_dir():
         return
     log = output_dir / f"{hydra_cfg.job.name}.log"
     if {p.name for p in output_dir.iterdir()} <= {log.name} and (not log.exists() or log.stat().st_size == 0):
