@@ -12,7 +12,9 @@
 # budget) paired per map with each rule folder evaluated on the same grid and seed. The first rule folder is the
 # teacher; a cell's *best rule* is the rule folder with the highest mean on that cell's maps. Per cell: each side's
 # mean, planner − teacher and planner − best rule (the mean of the per-map differences, repeats averaged per map,
-# 95 % bootstrap CI over maps, `paired_margins`' verdict), then the tallies. Writes `rollout.csv` and `rollout.md`.
+# 95 % bootstrap CI over maps, `paired_margins`' verdict), then the tallies. Where a planner folder has a
+# `<folder>_seconds.txt` beside it (lines `<cell> <seconds>`, each cell's evaluation timed), its decisions per second
+# (the agent-steps it played over those seconds) stand beside each cell. Writes `rollout.csv` and `rollout.md`.
 #
 #     python analysis/rollout_table.py runs/eval/roll100/rollout_m1_h0 \
 #         --rules runs/eval/roll100/teacher_b runs/eval/roll100/coverage runs/eval/roll100/surfing \
@@ -67,6 +69,14 @@ for planner in PLANNERS:
         .merge(best[["n", "N", "best_rule"]], on=["n", "N"])
     )
     table["planner"] = planner.name
+    timed = planner.parent / f"{planner.name}_seconds.txt"
+    if timed.is_file():  # decisions per second: the planner's agent-steps over each cell's timed seconds
+        seconds = pd.read_csv(timed, sep=" ", names=["cell", "seconds"])
+        mine = episodes[episodes.controller == planner.name]
+        steps = (mine.L * mine.N).groupby([mine.n, mine.N]).sum().rename("agent_steps").reset_index()
+        steps["cell"] = "n" + steps.n.astype(str) + "_N" + steps.N.astype(str)
+        rate = steps.merge(seconds, on="cell").assign(decisions_per_s=lambda r: r.agent_steps / r.seconds)
+        table = table.merge(rate[["n", "N", "decisions_per_s"]], on=["n", "N"], how="left")
     rows.append(table)
 result = pd.concat(rows, ignore_index=True).sort_values(["planner", "n", "N"])
 OUT.mkdir(parents=True, exist_ok=True)
@@ -91,6 +101,8 @@ for planner, block in result.groupby("planner", sort=False):
         "− best rule": [f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
                         zip(block.diff_best, block.low_best, block.high_best, block.verdict_best, strict=True)],
     })  # fmt: skip
+    if "decisions_per_s" in block and block.decisions_per_s.notna().any():
+        shown["decisions/s"] = [f"{r:,.0f}" if r == r else "–" for r in block.decisions_per_s]
     lines.append(markdown(shown.set_index(["n", "N"])))
 write_text_atomic(OUT / "rollout.md", "\n".join(lines))
 print("\n".join(lines))

@@ -51,11 +51,10 @@ class Incomparable(ValueError):
 
 
 def _record(out_dir: str | Path) -> dict[str, Any]:
-    path = Path(out_dir) / "evaluation.yaml"
     try:
-        record = OmegaConf.to_container(OmegaConf.load(path)) if path.is_file() else {}
-    except Exception:  # a damaged record: the folder's other checks name it; its rows still say something
-        record = {}
+        record = OmegaConf.to_container(OmegaConf.load(Path(out_dir) / "evaluation.yaml"))
+    except Exception:  # none, or a damaged one: the folder's other checks name it; its rows still say something
+        return {}
     return record if isinstance(record, dict) else {}
 
 
