@@ -14,7 +14,8 @@
 # mean, planner − teacher and planner − best rule (the mean of the per-map differences, repeats averaged per map,
 # 95 % bootstrap CI over maps, `paired_margins`' verdict), then the tallies. Where a planner folder has a
 # `<folder>_seconds.txt` beside it (lines `<cell> <seconds>`, each cell's evaluation timed), its decisions per second
-# (the agent-steps it played over those seconds) stand beside each cell. Writes `rollout.csv` and `rollout.md`.
+# are the agent-steps it played over those seconds. Writes `rollout.csv`, `rollout.md` and `budgets.md` (each
+# planner's gain over the teacher and decisions per second, side by side per cell).
 #
 #     python analysis/rollout_table.py runs/eval/roll100/rollout_m1_h0 \
 #         --rules runs/eval/roll100/teacher_b runs/eval/roll100/coverage runs/eval/roll100/surfing \
@@ -101,8 +102,19 @@ for planner, block in result.groupby("planner", sort=False):
         "− best rule": [f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
                         zip(block.diff_best, block.low_best, block.high_best, block.verdict_best, strict=True)],
     })  # fmt: skip
-    if "decisions_per_s" in block and block.decisions_per_s.notna().any():
-        shown["decisions/s"] = [f"{r:,.0f}" if r == r else "–" for r in block.decisions_per_s]
     lines.append(markdown(shown.set_index(["n", "N"])))
 write_text_atomic(OUT / "rollout.md", "\n".join(lines))
 print("\n".join(lines))
+
+# %% [markdown]
+# ## The budgets side by side: each planner's gain over the teacher and its decisions per second, per cell
+
+# %%
+rates = result["decisions_per_s"] if "decisions_per_s" in result else pd.Series(float("nan"), index=result.index)
+entry = [f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]" + (f", {r:,.0f}/s" if r == r else "")
+         for d, lo, hi, r in zip(result["diff"], result.low, result.high, rates, strict=True)]  # fmt: skip
+budgets = result.assign(entry=entry).pivot_table(index=["n", "N"], columns="planner", values="entry", aggfunc="first")
+budgets = budgets[[p.name for p in PLANNERS if p.name in budgets]].fillna("–")
+text = (f"# Each planner minus {teacher} (95 % CI over maps) and its decisions per second, per cell\n\n"
+        f"{markdown(budgets)}")  # fmt: skip
+write_text_atomic(OUT / "budgets.md", text)
