@@ -36,4 +36,7 @@ def run_script(notebook: str, *args: str, env: dict[str, str] | None = None) -> 
         except Exception:
             traceback.print_exc(file=err)
             code = 1
+        finally:  # a notebook's figures stay open for its display; this process runs many notebooks
+            if "matplotlib.pyplot" in sys.modules:
+                sys.modules["matplotlib.pyplot"].close("all")
     return subprocess.CompletedProcess([notebook, *args], code, out.getvalue(), err.getvalue())

@@ -112,3 +112,11 @@ def test_compare_on_the_same_worlds_writes_its_table_under_the_note(folders, tmp
     lines = (out / "compare.md").read_text().splitlines()
     assert lines[0] == "# surfing against coverage" and lines[2].endswith("they differ in: controller")
     assert lines[4] == "## surfing − coverage"
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+def test_every_script_runs_on_folders_of_the_same_worlds(folders, tmp_path, script):
+    out = tmp_path / "out"
+    result = run_script(script, str(folders["surfing"]), str(folders["coverage"]), *SCRIPTS[script], "--out", str(out))
+    assert result.returncode == 0 and "error:" not in result.stderr, result.stderr[-2000:]
+    assert any(out.iterdir())

@@ -25,7 +25,6 @@ def test_a_setting_one_side_lacks_is_not_compared_and_the_sensing_label_is():
     assert world_differences(identity_of({"seed": 2}), ours) == [("seed", 2, 1)]
 
 
-
 # Folders written by hand: the check read without an evaluation behind it.
 RECORD = {
     "controller": "greedy",

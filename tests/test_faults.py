@@ -783,8 +783,9 @@ def test_a_module_that_exits_an_out_file_and_a_world_that_is_a_number_are_refuse
     (tmp_path / "table.md").write_text("")
     out = _evaluate(tmp_path / "surfing", "controller=surfing")
     result = run_script("table3.py", str(out), "--out", str(tmp_path / "table.md"))
-    assert result.returncode == 1 and result.stderr.strip().splitlines()[-1].endswith("is a file, not a folder; give "
-                                                                                    "a folder for the tables")
+    assert result.returncode == 1 and result.stderr.strip().splitlines()[-1].endswith(
+        "is a file, not a folder; give a folder for the tables"
+    )
 
 
 def test_env_apis_refuse_wrong_arguments_with_value_errors():

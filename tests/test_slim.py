@@ -83,7 +83,8 @@ def test_a_checkpoint_written_on_a_gpu_is_slimmed_and_resumed_on_a_cpu(trained, 
     assert is_slim(out) and weights_sha256(out) == weights_sha256(trained)
     model = load_checkpoint(gpu, run_config(trained), device="cpu")  # resume= on a CPU machine
     assert model.policy.optimizer.state and all(
-        t.device.type == "cpu" for s in model.policy.optimizer.state.values() for t in s.values() if torch.is_tensor(t))
+        t.device.type == "cpu" for s in model.policy.optimizer.state.values() for t in s.values() if torch.is_tensor(t)
+    )
 
 
 def test_the_command_refuses_a_missing_path_in_one_line(tmp_path, capsys):

@@ -32,11 +32,7 @@ def _module_level_imports(name: str, path: Path, inside_functions: bool = False)
     import when they run)."""
     out: set[str] = set()
     tree = ast.parse(path.read_text())
-    nodes = [
-        n
-        for top in tree.body
-        for n in (ast.walk(top) if isinstance(top, (ast.If, ast.Try)) else [top])
-    ]
+    nodes = [n for top in tree.body for n in (ast.walk(top) if isinstance(top, (ast.If, ast.Try)) else [top])]
     if inside_functions:
         nodes = list(ast.walk(tree))
     for node in nodes:
