@@ -84,11 +84,13 @@ def check_resume_argument(argv: list[str]) -> None:
     here first, in one line, and nothing is made in it."""
     for arg in argv:
         value = _unquoted(arg.split("=", 1)[1]) if arg.startswith("resume=") else "null"
-        if value != "null" and not (value and Path(value).is_dir()):
+        if value == "null":
+            continue
+        if not (value and Path(value).is_dir()):
             refuse(f"{arg} is not allowed: a run folder (with config.yaml and checkpoints/)")
-        if value != "null" and not (Path(value) / "config.yaml").is_file():
+        if not (Path(value) / "config.yaml").is_file():
             refuse(f"resume={value!r} is not a run directory: it has no config.yaml")
-        if value != "null" and not os.access(value, os.W_OK | os.X_OK):  # Hydra's resumed/<date>/ would fail in it
+        if not os.access(value, os.W_OK | os.X_OK):  # Hydra's resumed/<date>/ would fail in it
             refuse(f"resume={value!r} is not allowed: the run folder cannot be written; make it writable to resume")
 
 
@@ -99,12 +101,15 @@ def check_run_dir_argument(argv: list[str]) -> None:
     if resumes or any(arg in ("-m", "--multirun") for arg in argv):
         return
     for arg in argv:
-        if arg.startswith("hydra.run.dir="):
-            run_dir = Path(_unquoted(arg.split("=", 1)[1]))
-            if (run_dir / "config.yaml").exists() or any((run_dir / "checkpoints").glob("step_*.zip")):
-                refuse(
-                    f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder"
-                )
+        if arg.startswith("hydra.run.dir=") and (held := held_run(Path(_unquoted(arg.split("=", 1)[1])))):
+            refuse(held)
+
+
+def held_run(run_dir: Path) -> str | None:
+    """Why a new run cannot go into `run_dir` (it holds a run's config.yaml or a checkpoint), else None."""
+    if (run_dir / "config.yaml").exists() or any((run_dir / "checkpoints").glob("step_*.zip")):
+        return f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder"
+    return None
 
 
 def check_group_choices(argv: list[str]) -> None:

@@ -24,7 +24,7 @@ from omegaconf import OmegaConf
 
 from searchrl.evaluate.grid import cell_files
 from searchrl.shared_schema import dotted_leaves
-from searchrl.world.scenario import PAPER, Scenario
+from searchrl.world.scenario import Scenario
 
 # The grid's lists: which maps each cell holds (its index seeds them) and its targets and Gaussians.
 GRID_KEYS = ("world_sizes", "n_targets", "n_distributions", "max_agents")
@@ -65,7 +65,7 @@ def identity_of(record: dict[str, Any], sensing: str | None = None) -> dict[str,
     if "seed" in record:
         identity["seed"] = record["seed"]
     if "grid" in record:  # a record made before scenarios existed ran the paper's
-        identity["scenario"] = Scenario.from_dict(record.get("scenario") or PAPER.to_dict()).to_dict()
+        identity["scenario"] = Scenario.from_dict(record.get("scenario")).to_dict()
         identity["grid"] = {key: record["grid"][key] for key in GRID_KEYS if key in record["grid"]}
     if isinstance(record.get("world"), dict):
         identity["world"] = {key: record["world"][key] for key in MAP_AND_SENSING if key in record["world"]}
@@ -111,7 +111,7 @@ def comparison_note(out_dirs: Sequence[str | Path]) -> str:
     if len(shapes) > 1:
         differ.append("maps and repeats (paired on the maps both ran)")
     first = records[0] if records else {}
-    scenario = Scenario.from_dict(first.get("scenario") or PAPER.to_dict()).label
+    scenario = Scenario.from_dict(first.get("scenario")).label
     what = ", ".join(differ) or "nothing recorded"
     seed = first.get("seed", "?")
     return f"Same worlds in every folder (seed {seed}, scenario {scenario}, one grid); they differ in: {what}"

@@ -15,6 +15,7 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import VecEnv
 
 from searchrl.atomic import check_own_files, check_writable, remove_temporaries, write_text_atomic
+from searchrl.command_line import held_run
 from searchrl.envs.rewards import make_reward
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
@@ -35,8 +36,8 @@ from searchrl.train.schema import TrainConfig
 def prepare_folder(cfg: TrainConfig, run_dir: Path, resuming: bool) -> None:
     """Refuse a folder that holds another run (or a finished one with nothing to resume from), clear what a killed
     writer left, and set torch's and numba's threads as the run records them."""
-    if not resuming and ((run_dir / "config.yaml").exists() or checkpoints(run_dir / "checkpoints")):
-        refuse(f"{run_dir} already holds a run: continue it with resume={run_dir}, or train into another folder")
+    if not resuming and (held := held_run(run_dir)):
+        refuse(held)
     if resuming and not checkpoints(run_dir / "checkpoints") and (run_dir / "model.zip").exists():
         refuse(
             f"resume={str(run_dir)!r} is a finished run with no checkpoints/ left (a shipped folder): start a new "

@@ -34,6 +34,11 @@ STEP_KEY = "time/total_timesteps"
 CONTINUED_KEYS = ("time/time_elapsed", "time/iterations")
 
 
+def _whole_rows(text: str) -> csv.DictReader:
+    """The log's rows: a last row cut short by a kill is left out."""
+    return csv.DictReader(io.StringIO(text[: text.rfind("\n") + 1], newline=""))
+
+
 def check_log(path: Path, resume_step: int, every: int) -> None:
     """ValueError naming what is wrong with the log `path` a run resumes at `resume_step` from, before anything is
     rewritten: not UTF-8 text, no step column, steps going back, or a gap wider than `every` agent-steps (one log
@@ -45,8 +50,7 @@ def check_log(path: Path, resume_step: int, every: int) -> None:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise ValueError(f"{where} is not UTF-8 text: move it aside to resume with a new log") from None
-    text = text[: text.rfind("\n") + 1]  # a last row cut short by a kill is dropped anyway
-    reader = csv.DictReader(io.StringIO(text, newline=""))
+    reader = _whole_rows(text)
     rows = list(reader)
     if not rows:  # nothing logged yet (the header alone, or an empty file written when the log was opened)
         return
@@ -68,8 +72,7 @@ def validated_at(path: Path, step: int) -> bool:
     kill does not count."""
     if not path.exists():
         return False
-    text = path.read_text(encoding="utf-8", errors="replace")
-    rows = csv.DictReader(io.StringIO(text[: text.rfind("\n") + 1], newline=""))
+    rows = _whole_rows(path.read_text(encoding="utf-8", errors="replace"))
     return any(_step(row) == step and row.get("val/found_fraction") for row in rows)
 
 
@@ -80,13 +83,14 @@ def log_digest(path: Path, step: int) -> str | None:
     left out: the final validation's row is logged after the last checkpoint."""
     if not path.exists():
         return None
-    text = path.read_text(encoding="utf-8", errors="replace")
-    rows = csv.DictReader(io.StringIO(text[: text.rfind("\n") + 1], newline=""))
     digest = hashlib.sha256()
-    for row in rows:
+    for row in _whole_rows(path.read_text(encoding="utf-8", errors="replace")):
         if _step(row) < step:
             digest.update(repr(sorted((k, v) for k, v in row.items() if k and v)).encode())
     return digest.hexdigest()[:16]
+
+
+NO_ROWS = hashlib.sha256().hexdigest()[:16]  # `log_digest` of a log with no row before the checkpoint's step
 
 
 def clock_offsets(path: Path, resume_step: int) -> dict[str, float]:

@@ -18,7 +18,6 @@ agent-steps, were averaged.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from pathlib import Path
@@ -30,7 +29,7 @@ from omegaconf import OmegaConf
 from searchrl.atomic import write_text_atomic
 from searchrl.policies.checkpoint import saved_identity, saved_step
 from searchrl.shared_schema import dotted_leaves
-from searchrl.train.logs import log_digest
+from searchrl.train.logs import NO_ROWS, log_digest
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig
 from searchrl.world.scenario import Scenario
 
@@ -75,9 +74,6 @@ def foreign_checkpoint(path: Path, step: int, settings: TrainConfig) -> str | No
             "(restore it)"
         )
     return None
-
-
-NO_ROWS = hashlib.sha256().hexdigest()[:16]  # `log_digest` of a log with no row before the checkpoint's step
 
 
 def other_log(checkpoint: Path, step: int) -> str | None:
