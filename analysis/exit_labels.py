@@ -7,8 +7,8 @@
 # # The planner's move values on the student's own states: DAgger labels for expert iteration (an experiment)
 #
 # The student (a checkpoint) plays whole episodes on Table 2 cells, its actions sampled; at every step the rollout
-# planner (`analysis/rollout.py`) scores each agent's five moves on the team's posterior, one agent at a time as
-# it plans, and those scores (expected finds of the imagined paths, in targets) are the labels: AggreVaTe's
+# planner (`controller=rollout`) scores each agent's five moves on the team's posterior, one agent at a time as it
+# plans, and those scores (expected finds of the imagined paths, in targets) are the labels: AggreVaTe's
 # cost-to-go of each move under the planner's continuation, on the states the student reaches (DAgger's roll-in).
 # `analysis/exit_train.py` fits the student to a softmax of them.
 #
@@ -35,9 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.rollout import Rollout
 from searchrl.atomic import write_atomic
 from searchrl.controllers.factory import policy_factory
+from searchrl.controllers.registry import make_controller
+from searchrl.controllers.rollout import Rollout
 from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.runner import run_cell
 from searchrl.policies.checkpoint import checkpoint_config, load_actor
@@ -139,7 +140,9 @@ def collect_shard(student: str, cells: list[Cell], shard: int, worlds: int, sett
         own = {**settings}
         if own.get("team", 0) >= config.n_agents:  # a neighbourhood as large as the team is the whole team
             own["team"] = 0
-        return Labeller(base_factory(config, streams), ValueRecorder(config, seed=streams, **own), episodes)
+        return Labeller(
+            base_factory(config, streams), ValueRecorder(config, seed=streams, rules=make_controller, **own), episodes
+        )
 
     labeller: list = []
     run_cell(lambda c, s: labeller.append(factory(c, s)) or labeller[-1], world, cell, shard, worlds, 1, SEED)

@@ -29,12 +29,12 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from searchrl.controllers.base import ControllerConfig
+from searchrl.controllers.posterior import posterior_targets, remember_prior_u
 from searchrl.controllers.registry import make_controller, register
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams, random_source
-from searchrl.world.truth import place_targets
 
 
 # %%
@@ -132,26 +132,6 @@ class Lookahead:
         draws = posterior_targets(state.p[inner], self.prior_u[inner], free, len(lost), self.samples, rng)
         for w in range(world.n_worlds):
             world.state.target_pos[w, lost] = draws[w % self.samples]
-
-
-def remember_prior_u(prior_u: np.ndarray, state: WorldState, mask: np.ndarray) -> np.ndarray:
-    """prior_u (K, S, S) with the worlds of `mask` (K,) set to their u as reset drew it (§4.1.4 keeps a target by
-    the prior's u, before any sensing); all worlds afresh when the batch's shape changed."""
-    if prior_u.shape != state.u.shape:
-        prior_u, mask = np.zeros(state.u.shape), np.ones(state.n_worlds, bool)
-    prior_u[mask] = state.u[mask]
-    return prior_u
-
-
-def posterior_targets(
-    p_now: np.ndarray, prior_u: np.ndarray, free: np.ndarray, count: int, samples: int, rng: np.random.Generator
-) -> list[np.ndarray]:
-    """`samples` draws of `count` targets' cells, (count, 2) int64 each, as a reset draws targets (§4.1.4: from p, kept
-    with probability 1 − u/max u, distinct cells) from p_now (n, n), the prior p after every sensing so far (with
-    lam·k = 1, the posterior given no detection), the prior's u (n, n), and `free` (n, n) bool: cells that may
-    hold an unfound target (not blocked, no found target)."""
-    p_now = np.asarray(p_now, np.float64)
-    return [place_targets(p_now / p_now[free].sum(), prior_u, free, count, rng) for _ in range(samples)]
 
 
 def choose(found: np.ndarray, base: np.ndarray, confidence: float) -> np.ndarray:

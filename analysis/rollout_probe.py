@@ -9,7 +9,7 @@
 #
 # Found fractions of one episode vary by 0.15-0.2 around a map's mean (where the targets fall, which detections
 # succeed), so a gain of a few hundredths takes hundreds of maps to see. This probe plays B's teacher and the
-# rollout planner (`analysis/rollout.py`) at each budget (samples × horizon) on the same maps and streams, and
+# rollout planner (`controller=rollout`) at each budget (samples × horizon) on the same maps and streams, and
 # scores each episode twice: its found fraction, and its **expected found fraction**, the chance that a target drawn
 # as a reset draws it (§4.1.4: from the prior p, kept with probability 1 − u/max u) is detected along the path the
 # team took, Σ w·(p0 − p_end) / Σ w·p0 with w = 1 − u0/max u0 (with λk = 1, p_end/p0 is exactly the chance a target
@@ -35,7 +35,6 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-import analysis.rollout  # noqa: F401  (registers controller=rollout)
 from searchrl.atomic import write_atomic, write_text_atomic
 from searchrl.bench.world import case_config
 from searchrl.controllers.episodes import play_episodes

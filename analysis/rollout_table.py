@@ -8,7 +8,7 @@
 # # The rollout planner against B's teacher and the best rule of each cell
 #
 # `python analysis/rollout_table.py PLANNER_DIR [PLANNER_DIR ...] --rules TEACHER_DIR RULE_DIR ... --out DIR`:
-# every planner folder (`controller=rollout extensions=[analysis.rollout]`, labelled by its folder name, e.g. its
+# every planner folder (`controller=rollout`, labelled by its folder name, e.g. its
 # budget) paired per map with each rule folder evaluated on the same grid and seed. The first rule folder is the
 # teacher; a cell's *best rule* is the rule folder with the highest mean on that cell's maps. Per cell: each side's
 # mean, planner − teacher and planner − best rule (the mean of the per-map differences, repeats averaged per map,

@@ -99,6 +99,12 @@ TRAINABLE_MODELS = ("a", "b", "c", "diagonal")  # the files of conf/model/
 MAX_THREADS = 1024  # torch's intra-op threads: far more than any node's cores; refused before the folder lock
 
 
+def check_threads(threads: int) -> None:
+    """`threads=` of an app: 1 to MAX_THREADS; ConfigError naming it."""
+    if not 1 <= threads <= MAX_THREADS:
+        raise ConfigError(f"threads={threads!r} is not allowed: 1 <= threads <= {MAX_THREADS} (torch threads)")
+
+
 def scenario_default() -> dict[str, Any]:
     """Empty: the defaults list's scenario file (conf/scenario/paper.yaml unless `scenario=` names another) fills
     the node whole. A schema default would merge its settings into every other file's parts (a maze's obstacles

@@ -33,6 +33,9 @@ CELLS = [(0, Cell(20, 1, 8, 16)), (2, Cell(20, 4, 8, 16))]
 MAPS, REPEATS, SEED = 2, 1, 7_000_000
 WALLS = Scenario.from_dict({"obstacles": {"kind": "iid", "density": 0.2, "connected": True}})
 WALLED = ("path_greedy", "sweep", "greedy_target")  # and the policy trained among walls
+# Settings other than the defaults: the rollout planner imagines 3 steps instead of to the episode's end (seconds,
+# not minutes, and every part of its plan still runs)
+SETTINGS = {"rollout": {"horizon": 3}}
 
 
 def shipped_policies() -> list[str]:
@@ -56,7 +59,7 @@ def golden_frame() -> pd.DataFrame:
     frames = []
     world = WorldConfig()  # the Bayesian world of conf/world/bayes.yaml, model B's agent model
     for name in HEURISTICS:  # every registered one
-        frames += _rows(name, heuristic_factory(name), world, False)
+        frames += _rows(name, heuristic_factory(name, SETTINGS.get(name)), world, False)
     for name in WALLED:
         frames += _rows(f"{name}@{WALLS.label}", heuristic_factory(name), world, False, WALLS)
     # Model C's teacher: target-greedy remembering what it saw its neighbours sense (its world ages beliefs).

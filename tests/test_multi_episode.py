@@ -36,7 +36,7 @@ EPISODES = 6
 # coverage and sweep plans
 RULES = [("surfing", {}, PAPER), ("greedy", {"seen": True, "age": 0.5}, PAPER), ("greedy_target", {}, PAPER),
          ("coverage", {}, PAPER), ("switch", {"threshold": 1.0}, WALLS), ("path_greedy", {}, WALLS),
-         ("sweep", {}, WALLS), ("random", {}, PAPER)]  # fmt: skip
+         ("sweep", {}, WALLS), ("random", {}, PAPER), ("rollout", {"horizon": 3}, PAPER)]  # fmt: skip
 
 
 def _play(name: str, settings: dict, scenario: Scenario, slots: int | None) -> dict[str, np.ndarray]:

@@ -93,12 +93,12 @@ def test_parts_reach_the_vec_env_and_its_terminal_observations():
 
 
 def test_unknown_names_are_refused_with_the_nearest():
-    with pytest.raises(ValueError, match=r"'own_mapp' is not registered .did you mean 'own_map'"):
+    with pytest.raises(ConfigError, match=r"observation part='own_mapp' is not allowed: .* .did you mean 'own_map'"):
         make_part("own_mapp")
-    from searchrl.policies.networks import CRITICS, NETWORKS, lookup
+    from searchrl.policies.networks import CRITICS, NETWORKS
 
-    with pytest.raises(ValueError, match=r"network.extractor='search_cn' is not registered .did you mean 'search_cnn'"):
-        lookup(NETWORKS, "search_cn", "network.extractor")
+    with pytest.raises(ConfigError, match=r"extractor='search_cn' is not allowed: .* .did you mean 'search_cnn'"):
+        NETWORKS.lookup("search_cn")
     assert set(CRITICS) >= {"shared", "true_state"} and isinstance(make_part("true_state"), TrueState)
     assert isinstance(make_part("own_map", grid=5), OwnMap)
 
@@ -112,7 +112,7 @@ def _plan(*overrides: str):
 
 
 @pytest.mark.parametrize(("overrides", "message"), [
-    (["network.extractor=own_map"], "network.extractor='own_map' is not registered .did you mean 'own_map_cnn'"),
+    (["network.extractor=own_map"], "network.extractor='own_map' is not allowed: .* .did you mean 'own_map_cnn'"),
     (["critic=true_state", "algo=a2c"], "critic.name='true_state' needs algo=recurrent_ppo"),
     (["critic=true_state", "critic.grid=3"], "critic.grid=3 is not allowed"),
     (["critic=true_state", "imitation=greedy_target"], "imitation.epochs=.* is not allowed: 0 with"),

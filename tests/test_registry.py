@@ -222,8 +222,9 @@ def test_a_heuristic_and_an_obstacle_generator_added_through_the_public_api_run_
         registry.register("still", _Still, _StillConfig, teacher=False)
         scenario.register_part("obstacles", _StripeObstacles)
         register_configs()  # after registering: `controller=still` needs no conf/controller/still.yaml
-        with pytest.raises(ConfigError, match="stripe"):
-            scenario.register_part("obstacles", _StripeObstacles)
+        scenario.register_part("obstacles", _StripeObstacles)  # the same part again: accepted
+        with pytest.raises(ConfigError, match="stripe"):  # another under its name: refused
+            scenario.register_part("obstacles", type("OtherStripe", (_StripeObstacles,), {}))
         # a scenario using it, as a conf/scenario/ file would hold it
         ConfigStore.instance().store(
             group="scenario", name="toy_stripe", node={"obstacles": {"kind": "stripe", "row": 3}}

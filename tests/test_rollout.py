@@ -1,11 +1,11 @@
-"""analysis/rollout.py, the rollout planner (an extension module): its scores are the worlds it imagines played out,
+"""searchrl/controllers/rollout.py, the rollout planner: its scores are the worlds it imagines played out,
 one agent at a time is the joint choice where agents cannot interact, and an episode is its seed's."""
 
 from __future__ import annotations
 
 import copy
-import importlib
 import itertools
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,16 +16,18 @@ from searchrl.controllers.registry import make_controller
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.streams import WorldStreams
-from tests.registries import isolated_registries
 
 CONFIG = WorldConfig(world_size=(20, 20), n_targets=(4, 4), n_distributions=(8, 8), n_agents=2, max_steps=40)
 
 
 @pytest.fixture
 def rollout():
-    """analysis/rollout.py, its controller registered for this test only."""
-    with isolated_registries("analysis"):
-        yield importlib.import_module("analysis.rollout")
+    """The planner made as every app makes it, by the registry (which gives it the rules it plays on)."""
+
+    def planner(config: WorldConfig, seed=0, **settings):
+        return make_controller("rollout", config, seed=seed, settings=settings)
+
+    return SimpleNamespace(Rollout=planner)
 
 
 def _midway(config: WorldConfig, seeds: list[int], steps: int):
@@ -169,14 +171,14 @@ def test_a_neighbourhood_of_one_is_the_whole_team_where_agents_cannot_interact(r
 
 
 def test_bench_eval_times_the_planner_and_its_own_worlds_and_refuses_in_one_line(rollout, capsys):
-    """`bench eval --extensions analysis.rollout --controller rollout`: a row with the planner's decisions/s and its
+    """`bench eval --controller rollout`: a row with the planner's decisions/s and its
     rollouts' rate beside the engine's on batches of their size (one map: 5 moves x 1 sample, 5 worlds)."""
     import json
 
     from searchrl.bench.__main__ import main
 
     settings = '{"samples": 1, "horizon": 3}'
-    assert main(["eval", "--extensions", "analysis.rollout", "--controller", "rollout", "--settings", settings,
+    assert main(["eval", "--controller", "rollout", "--settings", settings,
                  "--cells", "n20_N2", "--maps", "1", "--threads", "1", "--json"]) == 0  # fmt: skip
     row = json.loads(capsys.readouterr().out.splitlines()[-1])
     assert row["case"] == "rollout_n20_N2_1maps_1repeats" and row["inner_batch"] == 5
@@ -189,3 +191,15 @@ def test_bench_eval_times_the_planner_and_its_own_worlds_and_refuses_in_one_line
     assert main(["eval", "--extensions", "no_such_module", "--controller", "surfing"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "extensions: 'no_such_module' cannot be imported" in err[0]
+
+
+def test_a_base_that_is_not_a_rule_is_refused_in_one_line():
+    """The registry gives the planner its rules: a typo is refused with the nearest name, the planner itself too."""
+    from searchrl.world.config import ConfigError
+
+    with pytest.raises(
+        ConfigError, match=r"^controller\.base='greedy_targt' is not allowed: one of .*greedy_target'\?\)$"
+    ):
+        make_controller("rollout", CONFIG, settings={"base": "greedy_targt"})
+    with pytest.raises(ConfigError, match=r"^controller\.base='rollout' is not allowed: the planner's base is a rule$"):
+        make_controller("rollout", CONFIG, settings={"base": "rollout"})

@@ -94,6 +94,24 @@ def test_the_package_is_formatted_and_linted():
     assert not kept, f"formatter markers in the package: {kept}"
 
 
+def links_out(root: Path) -> list[str]:
+    """Tracked files of the repository at `root` that are symbolic links to a path outside it (git's mode 120000)."""
+    listed = subprocess.run(["git", "ls-files", "-s"], cwd=root, capture_output=True, text=True, check=True).stdout
+    links = [line.split("\t", 1)[1] for line in listed.splitlines() if line.startswith("120000 ")]
+    return [name for name in links if not (root / name).resolve().is_relative_to(root.resolve())]
+
+
+def test_no_tracked_file_links_out_of_the_repository(tmp_path):
+    """A clone holds no link to a path of another machine (a tracked `.venv` link once broke `python -m venv .venv`);
+    the finder sees one planted in a repository of its own."""
+    assert links_out(ROOT) == []
+    subprocess.run(["git", "init", "-q", str(tmp_path)], check=True)
+    (tmp_path / ".venv").symlink_to("/usr/lib")
+    (tmp_path / "inside").symlink_to("README")
+    subprocess.run(["git", "add", ".venv", "inside"], cwd=tmp_path, check=True)
+    assert links_out(tmp_path) == [".venv"]
+
+
 def test_entry_points_are_short():
     """An entry point parses, calls the library and turns its errors into exit statuses: 80 lines at most."""
     entry_points = [p for p in MODULES.values() if _is_entry_point(p)]

@@ -21,9 +21,11 @@ from typing import Any, get_type_hints
 from searchrl.controllers.base import Controller, ControllerConfig, RandomConfig, RandomWalk
 from searchrl.controllers.coverage import CoverageConfig, GeometricCoverage
 from searchrl.controllers.greedy import FootprintGreedy, GreedyConfig, GreedyTargetConfig
+from searchrl.controllers.rollout import Rollout, RolloutConfig
 from searchrl.controllers.surfing import InformationSurfing, SurfingConfig
 from searchrl.controllers.switch import EvidenceSwitch, SwitchConfig
 from searchrl.controllers.walls import PathGreedy, PathGreedyConfig, SweepConfig, SweepCoverage
+from searchrl.registry import Registry
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.streams import WorldStreams
 
@@ -44,16 +46,20 @@ class Heuristic:
         return values
 
 
-HEURISTICS: dict[str, Heuristic] = {
-    "surfing": Heuristic(InformationSurfing, SurfingConfig, "surfing"),
-    "greedy": Heuristic(FootprintGreedy, GreedyConfig, "greedy"),
-    "greedy_target": Heuristic(FootprintGreedy, GreedyTargetConfig, "greedy"),
-    "coverage": Heuristic(GeometricCoverage, CoverageConfig, "coverage"),
-    "switch": Heuristic(EvidenceSwitch, SwitchConfig, "switch"),
-    "path_greedy": Heuristic(PathGreedy, PathGreedyConfig, "path_greedy"),
-    "sweep": Heuristic(SweepCoverage, SweepConfig, "sweep"),
-    "random": Heuristic(RandomWalk, RandomConfig, "random"),
-}
+HEURISTICS: Registry[Heuristic] = Registry(
+    "controller",
+    {
+        "surfing": Heuristic(InformationSurfing, SurfingConfig, "surfing"),
+        "greedy": Heuristic(FootprintGreedy, GreedyConfig, "greedy"),
+        "greedy_target": Heuristic(FootprintGreedy, GreedyTargetConfig, "greedy"),
+        "coverage": Heuristic(GeometricCoverage, CoverageConfig, "coverage"),
+        "switch": Heuristic(EvidenceSwitch, SwitchConfig, "switch"),
+        "path_greedy": Heuristic(PathGreedy, PathGreedyConfig, "path_greedy"),
+        "sweep": Heuristic(SweepCoverage, SweepConfig, "sweep"),
+        "random": Heuristic(RandomWalk, RandomConfig, "random"),
+        "rollout": Heuristic(Rollout, RolloutConfig, "rollout"),
+    },
+)
 
 
 def resolved(name: str, settings: dict[str, Any] | None = None) -> tuple[str, dict[str, Any]]:
@@ -73,9 +79,7 @@ def allowed() -> str:
 
 def heuristic(name: object, key: str = "controller") -> Heuristic:
     """The entry of `name`; ConfigError "`key`=name is not allowed: one of …" listing the registered names."""
-    if not isinstance(name, str) or name not in HEURISTICS:
-        raise ConfigError(f"{key}={name!r} is not allowed: one of {allowed()}")
-    return HEURISTICS[name]
+    return HEURISTICS.lookup(name, key)
 
 
 def make_controller(
@@ -86,16 +90,20 @@ def make_controller(
     key: str = "controller",
 ) -> Controller:
     """The controller `name` in the world `config`: its schema's defaults, overridden by `settings` (plain values
-    without `name`), seeded with `seed` where it draws random moves. ConfigError for an unknown name (naming `key`)
-    or setting; the class's own ValueError for a value it refuses."""
+    without `name`), seeded with `seed` where it draws random moves; a controller that plays other rules (the
+    rollout planner's base) gets this factory as `rules`. ConfigError for an unknown name (naming `key`) or
+    setting; the class's own ValueError for a value it refuses."""
     entry = heuristic(name, key)
     values = entry.settings()
     unknown = sorted(set(settings or {}) - set(values))
     if unknown:
         raise ConfigError(f"{name} takes no setting {unknown[0]!r}; its settings are {sorted(values)}")
     values.update(settings or {})
-    if "seed" in inspect.signature(entry.cls).parameters:
+    parameters = inspect.signature(entry.cls).parameters
+    if "seed" in parameters:
         values["seed"] = seed
+    if "rules" in parameters:
+        values["rules"] = make_controller
     return entry.cls(config, **values)
 
 
@@ -106,12 +114,10 @@ def register(name: str, cls: type, schema: type, label: str | None = None, teach
     """Add a heuristic: `controller=name` of the apps, and `imitation.teacher=name` with `teacher`. `cls(config,
     **settings[, seed])` makes it (the `Controller` protocol, searchrl/controllers/base.py); `schema` is its
     settings' dataclass (a `ControllerConfig` whose `name` is `name`); `label` is the name its results are
-    recorded under (default `name`). ConfigError for a name already registered."""
+    recorded under (default `name`). The same registered again is accepted; ConfigError for a name another holds."""
     global TEACHERS
-    if name in HEURISTICS:
-        raise ConfigError(f"controller {name!r} is registered already: {HEURISTICS[name].cls.__name__}")
-    HEURISTICS[name] = Heuristic(cls, schema, label or name)
-    if teacher:
+    HEURISTICS.register(name, Heuristic(cls, schema, label or name))
+    if teacher and name not in TEACHERS:
         TEACHERS = (*TEACHERS, name)
 
 

@@ -10,36 +10,25 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable, Iterable
-from difflib import get_close_matches
 from typing import Any
 
+from searchrl.registry import Registry
 from searchrl.world.coarse import ObservationPart, OwnMap, TrueState
 
-PARTS: dict[str, Callable[..., ObservationPart]] = {}
+PARTS: Registry[Callable[..., ObservationPart]] = Registry("observation part", (OwnMap, TrueState), key="key")
 
 
 def register_part(cls: Callable[..., ObservationPart]) -> Callable[..., ObservationPart]:
-    """Register a part class under its `key` (usable as a decorator); ValueError if the name is taken by another."""
-    key = cls.key
-    if PARTS.get(key, cls) is not cls:
-        raise ValueError(f"observation part {key!r} is registered already ({PARTS[key]!r})")
-    PARTS[key] = cls
-    return cls
-
-
-register_part(OwnMap)
-register_part(TrueState)
+    """Register a part class under its `key` (usable as a decorator); ConfigError if another holds the name."""
+    return PARTS.register(part=cls)
 
 
 def make_part(name: str, **settings: Any) -> ObservationPart:
     """The part registered as `name`, built with those of `settings` its class takes (a coarse part takes `grid`,
-    a part of one vector per agent none); ValueError naming the nearest registered name."""
-    if name not in PARTS:
-        near = get_close_matches(name, PARTS, n=1)
-        hint = f" (did you mean {near[0]!r}?)" if near else ""
-        raise ValueError(f"observation part {name!r} is not registered{hint}: one of {sorted(PARTS)}")
-    takes = inspect.signature(PARTS[name]).parameters
-    return PARTS[name](**{key: value for key, value in settings.items() if key in takes})
+    a part of one vector per agent none); ConfigError naming the nearest registered name."""
+    cls = PARTS.lookup(name)
+    takes = inspect.signature(cls).parameters
+    return cls(**{key: value for key, value in settings.items() if key in takes})
 
 
 def make_parts(requests: Iterable[tuple[str, dict[str, Any]]]) -> tuple[ObservationPart, ...]:

@@ -10,11 +10,11 @@ moves), injected into the VecEnv (`SearchVecEnv(reward=...)`), as Jumanji inject
 from __future__ import annotations
 
 from collections.abc import Callable
-from difflib import get_close_matches
 from typing import Protocol
 
 import numpy as np
 
+from searchrl.registry import Registry
 from searchrl.world.config import WorldConfig
 from searchrl.world.step import StepResult
 
@@ -23,19 +23,12 @@ class RewardFn(Protocol):
     def __call__(self, config: WorldConfig, result: StepResult) -> np.ndarray: ...
 
 
-REWARDS: dict[str, Callable[[], RewardFn]] = {}
+REWARDS: Registry[Callable[[], RewardFn]] = Registry("reward")
 
 
 def register_reward(name: str) -> Callable[[Callable[[], RewardFn]], Callable[[], RewardFn]]:
     """Decorator: register a reward class (built with no arguments) as `reward=<name>`."""
-
-    def add(cls: Callable[[], RewardFn]) -> Callable[[], RewardFn]:
-        if REWARDS.get(name, cls) is not cls:
-            raise ValueError(f"reward {name!r} is registered already ({REWARDS[name]!r})")
-        REWARDS[name] = cls
-        return cls
-
-    return add
+    return REWARDS.register(name)
 
 
 @register_reward("paper")
@@ -47,9 +40,5 @@ class PaperReward:
 
 
 def make_reward(name: str) -> RewardFn:
-    """The reward registered as `name`; ValueError naming the nearest registered name."""
-    if name not in REWARDS:
-        near = get_close_matches(name, REWARDS, n=1)
-        hint = f" (did you mean {near[0]!r}?)" if near else ""
-        raise ValueError(f"reward={name!r} is not registered{hint}: one of {sorted(REWARDS)}")
-    return REWARDS[name]()
+    """The reward registered as `name`; ConfigError naming the nearest registered name."""
+    return REWARDS.lookup(name)()

@@ -15,7 +15,7 @@ from searchrl.evaluate.schema import EvaluateConfig
 from searchrl.multirun import refuse
 from searchrl.policies.actor import INFERENCE
 from searchrl.policies.device import check_device
-from searchrl.shared_schema import MAX_THREADS, override_keys
+from searchrl.shared_schema import check_threads, override_keys
 from searchrl.world.config import ConfigError, need
 from searchrl.world.scenario import Scenario
 
@@ -79,7 +79,7 @@ def check_evaluation(cfg: EvaluateConfig, overrides: list[str]) -> tuple[list[tu
         "torch: onnx runs a checkpoint's network on the CPU (device=cpu)",
     )
     need(0 <= cfg.seed <= 2**62, "seed", cfg.seed, "0 <= seed <= 2**62 (map seeds are seed + 100000·cell + map)")
-    need(1 <= cfg.threads <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
+    check_threads(cfg.threads)
     need(math.isfinite(cfg.batch_mb) and cfg.batch_mb > 0, "batch_mb", cfg.batch_mb, "a number of MiB > 0")
     need(cfg.bound_draws >= 100, "bound_draws", cfg.bound_draws, "an integer >= 100 (placements per map)")
     need(cfg.num_shards >= 1, "num_shards", cfg.num_shards, "an integer >= 1")

@@ -18,7 +18,6 @@ observation parts the env must add for it (`parts`, searchrl/envs/parts.py). It 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from difflib import get_close_matches
 from typing import Any, ClassVar
 
 import torch
@@ -27,39 +26,21 @@ from torch import nn
 
 from searchrl.envs.parts import make_parts
 from searchrl.policies.extractor import SearchCNN
+from searchrl.registry import Registry
 from searchrl.world.coarse import ObservationPart
 
-NETWORKS: dict[str, type[SearchCNN]] = {}
-CRITICS: dict[str, type[SearchCNN] | None] = {"shared": None}
+NETWORKS: Registry[type[SearchCNN]] = Registry("network.extractor")
+CRITICS: Registry[type[SearchCNN] | None] = Registry("critic.name", {"shared": None})
 
 
 def register_network(name: str) -> Callable[[type[SearchCNN]], type[SearchCNN]]:
     """Decorator: register an actor's features extractor as `network.extractor=<name>`."""
-    return _register(NETWORKS, name, "network")
+    return NETWORKS.register(name)
 
 
 def register_critic(name: str) -> Callable[[type[SearchCNN]], type[SearchCNN]]:
     """Decorator: register a critic's own features extractor as `critic.name=<name>`."""
-    return _register(CRITICS, name, "critic")
-
-
-def _register(table: dict, name: str, kind: str) -> Callable:
-    def add(cls: type) -> type:
-        if table.get(name, cls) is not cls:
-            raise ValueError(f"{kind} {name!r} is registered already ({table[name]!r})")
-        table[name] = cls
-        return cls
-
-    return add
-
-
-def lookup(table: dict, name: str, setting: str) -> type[SearchCNN] | None:
-    """table[name]; ValueError naming the setting and the nearest registered name."""
-    if name not in table:
-        near = get_close_matches(name, table, n=1)
-        hint = f" (did you mean {near[0]!r}?)" if near else ""
-        raise ValueError(f"{setting}={name!r} is not registered{hint}: one of {sorted(table)}")
-    return table[name]
+    return CRITICS.register(name)
 
 
 register_network("search_cnn")(SearchCNN)
@@ -131,9 +112,9 @@ DEFAULT_EXTRACTOR, DEFAULT_CRITIC, DEFAULT_GRID = "search_cnn", "shared", 16
 def chosen(network: Mapping[str, Any], critic: Mapping[str, Any] | None) -> tuple[type[SearchCNN], type | None]:
     """(the actor's extractor class, the critic's or None for the shared one) of a run's `network` and `critic`
     settings; ValueError naming an unregistered choice."""
-    actor = lookup(NETWORKS, str(network.get("extractor", DEFAULT_EXTRACTOR)), "network.extractor")
+    actor = NETWORKS.lookup(str(network.get("extractor", DEFAULT_EXTRACTOR)))
     name = DEFAULT_CRITIC if critic is None else str(critic.get("name", DEFAULT_CRITIC))
-    return actor, lookup(CRITICS, name, "critic.name")
+    return actor, CRITICS.lookup(name)
 
 
 def observation_parts(network: Mapping[str, Any], critic: Mapping[str, Any] | None) -> tuple[ObservationPart, ...]:

@@ -32,7 +32,7 @@ from searchrl.policies.checkpoint import policy_class
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
 from searchrl.policies.networks import observation_parts
-from searchrl.shared_schema import MAX_THREADS, TRAINABLE_MODELS, check_known_keys, check_world_node, override_keys
+from searchrl.shared_schema import TRAINABLE_MODELS, check_known_keys, check_threads, check_world_node, override_keys
 from searchrl.train.logs import check_logger
 from searchrl.train.schema import A2CConfig, ImitationConfig, RecurrentPPOConfig, TrainConfig
 from searchrl.world.config import ConfigError, WorldConfig, need
@@ -209,7 +209,7 @@ def check_numbers(cfg: TrainConfig) -> None:
     for name, value in positive.items():
         if value < 1:
             raise ConfigError(f"{name}={value!r} is not allowed: must be >= 1")
-    need(cfg.threads <= MAX_THREADS, "threads", cfg.threads, f"1 <= threads <= {MAX_THREADS} (torch threads)")
+    check_threads(cfg.threads)
     # 0 agent-steps of RL is a clone-only run: model.zip is the policy fitted to the teacher (or the init weights).
     no_start = cfg.imitation.teacher is None and cfg.init is None
     if cfg.total_timesteps < 0 or (cfg.total_timesteps == 0 and no_start):

@@ -22,6 +22,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
+from searchrl.registry import Registry
 from searchrl.world.config import ConfigError, WorldConfig, is_int, need
 from searchrl.world.truth import finite
 
@@ -294,4 +295,6 @@ class RoomObstacles:
         return f"rooms{self.room_size}d{self.door}"
 
 
-OBSTACLES: dict[str, type] = {cls.kind: cls for cls in (IidObstacles, PrimalObstacles, MazeObstacles, RoomObstacles)}
+OBSTACLES: Registry[type] = Registry(
+    "scenario.obstacles.kind", (IidObstacles, PrimalObstacles, MazeObstacles, RoomObstacles), key="kind"
+)

@@ -23,6 +23,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from searchrl.registry import Registry
 from searchrl.world.config import WorldConfig, need
 from searchrl.world.maps import Gaussians, mixture_maps, probability_map
 from searchrl.world.truth import finite
@@ -163,4 +164,4 @@ class UninformedPrior(PriorErrorMaps):
         return PriorDraw((1.0 - self.severity) * p + self.severity / p.size, u, p, u)
 
 
-PRIORS: dict[str, type] = {cls.kind: cls for cls in (MixturePrior, MisweightedPrior, UninformedPrior)}
+PRIORS: Registry[type] = Registry("scenario.prior.kind", (MixturePrior, MisweightedPrior, UninformedPrior), key="kind")

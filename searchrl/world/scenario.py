@@ -30,6 +30,7 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from searchrl.registry import Registry
 from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.obstacles import OBSTACLES, IidObstacles
 from searchrl.world.prior import PRIORS, MixturePrior, PriorDraw
@@ -77,22 +78,16 @@ class PriorGenerator(Protocol):
     def truth_is_prior(self) -> bool: ...
 
 
-TARGETS: dict[str, type] = PLACERS  # searchrl/world/truth.py
-PARTS: dict[str, dict[str, type]] = {"obstacles": OBSTACLES, "prior": PRIORS, "targets": TARGETS}
+TARGETS: Registry[type] = PLACERS  # searchrl/world/truth.py
+PARTS: dict[str, Registry[type]] = {"obstacles": OBSTACLES, "prior": PRIORS, "targets": TARGETS}
 
 
 def register_part(part: str, cls: type) -> None:
     """Add a scenario part: `scenario.<part>.kind=<cls.kind>` with `cls`'s dataclass fields as its settings, in
     every app and mix. `cls` is a frozen dataclass implementing the part's protocol above (ObstacleGenerator,
-    TargetPlacer or PriorGenerator). ConfigError for an unknown part or a kind registered already."""
+    TargetPlacer or PriorGenerator). ConfigError for an unknown part or a kind another class holds."""
     need(part in PARTS, "part", part, f"one of {', '.join(PARTS)}")
-    kind = getattr(cls, "kind", None)
-    if not isinstance(kind, str) or kind in PARTS[part]:
-        raise ConfigError(
-            f"scenario.{part}.kind={kind!r} cannot be registered: a new name is needed, "
-            f"not one of {', '.join(PARTS[part])}"
-        )
-    PARTS[part][kind] = cls
+    PARTS[part].register(part=cls)
 
 
 @dataclass(frozen=True)
@@ -166,8 +161,7 @@ class Scenario:
         for name, kinds in PARTS.items():
             settings = dict(values.get(name) or {})
             kind = settings.pop("kind", next(iter(kinds)))
-            need(kind in kinds, f"scenario.{name}.kind", kind, f"one of {', '.join(kinds)}")
-            allowed = {f.name for f in fields(kinds[kind])}
+            allowed = {f.name for f in fields(kinds.lookup(kind))}
             extra = sorted(set(settings) - allowed)
             if extra:
                 raise ConfigError(

@@ -26,6 +26,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
+from searchrl.registry import Registry
 from searchrl.world.config import WorldConfig, is_int, need
 from searchrl.world.kernels import CACHE
 from searchrl.world.libm import power
@@ -289,9 +290,11 @@ class TemperedTargets(PriorError):
         return "sharper" if self.power > 1 else "flatter" if self.power < 1 else "tempered"
 
 
-PLACERS: dict[str, type] = {
-    cls.kind: cls for cls in (PriorTargets, OffPriorTargets, ShiftedTargets, TemperedTargets, AdversarialTargets)
-}
+PLACERS: Registry[type] = Registry(
+    "scenario.targets.kind",
+    (PriorTargets, OffPriorTargets, ShiftedTargets, TemperedTargets, AdversarialTargets),
+    key="kind",
+)
 
 
 def prior_quality(p: np.ndarray, free: np.ndarray, targets: np.ndarray) -> float:

@@ -1,54 +1,49 @@
-# ---
-# jupyter:
-#   jupytext:
-#     formats: py:percent
-# ---
+"""`controller=rollout`: a rollout planner on the team's posterior, the agents deciding one at a time.
 
-# %% [markdown]
-# # A rollout planner on the team's posterior, one agent at a time (an experiment)
-#
-# `controller=rollout`: at every step the agents of a world choose their moves one at a time (Bertsekas' multiagent
-# rollout, arXiv 1910.00120): agent i scores each of its moves with the moves already chosen by agents 0..i−1 fixed
-# and agents i+1..N−1 on the base rule (B's teacher by default), everyone then playing the base rule for the rest of
-# `horizon` steps (0: to the episode's end) in imagined copies of the world whose unfound targets are redrawn from
-# the team's posterior (§4.1.4's placement from the probability map after every sensing so far, as
-# `analysis/lookahead.py` draws them). A move's score (`value=expected`) is the targets the team can expect to find
-# along the path it imagines: with λk = 1 the map after sensing is exactly the chance a target there was missed, so
-# the expectation over where the unfound targets lie needs no sample, and the score's only noise is the rule's own
-# random moves and tie-breaks (`value=sampled` counts the imagined targets found instead: the lab's earlier
-# lookahead, whose noise made the agent dither). Every move is scored with the same random numbers (common random
-# numbers); every candidate × sample × world of the batch is one world of one `SearchWorld`, stepped by the compiled
-# engine. With more than one sample, sampling stops early, in rounds of `chunk`, where one move leads every other by
-# `stop` standard errors of the paired difference; an agent leaves the base move only for a move whose mean gain
-# exceeds `confidence` standard errors (0: any higher mean). `team` limits the imagined worlds to the deciding agent
-# and its nearest teammates, for large teams. Centralised: it reads the whole team's positions and knowledge, never
-# the true targets (unless `truth`, the privileged probe's scores, for tests and probes only).
-#
-#     python -m searchrl.evaluate controller=rollout extensions=[analysis.rollout] +model=b cell=n40_N2 \
-#         grid.maps_per_cell=10 grid.repeats=1 threads=1
-#
-# Cost: N × 5 × samples imagined worlds per step of a real world (× team/N agents each), each stepped up to
-# `horizon` steps; `python -m searchrl.bench eval --extensions analysis.rollout --controller rollout` times it.
+At every step the agents of a world choose their moves one at a time (Bertsekas' multiagent rollout, arXiv
+1910.00120): agent i scores each of its moves with the moves already chosen by agents 0..i−1 fixed and agents
+i+1..N−1 on the base rule (B's teacher by default), everyone then playing the base rule for the rest of `horizon`
+steps (0: to the episode's end) in imagined copies of the world whose unfound targets are redrawn from the team's
+posterior (searchrl/controllers/posterior.py). A move's score (`value=expected`) is the targets the team can expect
+to find along the path it imagines, an exact sum over where the unfound targets lie, so its only noise is the rule's
+own random moves and tie-breaks (`value=sampled` counts the imagined targets found instead). Every move is scored
+with the same random numbers (common random numbers); every candidate × sample × world of the batch is one world of
+one `SearchWorld`, stepped by the compiled engine. With more than one sample, sampling stops early, in rounds of
+`chunk`, where one move leads every other by `stop` standard errors of the paired difference; an agent leaves the
+base move only for a move whose mean gain exceeds `confidence` standard errors (0: any higher mean). `team` limits
+the imagined worlds to the deciding agent and its nearest teammates, for large teams. Centralised: it reads the
+whole team's positions and knowledge, never the true targets (unless `truth`, the privileged probe's scores, for
+tests and probes only).
 
-# %%
+A rollout of a base policy is never worse than the base in expectation; on B's teacher-open cells it finds more
+than the teacher and every rule (docs/results.md). Cost: N × 5 × samples imagined worlds per step of a real world
+(× team/N agents each), each stepped up to `horizon` steps: `python -m searchrl.bench eval --controller rollout`.
+"""
+
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
 
-from analysis.lookahead import posterior_targets, remember_prior_u
-from searchrl.controllers.base import ControllerConfig
-from searchrl.controllers.registry import HEURISTICS, make_controller, register
-from searchrl.world.config import WorldConfig
+from searchrl.controllers.base import Controller, ControllerConfig
+from searchrl.controllers.posterior import (
+    PER_AGENT,
+    CommonStreams,
+    copy_rule_memory,
+    expected_finds,
+    posterior_targets,
+    remember_prior_u,
+)
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams, random_source
 
 
-# %%
 @dataclass
 class RolloutConfig(ControllerConfig):
     name: str = "rollout"
@@ -70,60 +65,20 @@ class RolloutConfig(ControllerConfig):
     truth: bool = False  # score moves in the true world (the privileged probe): tests and probes only
 
 
-class CommonStreams(WorldStreams):
-    """The random numbers of an imagined batch laid out as world index (g·M + j)·C + c: group g (a real world), sample
-    j, candidate c. Rows of sample j of group g come from group g's generator and are the same for every candidate
-    (common random numbers); what a group draws does not depend on the groups beside it."""
-
-    def __init__(self, keys: list[list[int]], samples: int, candidates: int) -> None:
-        super().__init__(keys)
-        self.samples, self.candidates = samples, candidates
-
-    def __len__(self) -> int:
-        return len(self.generators) * self.samples * self.candidates
-
-    def _rows(self, size: int | tuple[int, ...]) -> tuple[int, ...]:
-        size = (size,) if isinstance(size, (int, np.integer)) else tuple(size)
-        if not size or size[0] != len(self):
-            raise ValueError(
-                f"a draw of size {size} from {len(self)} imagined worlds: its first axis must be {len(self)}"
-            )
-        return size[1:]
-
-    def random(self, size: int | tuple[int, ...]) -> np.ndarray:
-        rest = self._rows(size)
-        draws = np.concatenate([g.random((self.samples, *rest)) for g in self.generators])
-        return np.repeat(draws, self.candidates, axis=0)
-
-    def integers(self, low: int, high: int, size: int | tuple[int, ...]) -> np.ndarray:
-        rest = self._rows(size)
-        draws = np.concatenate([g.integers(low, high, size=(self.samples, *rest)) for g in self.generators])
-        return np.repeat(draws, self.candidates, axis=0)
-
-
-# WorldState's fields with an agent axis after the world axis: (K, N, ...)
-PER_AGENT = ("belief", "belief_box", "belief_news", "merge_pos", "belief_time", "belief_seen", "pos")
-
-
-def copy_base_memory(base: Any, into: Any, index: np.ndarray, agents: np.ndarray | None = None) -> None:
-    """The base rule's per-world memory (footprint-greedy's sightings, weights) of the real worlds `index` (len =
-    the imagined batch) copied into the imagined batch's controller, so the rule plays on as it would have; of the
-    agents `agents` (len, k) only where given (the per-agent arrays: sightings)."""
-    for name in ("_weights", "_seen", "_known", "_rates", "_flat"):
-        source = getattr(base, name, None)
-        if isinstance(source, np.ndarray) and source.ndim >= 1 and source.shape[0] > int(index.max(initial=0)):
-            per_agent = name in ("_seen", "_known") and agents is not None
-            setattr(into, name, source[index[:, None], agents].copy() if per_agent else source[index].copy())
+# The registry's `make_controller`, given to the planner by the registry (it builds its base rule from it)
+RuleFactory = Callable[..., Controller]
 
 
 class Rollout:
     """One-agent-at-a-time rollout of a base rule on the team's posterior; `Controller` protocol."""
 
-    def __init__(self, config: WorldConfig, seed: int | WorldStreams = 0, **settings: Any) -> None:
+    def __init__(
+        self, config: WorldConfig, seed: int | WorldStreams = 0, *, rules: RuleFactory, **settings: Any
+    ) -> None:
         values = {**asdict(RolloutConfig()), **settings}
         values["base_settings"] = dict(values["base_settings"] or {})
-        if values["base"] not in HEURISTICS or values["base"] == "rollout":
-            raise ValueError(f"base={values['base']!r} is not allowed: a registered rule other than rollout")
+        if values["base"] == "rollout":
+            raise ConfigError("controller.base='rollout' is not allowed: the planner's base is a rule")
         samples, horizon, chunk = int(values["samples"]), int(values["horizon"]), int(values["chunk"])
         if samples < 1 or horizon < 0 or chunk < 1 or values["stop"] < 0 or values["confidence"] < 0:
             raise ValueError(
@@ -131,20 +86,16 @@ class Rollout:
                 f"{values['confidence']} are not allowed: samples >= 1, horizon >= 0, chunk >= 1, stop >= 0,"
                 " confidence >= 0"
             )
-        self.config, self.samples, self.horizon, self.chunk = config, samples, horizon, min(chunk, samples)
-        self.stop, self.confidence, self.truth = (
-            float(values["stop"]),
-            float(values["confidence"]),
-            bool(values["truth"]),
-        )
         if values["value"] not in ("expected", "sampled") or (values["truth"] and values["value"] != "sampled"):
             raise ValueError(f"value={values['value']!r} is not allowed: expected or sampled (truth needs sampled)")
-        self.value = values["value"]
         if not 0 <= int(values["team"]) <= config.n_agents:
             raise ValueError(f"team={values['team']!r} is not allowed: 0 (the whole team) to N = {config.n_agents}")
+        self.config, self.samples, self.horizon, self.chunk = config, samples, horizon, min(chunk, samples)
+        self.stop, self.confidence = float(values["stop"]), float(values["confidence"])
+        self.value, self.truth = values["value"], bool(values["truth"])
         self.team = int(values["team"]) if 0 < int(values["team"]) < config.n_agents else 0
-        self.base_name, self.base_settings = values["base"], values["base_settings"]
-        self.base = make_controller(self.base_name, config, seed=seed, settings=self.base_settings)
+        self.rules, self.base_name, self.base_settings = rules, values["base"], values["base_settings"]
+        self.base = rules(self.base_name, config, seed=seed, settings=self.base_settings, key="controller.base")
         self.rng = random_source(seed)  # one key per world and step: the episode's own stream
         self.prior_u = np.zeros((0, 0, 0))
         # The rollouts' work, for `python -m searchrl.bench eval`: imagined agent-steps, the seconds spent stepping
@@ -238,8 +189,9 @@ class Rollout:
         todo = np.arange(n_groups)
         for start in range(0, self.samples, self.chunk):
             m = min(self.chunk, self.samples - start)
-            found = self.play(state, worlds[todo], first[todo], [t[start : start + m] for t in _pick(targets, todo)],
-                              [[*keys[g], start] for g in todo], m, members[todo])  # fmt: skip
+            picked = [targets[int(g)][start : start + m] for g in todo]
+            streams = [[*keys[g], start] for g in todo]
+            found = self.play(state, worlds[todo], first[todo], picked, streams, m, members[todo])
             block = np.full((n_groups, n_cand, m), np.nan)
             block[todo] = found
             rounds.append(block)
@@ -267,7 +219,7 @@ class Rollout:
             # the last size: an evaluation's batch shrinks as episodes end, and each size is a copy of every map)
             config = replace(self.config, n_agents=k)
             world = SearchWorld(config, count, auto_reset=False, observe=False)
-            base = make_controller(self.base_name, config, settings=self.base_settings)
+            base = self.rules(self.base_name, config, settings=self.base_settings, key="controller.base")
             base.reset(world.state, np.ones(count, bool))
             self._imagined = {(count, k): (world, base)}
         world, base = self._imagined[count, k]
@@ -290,7 +242,7 @@ class Rollout:
         world.state.target_pos[:] = np.repeat(np.concatenate(targets), n_cand, axis=0)
         world.rng = CommonStreams([[*key, 0] for key in keys], m, n_cand)
         base.rng = CommonStreams([[*key, 1] for key in keys], m, n_cand)
-        copy_base_memory(self.base, base, source, None if whole else agents)
+        copy_rule_memory(self.base, base, source, None if whole else agents)
         # Worlds of one batch may be at different steps (an evaluation starts an episode where one ends): each
         # imagined world's score is its finds when its own horizon ends.
         end = np.full(count, self.config.max_steps)
@@ -298,7 +250,7 @@ class Rollout:
             end = np.minimum(end, state.t[source] + self.horizon)
         p_end = np.empty_like(world.state.p) if self.value == "expected" else None
         clock = time.perf_counter()
-        world.step(_layout(first, m))
+        world.step(np.repeat(first[:, None], m, axis=1).reshape(-1, k))  # order (g·m + j)·C + c
         found = world.state.n_found.copy()
         while ((world.state.t < end) & ((world.state.n_found < world.state.n_targets) | (p_end is not None))).any():
             if p_end is not None:
@@ -316,36 +268,8 @@ class Rollout:
         if p_end is not None:
             ending = world.state.t == end
             p_end[ending] = world.state.p[ending]
-            found = state.n_found[source] + self.expected_finds(state, worlds, p_end).reshape(-1)
+            found = state.n_found[source] + expected_finds(state, self.prior_u, worlds, p_end).reshape(-1)
         return found.reshape(n_groups, m, n_cand).transpose(0, 2, 1).astype(np.float64)
-
-    def expected_finds(self, state: WorldState, worlds: np.ndarray, p_end: np.ndarray) -> np.ndarray:
-        """(G, m·C) the unfound targets' expected finds along each imagined path of real world worlds[g] (p_end
-        (G·m·C, S, S) its map at the horizon's end, in the imagined batch's order), replacing its sampled finds: a
-        target lies in cell c with the team's posterior q(c) ∝ p(c)·(1 − u0(c)/max u0) over the free cells without
-        a found target (p after all sensing so far, u0 the prior's u: §4.1.4's placement), and escapes the path's
-        footprints with probability p_end(c)/p_start(c) (with λk = 1 a footprint multiplies p by exactly the
-        chance it misses a target there), so R unfound targets add R·Σ_c q(c)·(1 − p_end(c)/p_start(c)) =
-        R·Σ_c w(c)·(p_start − p_end)(c) / Σ_c w(c)·p_start(c), w = 1 − u0/max u0 on those cells. The base rule reads
-        no find, so a path does not depend on where the imagined targets lie: the score has no sampling noise
-        but the rule's random moves and tie-breaks."""
-        u0, p_start = self.prior_u[worlds], state.p[worlds]  # the weights once per real world, not per copy
-        keep = 1.0 - u0 / np.maximum(u0.max(axis=(1, 2), keepdims=True), 1e-30)
-        weight = np.where(state.blocked[worlds] | state.found_grid[worlds], 0.0, keep)  # (G, S, S)
-        lost = (state.target_valid[worlds] & ~state.target_found[worlds]).sum(axis=1)
-        mass = (weight * p_start).sum(axis=(1, 2), dtype=np.float64)
-        ends = p_end.reshape(len(worlds), -1, *p_end.shape[1:])  # (G, m·C, S, S)
-        swept = mass[:, None] - np.einsum("gxy,gjxy->gj", weight, ends)
-        return lost[:, None] * swept / np.maximum(mass, 1e-30)[:, None]
-
-
-def _pick(items: list, index: np.ndarray) -> list:
-    return [items[int(i)] for i in index]
-
-
-def _layout(first: np.ndarray, m: int) -> np.ndarray:
-    """(G·m·C, N): first (G, C, N) repeated for each sample j, in the imagined batch's order (g·m + j)·C + c."""
-    return np.repeat(first[:, None], m, axis=1).reshape(-1, first.shape[2])
 
 
 def clear(scores: np.ndarray, stop: float) -> np.ndarray:
@@ -372,8 +296,3 @@ def choose(scores: np.ndarray, base: np.ndarray, confidence: float) -> np.ndarra
     error = (np.nanstd(gain, axis=2, ddof=1) if gain.shape[2] > 1 else np.zeros(mean.shape)) / np.sqrt(np.maximum(m, 1))
     sure = np.where((mean > 0) & (mean > confidence * error), mean, 0.0)
     return np.where(sure.max(axis=1) > 0, sure.argmax(axis=1), base)
-
-
-# %% The controller joins the registry for this process only: `controller=rollout`
-if "rollout" not in HEURISTICS:
-    register("rollout", Rollout, RolloutConfig)

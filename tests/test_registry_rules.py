@@ -1,0 +1,104 @@
+"""searchrl/registry.py's rules, once for every kind of part: a name registered twice with the same part is
+accepted, another part under a taken name is refused, a typo is refused in one line with the nearest name; and it
+is the one registry implementation in the package."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from unittest import mock
+
+import pytest
+
+from searchrl.controllers.registry import HEURISTICS, Heuristic
+from searchrl.envs.parts import PARTS
+from searchrl.envs.rewards import REWARDS
+from searchrl.policies.networks import CRITICS, NETWORKS
+from searchrl.registry import Registry
+from searchrl.world.config import ConfigError
+from searchrl.world.scenario import PARTS as SCENARIO_PARTS
+
+ROOT = Path(__file__).resolve().parents[1]
+# (registry, a registered name, the setting its refusals name)
+KINDS = [
+    (NETWORKS, "search_cnn", "network.extractor"),
+    (CRITICS, "true_state", "critic.name"),
+    (PARTS, "own_map", "observation part"),
+    (REWARDS, "paper", "reward"),
+    (HEURISTICS, "greedy_target", "controller"),
+    (SCENARIO_PARTS["obstacles"], "maze", "scenario.obstacles.kind"),
+    (SCENARIO_PARTS["prior"], "misweighted", "scenario.prior.kind"),
+    (SCENARIO_PARTS["targets"], "off_prior", "scenario.targets.kind"),
+]
+IDS = [setting for _, _, setting in KINDS]
+
+
+def _another(part: object) -> object:
+    """A part that is not `part`, of the same shape (a heuristic's entry, or a class with the same key)."""
+    if isinstance(part, Heuristic):
+        return Heuristic(part.cls, part.schema, "another")
+    return type("Another", (part,), {})
+
+
+@pytest.mark.parametrize(("registry", "name", "setting"), KINDS, ids=IDS)
+def test_the_same_part_twice_is_accepted_and_another_under_its_name_refused(registry, name, setting):
+    with mock.patch.dict(registry):
+        part = registry[name]
+        assert registry.register(name, part) is part and registry[name] is part
+        with pytest.raises(ConfigError) as refused:
+            registry.register(name, _another(part))
+        assert str(refused.value).startswith(f"{setting}={name!r} cannot be registered: a new name is needed")
+        assert "\n" not in str(refused.value) and registry[name] is part
+
+
+@pytest.mark.parametrize(("registry", "name", "setting"), KINDS, ids=IDS)
+def test_a_typo_is_refused_in_one_line_with_the_nearest_name(registry, name, setting):
+    typo = name[:-1] + ("x" if name[-1] != "x" else "y")
+    with pytest.raises(ConfigError) as refused:
+        registry.lookup(typo)
+    message = str(refused.value)
+    assert message.startswith(f"{setting}={typo!r} is not allowed: one of {', '.join(registry)}")
+    assert message.endswith(f"(did you mean {name!r}?)") and "\n" not in message
+    assert registry.lookup(name) is registry[name]
+    with pytest.raises(ConfigError, match=r"^imitation\.x=3 is not allowed"):
+        registry.lookup(3, "imitation.x")  # not a name at all, under the setting a caller names
+
+
+def test_a_registry_names_a_part_by_its_key_and_refuses_a_part_without_one():
+    table: Registry[type] = Registry("scenario.toy.kind", key="kind")
+    cls = table.register(part=type("Toy", (), {"kind": "toy"}))
+    assert table == {"toy": cls}
+    decorated = table.register("named")(type("Named", (), {}))
+    assert table["named"] is decorated
+    with pytest.raises(ConfigError, match=r"^scenario\.toy\.kind=None cannot be registered: a name is"):
+        table.register(part=type("Nameless", (), {}))
+
+
+def test_every_registry_is_one_registry_type():
+    assert all(isinstance(registry, Registry) for registry, _, _ in KINDS)
+    # no other module builds its own: refusing a taken name or a typo lives in searchrl/registry.py only
+    own = [
+        str(path.relative_to(ROOT))
+        for path in (ROOT / "searchrl").rglob("*.py")
+        if path.name != "registry.py" or path.parent.name != "searchrl"
+        if re.search(r"registered already|is not registered|cannot be registered", path.read_text())
+    ]
+    assert own == []
+
+
+def test_the_parts_listing_shows_every_registry_with_settings_and_a_users_parts(capsys):
+    from searchrl.parts import main
+    from tests.registries import isolated_registries
+
+    with isolated_registries("tests.extension_example"):
+        assert main(["extensions=[tests.extension_example.swept,tests.extension_example.eastward]"]) == 0
+    out = capsys.readouterr().out
+    headings = [line[:-1] for line in out.splitlines() if not line.startswith(" ")]
+    assert headings == [registry.setting for registry, _, _ in KINDS]
+    assert "  swept_cnn: tests.extension_example.swept.SweptCNN" in out and "  eastward: " in out  # a user's parts
+    assert "  swept: tests.extension_example.swept.Swept; settings: grid=16" in out
+    assert "  switch: searchrl.controllers.switch.EvidenceSwitch; settings: threshold=0.5" in out
+    assert "  maze: searchrl.world.obstacles.MazeObstacles; settings: corridor=3, loops=0.1" in out
+    assert main(["extensions=[no_such_module]"]) == 2 and main(["seed=3"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2 and "'no_such_module' cannot be imported" in err[0] and err[1].startswith("error: seed=3")
