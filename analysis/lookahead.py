@@ -31,6 +31,7 @@ import numpy as np
 from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.posterior import posterior_targets, remember_prior_u
 from searchrl.controllers.registry import make_controller, register
+from searchrl.controllers.rollout import choose  # the teacher's move unless another is surely better
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.state import WorldState
@@ -132,17 +133,6 @@ class Lookahead:
         draws = posterior_targets(state.p[inner], self.prior_u[inner], free, len(lost), self.samples, rng)
         for w in range(world.n_worlds):
             world.state.target_pos[w, lost] = draws[w % self.samples]
-
-
-def choose(found: np.ndarray, base: np.ndarray, confidence: float) -> np.ndarray:
-    """(N,) moves from found (N, A, L), the targets found in sample l after each agent's move a: the teacher's move
-    `base` (N,) unless another finds more on average by more than `confidence` standard errors of the paired
-    difference over the samples (the samples draw the same numbers for every move); then the best such move."""
-    gain = found - found[np.arange(found.shape[0]), base][:, None, :]  # (N, A, L) paired with the teacher's move
-    mean = gain.mean(axis=2)
-    error = gain.std(axis=2, ddof=1) / np.sqrt(gain.shape[2]) if gain.shape[2] > 1 else np.zeros_like(mean)
-    sure = np.where((mean > 0) & (mean > confidence * error), mean, 0.0)
-    return np.where(sure.max(axis=1) > 0, sure.argmax(axis=1), base)
 
 
 # %% The controller joins the registry for this process only: `controller=lookahead`
