@@ -64,11 +64,37 @@ def import_modules(modules: Iterable[str]) -> None:
             ) from None
 
 
+def from_recipes(argv: Iterable[str]) -> list[str]:
+    """The modules the recipes a command line chooses (`+experiment=<name>`) name in their `extensions:`, and those
+    of the recipes they build on (their defaults' `/experiment/...`): a recipe's reward or network is then an
+    option of its group when Hydra composes it."""
+    import yaml
+
+    from searchrl.shared_schema import CONF_DIR
+
+    modules: list[str] = []
+    recipes = [arg.lstrip("+").partition("=")[2] for arg in argv if arg.lstrip("+").startswith("experiment=")]
+    seen: set[str] = set()
+    while recipes:
+        name = recipes.pop().strip("'\"")
+        path = CONF_DIR / "experiment" / f"{name}.yaml"
+        if name in seen or "," in name or not path.is_file():
+            continue  # a sweep over recipes, or a name check_group_choices refuses
+        seen.add(name)
+        loaded = yaml.safe_load(path.read_text()) or {}
+        modules += [str(m) for m in loaded.get("extensions") or []]
+        for entry in loaded.get("defaults") or []:
+            if isinstance(entry, str) and entry.startswith("/experiment/"):
+                recipes.append(entry.removeprefix("/experiment/"))
+    return modules
+
+
 def import_from_command_line(argv: Iterable[str]) -> None:
-    """`import_modules` of the command line's `extensions=`; a module that cannot be imported is refused in one line
-    (`searchrl.multirun.refuse`), before Hydra runs."""
+    """`import_modules` of the command line's `extensions=` and its recipes' (`from_recipes`); a module that cannot
+    be imported is refused in one line (`searchrl.multirun.refuse`), before Hydra runs."""
+    argv = list(argv)
     try:
-        import_modules(from_command_line(argv))
+        import_modules(from_command_line(argv) + from_recipes(argv))
     except ConfigError as err:
         refuse(str(err))
 
@@ -122,7 +148,9 @@ def check_group_choices(argv: list[str]) -> None:
 
     for arg in argv:
         key, eq, value = arg.lstrip("+").partition("=")
-        if not eq or not key or key.split("/")[0] == "hydra" or not (CONF_DIR / key).is_dir() or "(" in value:
+        if not eq or not key or key.split("/")[0] == "hydra" or "(" in value:
+            continue
+        if not _is_group(key):
             continue
         options = group_options(key) + stored_options(key)
         for option in value.split(","):
@@ -136,7 +164,17 @@ def check_group_choices(argv: list[str]) -> None:
                     f"`python -m searchrl.evaluate controller={option}`; models: {listed}"
                 )
             hint = nearest(option, options, f"{key}=")
-            refuse(f"{arg} is not allowed: conf/{key}/ has no {option!r}{hint}; options: {listed}")
+            missing = (
+                f"conf/{key}/ has no {option!r}" if (CONF_DIR / key).is_dir() else f"no {key} {option!r} is registered"
+            )
+            refuse(f"{arg} is not allowed: {missing}{hint}; options: {listed}")
+
+
+def _is_group(key: str) -> bool:
+    """Whether `key` is a config group: a folder of conf/, or options a module stored (a registered reward's)."""
+    from searchrl.shared_schema import CONF_DIR
+
+    return (CONF_DIR / key).is_dir() or bool(stored_options(key))
 
 
 def stored_options(group: str) -> list[str]:
@@ -265,12 +303,10 @@ def _misspelt_hints(compose, config_name: str, overrides: list[str]) -> dict[str
     lacks (a misspelt setting: Hydra says only "Key 'leaf' not in 'Schema'"); {} if that config does not compose."""
     from omegaconf import DictConfig, OmegaConf
 
-    from searchrl.shared_schema import CONF_DIR
-
     keys = [
         o.partition("=")[0]
         for o in overrides  # settings, not the group choices that shape the config
-        if "=" in o and not o.startswith(("+", "~")) and not (CONF_DIR / o.partition("=")[0]).is_dir()
+        if "=" in o and not o.startswith(("+", "~")) and not _is_group(o.partition("=")[0])
     ]
     try:
         cfg = compose(config_name=config_name, overrides=[o for o in overrides if o.partition("=")[0] not in keys])

@@ -1,22 +1,19 @@
 """`python -m searchrl.parts [extensions=[my_pkg.parts]]`: every part a command line can choose, with its settings.
 
 One block per registry (searchrl/registry.py): the setting that chooses a part, then each name, the class that makes
-it and the settings it takes with their defaults (a dataclass's fields, or its class's keyword arguments).
+it and the settings it takes with their defaults (a heuristic's dataclass, or its class's typed keyword arguments).
 `extensions=` imports a user's modules first, as the apps do, so their parts are listed beside the shipped ones.
 """
 
 from __future__ import annotations
 
-import inspect
 import sys
-from dataclasses import MISSING, fields, is_dataclass
+from dataclasses import MISSING, fields
 from typing import Any
 
 from searchrl.command_line import from_command_line, import_modules
+from searchrl.registry import settings_of
 from searchrl.world.config import ConfigError
-
-# Arguments a part gets from the app, not from its settings
-_GIVEN = {"self", "config", "seed", "rules", "observation_space", "features_dim", "args", "kwargs"}
 
 
 def registries() -> list:
@@ -32,20 +29,15 @@ def registries() -> list:
 
 
 def settings(part: Any) -> dict[str, Any]:
-    """The settings `part` takes and their defaults ("required" where it has none: a part's own arguments)."""
+    """The settings `part` takes and their defaults: a heuristic's dataclass, or the registry's settings dataclass
+    of its class (searchrl/registry.py `settings_of`); a part with an untyped argument says so."""
     if hasattr(part, "schema") and hasattr(part, "settings"):  # a heuristic's entry: its dataclass
         return part.settings()
-    if is_dataclass(part):
-        factory = {f.name: f.default_factory for f in fields(part) if f.default_factory is not MISSING}
-        return {f.name: factory[f.name]() if f.name in factory else f.default for f in fields(part)}
-    if not callable(part):
-        return {}
-    parameters = inspect.signature(part).parameters.values()
-    return {
-        p.name: "required" if p.default is inspect.Parameter.empty else p.default
-        for p in parameters
-        if p.name not in _GIVEN and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
-    }
+    try:
+        schema = settings_of(part)
+    except ConfigError as err:
+        return {"cannot be configured": str(err)}
+    return {f.name: f.default_factory() if f.default_factory is not MISSING else f.default for f in fields(schema)}
 
 
 def describe(part: Any) -> str:

@@ -12,20 +12,43 @@ way to ask for a name. Its rules, the same for every kind (tests/test_registry_r
 - `lookup` gives the part of a name or refuses in one line: the setting, the value, every registered name and the
   nearest one (`controller='planer' is not allowed: one of surfing, …, rollout (did you mean 'rollout'?)`).
 
+- `settings` gives a part's settings dataclass: the typed keyword arguments of its constructor with their defaults
+  (`def __init__(self, weight: float = 1.0)` is the setting `weight`), less those the app gives it; `configure`
+  checks a config node's values against it (an unknown setting refused with the nearest, a value of another type
+  refused) and returns the dataclass instance, before any work.
+
 Every refusal is a `ConfigError` (a `ValueError`), which the entry points print as one line. A registry is a plain
 dict besides, so reading it (`name in NETWORKS`, `NETWORKS.items()`) and a test's `mock.patch.dict` work as on any.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import dataclasses
+import inspect
+from collections.abc import Iterable, Mapping
 from difflib import get_close_matches
-from typing import Any, TypeVar
+from typing import Any, TypeVar, get_args, get_origin, get_type_hints
 
 from searchrl.world.config import ConfigError
 
 T = TypeVar("T")
 _DECORATE = object()  # `register(name)` without a part: a decorator (a part may be None: the shared critic)
+# Constructor arguments the app gives a part, never a setting: the world, its seed, the rules a planner plays, the
+# observation space and widths of a network (its recipe's `network.*`), a part's grid (`network.grid`)
+GIVEN = frozenset(
+    {
+        "self",
+        "config",
+        "seed",
+        "rules",
+        "observation_space",
+        "features_dim",
+        "conv_channels",
+        "vector_size",
+        "fc_sizes",
+        "grid",
+    }
+)
 
 
 class Registry(dict[str, T]):
@@ -62,3 +85,74 @@ class Registry(dict[str, T]):
         near = get_close_matches(name, list(self), n=1) if isinstance(name, str) else []
         hint = f" (did you mean {near[0]!r}?)" if near else ""
         raise ConfigError(f"{setting or self.setting}={name!r} is not allowed: one of {', '.join(self)}{hint}")
+
+    def settings(self, name: str) -> type:
+        """The settings dataclass of the part `name` (`settings_of` its class)."""
+        return settings_of(self.lookup(name), f"{self.setting}={name}")
+
+    def configure(self, name: str, values: Mapping[str, Any], where: str | None = None) -> Any:
+        """The settings of part `name` from a config node's `values` (those besides `name` the node holds), checked
+        by its dataclass; ConfigError naming `where.<setting>` (default the registry's setting) for a setting the
+        part does not take (with the nearest) or a value of another type."""
+        schema = self.settings(name)
+        where = where or self.setting.rpartition(".")[0] or self.setting
+        names = [f.name for f in dataclasses.fields(schema)]
+        for key, value in values.items():
+            if key not in names:
+                near = get_close_matches(str(key), names, n=1)
+                hint = f" (did you mean {where}.{near[0]}?)" if near else ""
+                takes = ", ".join(names) or "none"
+                raise ConfigError(f"{where}.{key}={value!r} is not allowed: {name} takes {takes}{hint}")
+            _check_type(f"{where}.{key}", value, get_type_hints(schema)[key])
+        return schema(**values)
+
+
+def settings_of(part: Any, label: str = "part") -> type:
+    """A dataclass of the settings `part` takes: its constructor's keyword arguments with a default and a type, less
+    those the app gives (GIVEN); a dataclass part is its own. ConfigError for a setting without a type."""
+    if dataclasses.is_dataclass(part) and isinstance(part, type):
+        return part
+    if part is None or not callable(part):
+        return dataclasses.make_dataclass("NoSettings", [])
+    hints = get_type_hints(part.__init__) if isinstance(part, type) else get_type_hints(part)
+    specs = []
+    for p in inspect.signature(part).parameters.values():
+        if p.name in GIVEN or p.kind not in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY):
+            continue
+        if p.default is inspect.Parameter.empty or p.name not in hints:
+            raise ConfigError(f"{label}: its argument {p.name!r} needs a type and a default to be a setting")
+        default = p.default
+        value = dataclasses.field(default_factory=lambda d=default: list(d)) if isinstance(default, list) else default
+        specs.append(
+            (
+                p.name,
+                hints[p.name],
+                dataclasses.field(default=value) if not isinstance(value, dataclasses.Field) else value,
+            )
+        )
+    return dataclasses.make_dataclass(f"{getattr(part, '__name__', 'Part')}Settings", specs, frozen=True)
+
+
+def _check_type(where: str, value: Any, kind: Any) -> None:
+    """ConfigError unless `value` fits the annotation `kind` (int for float, a list's items, None for Optional)."""
+    origin, args = get_origin(kind), get_args(kind)
+    if kind is Any or (value is None and type(None) in args):
+        return
+    if args and origin not in (list, tuple):  # a union: any of its members
+        if any(_fits(value, member) for member in args):
+            return
+    elif _fits(value, kind):
+        return
+    name = getattr(kind, "__name__", str(kind))
+    raise ConfigError(f"{where}={value!r} is not allowed: a {name}")
+
+
+def _fits(value: Any, kind: Any) -> bool:
+    origin, args = get_origin(kind), get_args(kind)
+    if origin in (list, tuple):
+        return isinstance(value, (list, tuple)) and all(_fits(v, args[0]) for v in value) if args else True
+    if kind is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if kind is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, kind) if isinstance(kind, type) else True

@@ -14,19 +14,30 @@ from searchrl.policies import networks
 from searchrl.world import scenario
 
 
+def _ours(module: str, packages: tuple[str, ...]) -> bool:
+    return module.split(".")[0] in packages
+
+
 @contextlib.contextmanager
 def isolated_registries(*packages: str) -> Iterator[None]:
-    """Every registry by name as it was before the block, after it; the modules of `packages` (e.g. "analysis")
-    are forgotten, so a later import registers their parts again. (Only those: the libraries a block imported
-    the first time, numba's among them, cannot be imported twice.)"""
+    """Inside the block the modules of `packages` (e.g. "analysis") and the parts they registered are gone, so an
+    import registers them afresh; after it, every registry and those modules are as they were before. (Only those
+    packages: the libraries a block imported the first time, numba's among them, cannot be imported twice.)"""
     tables = [registry.HEURISTICS, parts.PARTS, networks.NETWORKS, networks.CRITICS, rewards.REWARDS,
               *scenario.PARTS.values()]  # fmt: skip
+    before = {name: module for name, module in sys.modules.items() if _ours(name, packages)}
     with contextlib.ExitStack() as stack:
         for table in tables:
             stack.enter_context(mock.patch.dict(table))
+            for name, part in list(table.items()):
+                if _ours(getattr(getattr(part, "cls", part), "__module__", ""), packages):
+                    del table[name]
         stack.enter_context(mock.patch.object(registry, "TEACHERS", registry.TEACHERS))
+        for name in before:
+            del sys.modules[name]
         try:
             yield
         finally:
-            for name in [m for m in sys.modules if m.split(".")[0] in packages]:
+            for name in [m for m in sys.modules if _ours(m, packages)]:
                 del sys.modules[name]
+            sys.modules.update(before)

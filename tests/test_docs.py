@@ -189,6 +189,7 @@ def test_the_docs_name_only_group_options_that_exist():
     for path in (ROOT / "tests" / "extension_example").glob("*.py"):  # what a user's package stores (extending.md)
         for group, name in re.findall(r'group="([a-z]+)",\s*name="([a-z_]+)"', path.read_text()):
             options[group].add(name)
+        options["network"].update(re.findall(r'@register_network\("([a-z_]+)"\)', path.read_text()))  # network=<name>
     pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md")), *sorted((ROOT / "conf").rglob("*.yaml")),
              *sorted((ROOT / "analysis").glob("*.py")), *sorted((ROOT / "analysis").glob("*.sh"))]  # fmt: skip
     stale = []

@@ -28,7 +28,8 @@ from tests.test_train import TINY, _compose, _run
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "analysis"))
 import carry_runs  # noqa: E402  (analysis/ is no package)
-import team_reward  # noqa: E402,F401  (registers `team_found` and `own_found`)
+
+import analysis.team_reward  # noqa: E402,F401  (registers `team_found` and `own_found`)
 
 
 def _result(found: np.ndarray) -> StepResult:
@@ -41,7 +42,7 @@ def _result(found: np.ndarray) -> StepResult:
 
 def test_the_team_reward_pays_every_agent_its_worlds_finds_and_nothing_else():
     found = np.array([[0, 2, 0], [0, 0, 0], [1, 1, 3]], np.int64)
-    reward = make_reward("team_found")(WorldConfig(), _result(found))
+    reward = make_reward({"name": "team_found"})(WorldConfig(), _result(found))
     assert reward.dtype == np.float32 and reward.shape == (3, 3)
     assert reward.tolist() == [[2, 2, 2], [0, 0, 0], [5, 5, 5]]  # the paper's reward (7), information, ignored
     assert reward.flags.writeable  # a fresh array, not a read-only broadcast view
@@ -49,7 +50,7 @@ def test_the_team_reward_pays_every_agent_its_worlds_finds_and_nothing_else():
 
 def test_the_own_reward_pays_each_agent_its_own_finds_and_nothing_else():
     found = np.array([[0, 2, 0], [1, 1, 3]], np.int64)
-    reward = make_reward("own_found")(WorldConfig(), _result(found))
+    reward = make_reward({"name": "own_found"})(WorldConfig(), _result(found))
     assert reward.dtype == np.float32 and reward.tolist() == [[0, 2, 0], [1, 1, 3]]
 
 

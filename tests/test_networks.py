@@ -5,6 +5,7 @@ renders, resumes, loads in plain SB3 and acts in the PettingZoo env without any 
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -157,7 +158,8 @@ def test_the_actor_never_reads_the_true_state_the_critic_does():
     assert {id(p) for p in policy.vf_features_extractor.parameters()} <= {id(p) for p in value_parameters(policy)}
 
 
-def test_a_whole_map_branch_starts_as_the_clone_it_is_initialised_from(tmp_path):
+def test_a_whole_map_branch_starts_as_the_clone_it_is_initialised_from(tmp_path, monkeypatch):
+    from searchrl.train import build
     from searchrl.train.build import init_weights
     from tests.test_train import TINY, _run
 
@@ -177,6 +179,18 @@ def test_a_whole_map_branch_starts_as_the_clone_it_is_initialised_from(tmp_path)
     _, wider = _model("network.lstm_hidden_size=16")
     with pytest.raises(ValueError, match=r"does not fit .*: action_net.weight is \(5, 128\) there, \(5, 16\) here"):
         init_weights(wider, str(source), None)
+    # a checkpoint without the policy's actor head (every other tensor fits) is refused, not half copied
+    real = build.load_checkpoint
+
+    def headless(*args, **kwargs):
+        tensors = real(*args, **kwargs).policy.state_dict()
+        kept = {k: v for k, v in tensors.items() if not k.startswith("action_net")}
+        return SimpleNamespace(policy=SimpleNamespace(state_dict=lambda: kept))
+
+    monkeypatch.setattr(build, "load_checkpoint", headless)
+    _, same = _model()
+    with pytest.raises(ValueError, match=r"does not fit .*: it has no actor head of this policy"):
+        init_weights(same, str(source), None)
 
 
 @pytest.mark.app

@@ -12,10 +12,13 @@ import numpy as np
 import pytest
 from hydra import compose, initialize_config_dir
 
+from searchrl.command_line import from_recipes, import_modules
 from searchrl.evaluate.app import evaluate
 from searchrl.shared_schema import CONF_DIR, recipes, unknown_keys
 from searchrl.train.app import train
+from searchrl.train.schema import register_configs
 from searchrl.world.obstacles import MazeObstacles
+from tests.registries import isolated_registries
 from tests.test_faults import _refused
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -51,8 +54,11 @@ def test_an_evaluation_key_no_schema_knows_is_refused_naming_the_nearest(tmp_pat
 def test_every_shipped_recipe_and_app_default_knows_all_its_keys():
     """No false alarm: the keys recipes and groups write (teacher_args, scenario parts, extra_teams) all pass."""
     assert recipes()
-    for recipe in recipes():
-        assert unknown_keys(_compose("train", [f"+experiment={recipe}"])) == [], recipe
+    for recipe in recipes():  # the recipe's extensions imported first, as the entry point does
+        with isolated_registries("analysis"):
+            import_modules(from_recipes([f"+experiment={recipe}"]))
+            register_configs()
+            assert unknown_keys(_compose("train", [f"+experiment={recipe}"])) == [], recipe
     for scenario in sorted(p.stem for p in (CONF_DIR / "scenario").glob("*.yaml")):
         assert unknown_keys(_compose("evaluate", [f"scenario={scenario}", "controller=greedy_target"])) == []
     cfg = _compose("train", ["+model=c", "imitation.teacher=greedy", "+imitation.teacher_args.anything=1"])

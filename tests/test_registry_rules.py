@@ -95,8 +95,9 @@ def test_the_parts_listing_shows_every_registry_with_settings_and_a_users_parts(
     out = capsys.readouterr().out
     headings = [line[:-1] for line in out.splitlines() if not line.startswith(" ")]
     assert headings == [registry.setting for registry, _, _ in KINDS]
-    assert "  swept_cnn: tests.extension_example.swept.SweptCNN" in out and "  eastward: " in out  # a user's parts
-    assert "  swept: tests.extension_example.swept.Swept; settings: grid=16" in out
+    assert "  swept_cnn: tests.extension_example.swept.SweptCNN; settings: width=32" in out  # a user's parts
+    assert "  eastward: tests.extension_example.eastward.Eastward; settings: margin=0" in out
+    assert "  swept: tests.extension_example.swept.Swept; settings: scale=1.0" in out  # grid: network.grid
     assert "  switch: searchrl.controllers.switch.EvidenceSwitch; settings: threshold=0.5" in out
     assert "  maze: searchrl.world.obstacles.MazeObstacles; settings: corridor=3, loops=0.1" in out
     assert main(["extensions=[no_such_module]"]) == 2 and main(["seed=3"]) == 2

@@ -23,7 +23,7 @@ def register_part(cls: Callable[..., ObservationPart]) -> Callable[..., Observat
     return PARTS.register(part=cls)
 
 
-def make_part(name: str, **settings: Any) -> ObservationPart:
+def make_part(name: str, /, **settings: Any) -> ObservationPart:
     """The part registered as `name`, built with those of `settings` its class takes (a coarse part takes `grid`,
     a part of one vector per agent none); ConfigError naming the nearest registered name."""
     cls = PARTS.lookup(name)

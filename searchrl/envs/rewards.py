@@ -3,14 +3,16 @@
 A reward is a callable `(config, result) -> (K, N) float32` of the world's `StepResult` (searchrl/world/step.py: the
 paper's reward and its parts per agent: targets credited, information collected, communication gain, blocked
 moves), injected into the VecEnv (`SearchVecEnv(reward=...)`), as Jumanji injects a RewardFn. It registers here
-(`register_reward`) and a run picks it with `reward=<name>`. `paper`, the default, pays the world's own reward
-(Table 1 + eq. 5 + eq. 17). Episode metrics (R, found fraction) stay the world's whatever the reward.
+(`register_reward`) and a run picks it with `reward=<name>`, its settings with `reward.<setting>=` (its constructor's
+typed keyword arguments: searchrl/registry.py). `paper`, the default, pays the world's own reward (Table 1 + eq. 5 +
+eq. 17). Episode metrics (R, found fraction) stay the world's whatever the reward.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Protocol
+import dataclasses
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -27,7 +29,7 @@ REWARDS: Registry[Callable[[], RewardFn]] = Registry("reward")
 
 
 def register_reward(name: str) -> Callable[[Callable[[], RewardFn]], Callable[[], RewardFn]]:
-    """Decorator: register a reward class (built with no arguments) as `reward=<name>`."""
+    """Decorator: register a reward class (built with its settings as keyword arguments) as `reward=<name>`."""
     return REWARDS.register(name)
 
 
@@ -39,6 +41,10 @@ class PaperReward:
         return result.reward
 
 
-def make_reward(name: str) -> RewardFn:
-    """The reward registered as `name`; ConfigError naming the nearest registered name."""
-    return REWARDS.lookup(name)()
+def make_reward(node: Mapping[str, Any]) -> RewardFn:
+    """The reward of a run's `reward` node (`name` and its settings); ConfigError naming the nearest registered name
+    or setting, or a value of another type."""
+    values = dict(node)
+    name = values.pop("name", None)
+    settings = REWARDS.configure(name, values)
+    return REWARDS[name](**dataclasses.asdict(settings))

@@ -23,6 +23,7 @@ from stable_baselines3.common.utils import FloatSchedule
 
 from searchrl.atomic import write_atomic
 from searchrl.envs.spaces import action_space, observation_space
+from searchrl.migrations import upgrade_run_config
 from searchrl.policies.actor import Actor
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.networks import chosen, observation_parts, policy_kwargs
@@ -41,7 +42,9 @@ def run_config(path: str | Path) -> DictConfig:
     for folder in (path.parent, path.parent.parent):
         if (folder / "config.yaml").exists():
             try:
-                record = OmegaConf.load(folder / "config.yaml")
+                record = OmegaConf.create(
+                    upgrade_run_config(OmegaConf.to_container(OmegaConf.load(folder / "config.yaml")))
+                )
                 OmegaConf.select(record, "env.world", throw_on_missing=True)  # a run config has both
                 str(record.algo.name)
                 return record

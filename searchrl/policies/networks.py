@@ -8,6 +8,9 @@ observation parts the env must add for it (`parts`, searchrl/envs/parts.py). It 
 - `own_map_cnn`: the paper's network plus a branch over the agent's whole belief map, coarse (`own_map`), added
   to its features through a gate that starts at 0 (ReZero): initialised from a clone of the paper's network, it
   acts as the clone until training opens the gate.
+A network's own settings (and those of the parts it reads) are its constructor's typed keyword arguments
+(searchrl/registry.py `settings_of`): `network=<name> network.<setting>=...` (searchrl/train/schema.py).
+
 - critic `shared` (the default): the value head reads the actor's features, as in the paper.
 - critic `true_state`: the critic has its own extractor, the paper's network plus a branch over the world's true
   state (`true_state`: the team's merged belief, the targets left, every agent, the time left), added to its
@@ -18,6 +21,7 @@ observation parts the env must add for it (`parts`, searchrl/envs/parts.py). It 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from dataclasses import fields
 from typing import Any, ClassVar
 
 import torch
@@ -26,7 +30,7 @@ from torch import nn
 
 from searchrl.envs.parts import make_parts
 from searchrl.policies.extractor import SearchCNN
-from searchrl.registry import Registry
+from searchrl.registry import Registry, settings_of
 from searchrl.world.coarse import ObservationPart
 
 NETWORKS: Registry[type[SearchCNN]] = Registry("network.extractor")
@@ -121,10 +125,17 @@ def observation_parts(network: Mapping[str, Any], critic: Mapping[str, Any] | No
     """The observation parts the env must add for the actor's and the critic's extractors, each on its grid
     (`network.grid`, `critic.grid`)."""
     actor, critic_cls = chosen(network, critic)
-    requests = [(name, {"grid": int(network.get("grid", DEFAULT_GRID))}) for name in actor.parts]
+    requests = [(name, {"grid": DEFAULT_GRID, **network}) for name in getattr(actor, "parts", ())]
     if critic_cls is not None:
-        requests += [(name, {"grid": int(critic.get("grid", DEFAULT_GRID))}) for name in critic_cls.parts]
+        requests += [(name, {"grid": DEFAULT_GRID, **critic}) for name in getattr(critic_cls, "parts", ())]
     return make_parts(requests)
+
+
+def own_settings(extractor: type, node: Mapping[str, Any]) -> dict[str, Any]:
+    """The values in a `network` (or `critic`) node of the settings `extractor` itself takes (its typed keyword
+    arguments), as keyword arguments of its constructor."""
+    names = [f.name for f in fields(settings_of(extractor))]
+    return {name: node[name] for name in names if name in node}
 
 
 def policy_kwargs(network: Mapping[str, Any], algo: str, critic: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -136,6 +147,7 @@ def policy_kwargs(network: Mapping[str, Any], algo: str, critic: Mapping[str, An
             "conv_channels": [int(c) for c in network["conv_channels"]],
             "vector_size": int(network["vector_size"]),
             "fc_sizes": [int(c) for c in network["fc_sizes"]],
+            **own_settings(actor, network),
         },
         "net_arch": [],  # policy and value heads are linear on the features (or the LSTM output), as in PRIMAL
     }
@@ -143,4 +155,5 @@ def policy_kwargs(network: Mapping[str, Any], algo: str, critic: Mapping[str, An
         kwargs["lstm_hidden_size"] = int(network["lstm_hidden_size"])
     if critic_cls is not None:
         kwargs["critic_extractor_class"] = critic_cls
+        kwargs["critic_extractor_kwargs"] = own_settings(critic_cls, critic)
     return kwargs

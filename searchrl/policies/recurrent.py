@@ -79,18 +79,29 @@ class SequenceLstmPolicy(RecurrentMultiInputActorCriticPolicy):
 
 class OwnCriticLstmPolicy(SequenceLstmPolicy):
     """`SequenceLstmPolicy` whose critic has a features extractor of its own class, `critic_extractor_class`
-    (searchrl/policies/networks.py), built with the actor's `features_extractor_kwargs` and feeding the critic's
-    LSTM; the actor's extractor, LSTM and head are the ones a shared policy has, under the same names."""
+    (searchrl/policies/networks.py), built with the actor's widths (`features_extractor_kwargs` less the actor's
+    own settings) and its own settings (`critic_extractor_kwargs`), feeding the critic's LSTM; the actor's
+    extractor, LSTM and head are the ones a shared policy has, under the same names."""
 
-    def __init__(self, *args: Any, critic_extractor_class: type[nn.Module], **kwargs: Any) -> None:
+    WIDTHS = ("conv_channels", "vector_size", "fc_sizes")
+
+    def __init__(
+        self,
+        *args: Any,
+        critic_extractor_class: type[nn.Module],
+        critic_extractor_kwargs: dict[str, Any] | None = None,
+        **kwargs: Any,
+    ) -> None:
         self.critic_extractor_class = critic_extractor_class
+        self.critic_extractor_kwargs = dict(critic_extractor_kwargs or {})
         super().__init__(*args, **{**kwargs, "share_features_extractor": False})
 
     def make_features_extractor(self) -> nn.Module:
         # SB3's ActorCriticPolicy.__init__ calls this for the actor's extractor, then (not shared) for the critic's.
         if not isinstance(getattr(self, "features_extractor", None), nn.Module):
             return super().make_features_extractor()
-        critic = self.critic_extractor_class(self.observation_space, **self.features_extractor_kwargs)
+        widths = {k: v for k, v in self.features_extractor_kwargs.items() if k in self.WIDTHS}
+        critic = self.critic_extractor_class(self.observation_space, **widths, **self.critic_extractor_kwargs)
         if critic.features_dim != self.features_extractor.features_dim:  # the critic's LSTM takes the actor's width
             raise ValueError(
                 f"the critic's features ({critic.features_dim}) must be as wide as the actor's "
@@ -99,4 +110,8 @@ class OwnCriticLstmPolicy(SequenceLstmPolicy):
         return critic
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
-        return {**super()._get_constructor_parameters(), "critic_extractor_class": self.critic_extractor_class}
+        return {
+            **super()._get_constructor_parameters(),
+            "critic_extractor_class": self.critic_extractor_class,
+            "critic_extractor_kwargs": self.critic_extractor_kwargs,
+        }

@@ -20,10 +20,12 @@ from searchrl.command_line import (  # noqa: E402
 )
 from searchrl.multirun import exits  # noqa: E402
 from searchrl.train.app import main  # noqa: E402  (loads torch: after the wait policy)
+from searchrl.train.schema import register_configs  # noqa: E402
 
 if __name__ == "__main__":
     with exits():
         import_from_command_line(sys.argv[1:])  # the extensions' parts, before any name is checked
+        register_configs()  # the networks, critics and rewards they registered become group options
         check_resume_argument(sys.argv[1:])
         check_run_dir_argument(sys.argv[1:])
         check_group_choices(sys.argv[1:])

@@ -61,7 +61,7 @@ def make_vec_env(plan: Plan, seed: int | None = None) -> VecEnv:
     """One SearchVecEnv, or a TeamMixVecEnv when env.extra_teams adds groups (group j seeded with seed + j); with
     the teacher term, wrapped to label every step with the teacher's action (`TeacherLabels`)."""
     parts = observation_parts(asdict(plan.settings.network), asdict(plan.settings.critic))
-    reward = make_reward(plan.settings.reward)
+    reward = make_reward(asdict(plan.settings.reward))
     envs = [
         SearchVecEnv(
             world,

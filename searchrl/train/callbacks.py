@@ -253,7 +253,7 @@ def run_hparams(settings: TrainConfig, scenario: str) -> dict[str, bool | int | 
         "imitation.teacher": s.imitation.teacher,
         "imitation.rl_weight": s.imitation.rl_weight,
         "imitation.rl_schedule": s.imitation.rl_schedule,
-        "reward": s.reward,
+        "reward": s.reward.name,
         "scenario": scenario,
         "seed": s.seed,
         "total_timesteps": s.total_timesteps,

@@ -34,7 +34,7 @@ from searchrl.policies.extractor import SearchCNN
 from searchrl.policies.networks import observation_parts
 from searchrl.shared_schema import TRAINABLE_MODELS, check_known_keys, check_threads, check_world_node, override_keys
 from searchrl.train.logs import check_logger
-from searchrl.train.schema import A2CConfig, ImitationConfig, RecurrentPPOConfig, TrainConfig
+from searchrl.train.schema import A2CConfig, ImitationConfig, RecurrentPPOConfig, TrainConfig, typed_parts
 from searchrl.world.config import ConfigError, WorldConfig, need
 from searchrl.world.scenario import Scenario, ScenarioMix
 
@@ -90,6 +90,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     cfg = copy.deepcopy(cfg)  # the caller's stays as it is: the algo node typed below, the budgets rounded
     # A run's config.yaml merged into TrainConfig (resume=) leaves `algo` (Any) untyped: its group's schema types it.
     cfg.algo = OmegaConf.merge(OmegaConf.structured(ALGO_SCHEMAS[cfg.algo.name]), cfg.algo)
+    cfg = typed_parts(cfg)  # network, critic and reward typed by their parts' settings (unknown names refused)
     s: TrainConfig = OmegaConf.to_object(cfg)  # typed from here on: the schema checked every value's type
     check_world_node(s.env)
     groups = tuple(team_groups(s))
@@ -230,7 +231,7 @@ def check_numbers(cfg: TrainConfig) -> None:
 def check_network_choices(cfg: TrainConfig) -> None:
     """reward, network.extractor and critic.name registered, their grids large enough, and a run that can feed them."""
     try:
-        make_reward(cfg.reward)
+        make_reward(asdict(cfg.reward))
         parts = observation_parts(asdict(cfg.network), asdict(cfg.critic))  # unregistered names, with the nearest
         policy_class(cfg.algo.name, asdict(cfg.critic))  # a critic of its own needs RecurrentPPO
     except ValueError as err:

@@ -3,21 +3,31 @@
 
 conf/env, conf/model, conf/scenario -> searchrl/shared_schema.py (shared with evaluation)
 conf/algo      -> RecurrentPPOConfig | A2CConfig
-conf/network   -> NetworkConfig
-conf/critic    -> CriticConfig
+conf/network   -> NetworkConfig, or a registered network's settings (`part_schema`: network=<name>)
+conf/critic    -> CriticConfig, or a registered critic's likewise
+reward         -> RewardConfig, or a registered reward's (reward=<name>; stored, no yaml)
 conf/train.yaml-> TrainConfig
+
+A part's settings extend its node's base dataclass (`part_schema`): `network=swept_cnn network.width=64` composes
+as the swept network's settings, typed by Hydra; `typed_parts` types a node whose part was chosen by value
+(`network.extractor=swept_cnn`) or read from a saved config.yaml the same way, so the settings are one dataclass
+from the command line to the policy.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from omegaconf import MISSING, DictConfig, OmegaConf
 
+from searchrl.migrations import upgrade_run_config
 from searchrl.shared_schema import (
+    CONF_DIR,
     EnvConfig,
     ModelConfig,
     override_keys,
@@ -41,6 +51,11 @@ class NetworkConfig:
 class CriticConfig:
     name: str = "shared"  # shared: the value head on the actor's features; or a critic's own extractor by name
     grid: int = 16  # side of the coarse true-state view a critic such as true_state reads
+
+
+@dataclass
+class RewardConfig:
+    name: str = "paper"  # what the env pays per step, by name (searchrl/envs/rewards.py); paper: the world's
 
 
 @dataclass
@@ -145,7 +160,7 @@ class TrainConfig:
     progress_bar: bool = True
     log_interval: int = 1  # rollouts between log rows
     extensions: list[str] = field(default_factory=list)  # modules that register parts (searchrl/command_line.py)
-    reward: str = "paper"  # what the env pays per step, by name (searchrl/envs/rewards.py); paper: the world's
+    reward: RewardConfig = field(default_factory=RewardConfig)  # reward=<name> reward.<setting>=...
 
 
 # What `resume=` (and a multirun continued into its folder) may change; every other setting is the run's own.
@@ -153,11 +168,74 @@ RESUME_OVERRIDES = ("total_timesteps", "threads", "device", "progress_bar", "kee
 
 
 def saved_config(path: str | Path) -> DictConfig:
-    """A run's saved config.yaml; ValueError if the file is no mapping."""
+    """A run's saved config.yaml, upgraded to the current version (searchrl/migrations.py) and its parts' nodes
+    typed (`typed_parts`, once the run's own extensions are imported, as resuming it imports them); ValueError if
+    the file is no mapping."""
+    from searchrl.command_line import import_modules
+
     loaded = OmegaConf.to_container(OmegaConf.load(path))
     if not isinstance(loaded, dict):
         raise ValueError(f"{path} holds no mapping")
-    return OmegaConf.create(loaded)
+    import_modules(loaded.get("extensions") or [])
+    return typed_parts(OmegaConf.create(upgrade_run_config(loaded)))
+
+
+def _part_nodes() -> list[tuple[str, str, Any, type]]:
+    """(node, the setting in it that names the part, the registry, the node's base dataclass) of each part a run
+    config chooses by name."""
+    from searchrl.envs.rewards import REWARDS
+    from searchrl.policies.networks import CRITICS, NETWORKS
+
+    return [
+        ("network", "extractor", NETWORKS, NetworkConfig),
+        ("critic", "name", CRITICS, CriticConfig),
+        ("reward", "name", REWARDS, RewardConfig),
+    ]
+
+
+_SCHEMAS: dict[tuple[str, str, Any], type] = {}
+
+
+def part_schema(node: str, key: str, registry: Any, base: type, name: str) -> type:
+    """`base` extended by the settings of `registry`'s part `name` (searchrl/registry.py `settings_of`: its typed
+    keyword arguments; a network's or critic's also those of the observation parts it reads), with `key` = name.
+    Made once per part and kept in the part's module, where pickle finds it again (a launcher's job process
+    imports that module to read the config it is sent)."""
+    from searchrl.envs.parts import PARTS
+    from searchrl.registry import settings_of
+
+    part = registry.lookup(name)
+    if (node, name, part) in _SCHEMAS:  # keyed by the part too: a module imported again registers a new class
+        return _SCHEMAS[(node, name, part)]
+    sources = [part, *(PARTS.lookup(p) for p in getattr(part, "parts", ()))] if part is not None else []
+    specs: dict[str, tuple[str, Any, Any]] = {}
+    for source in sources:
+        for f in dataclasses.fields(settings_of(source, f"{registry.setting}={name}")):
+            if f.name not in {b.name for b in dataclasses.fields(base)}:
+                specs[f.name] = (
+                    f.name,
+                    f.type,
+                    dataclasses.field(default=f.default, default_factory=f.default_factory),
+                )
+    specs[key] = (key, str, dataclasses.field(default=name))
+    module = getattr(part, "__module__", __name__) if part is not None else __name__
+    label = "".join(c if c.isalnum() else "_" for c in f"{node}_{name}")
+    schema = dataclasses.make_dataclass(f"_{label}_settings", list(specs.values()), bases=(base,))
+    schema.__module__ = module
+    setattr(sys.modules[module], schema.__name__, schema)
+    _SCHEMAS[(node, name, part)] = schema
+    return schema
+
+
+def typed_parts(cfg: DictConfig) -> DictConfig:
+    """`cfg` with each part's node (network, critic, reward) typed by its part's settings (`part_schema`): a part
+    chosen by value (`network.extractor=swept_cnn` on `network=small`) gains its settings at their defaults, and a
+    saved config's node merges into the schema it was made with. ConfigError naming an unregistered part."""
+    for node, key, registry, base in _part_nodes():
+        if isinstance(cfg.get(node), (dict, DictConfig)) and cfg[node].get(key) is not None:
+            schema = part_schema(node, key, registry, base, str(cfg[node][key]))
+            cfg[node] = OmegaConf.merge(OmegaConf.structured(schema), OmegaConf.to_container(cfg[node], resolve=True))
+    return cfg
 
 
 def run_dir(resume: str | None, model: str, seed: int, now: str) -> str:
@@ -216,6 +294,12 @@ def register_configs() -> None:
     cs.store(name="train_schema", node=TrainConfig)
     cs.store(group="network", name="network_schema", node=NetworkConfig)
     cs.store(group="critic", name="critic_schema", node=CriticConfig)
+    # Each registered network, critic and reward is an option of its group at its settings' defaults (an
+    # extension's too: the entry point runs this again once it has imported them), but where a yaml holds it
+    for node, key, registry, base in _part_nodes():
+        for name, part in registry.items():
+            if part is not None and not (CONF_DIR / node / f"{name}.yaml").is_file():
+                cs.store(group=node, name=name, node=part_schema(node, key, registry, base, name))
     cs.store(group="logger", name="logger_schema", node=LoggerConfig)
     cs.store(group="algo", name="recurrent_ppo_schema", node=RecurrentPPOConfig)
     cs.store(group="algo", name="a2c_schema", node=A2CConfig)
