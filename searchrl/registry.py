@@ -13,9 +13,9 @@ way to ask for a name. Its rules, the same for every kind (tests/test_registry_r
   nearest one (`controller='planer' is not allowed: one of surfing, …, rollout (did you mean 'rollout'?)`).
 
 - `settings` gives a part's settings dataclass: the typed keyword arguments of its constructor with their defaults
-  (`def __init__(self, weight: float = 1.0)` is the setting `weight`), less those the app gives it; `configure`
-  checks a config node's values against it (an unknown setting refused with the nearest, a value of another type
-  refused) and returns the dataclass instance, before any work.
+  (`def __init__(self, weight: float = 1.0)` is the setting `weight`), less those the app gives it; `schema`
+  extends a config node's dataclass by them, which Hydra then types (a setting the part does not take, or a value
+  of another type, refused before any work).
 
 Every refusal is a `ConfigError` (a `ValueError`), which the entry points print as one line. A registry is a plain
 dict besides, so reading it (`name in NETWORKS`, `NETWORKS.items()`) and a test's `mock.patch.dict` work as on any.
@@ -25,9 +25,10 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
-from collections.abc import Iterable, Mapping
+import sys
+from collections.abc import Iterable
 from difflib import get_close_matches
-from typing import Any, TypeVar, get_args, get_origin, get_type_hints
+from typing import Any, TypeVar, get_type_hints
 
 from searchrl.world.config import ConfigError
 
@@ -86,25 +87,34 @@ class Registry(dict[str, T]):
         hint = f" (did you mean {near[0]!r}?)" if near else ""
         raise ConfigError(f"{setting or self.setting}={name!r} is not allowed: one of {', '.join(self)}{hint}")
 
+    def schema(self, name: str, base: type, key: str, sources: Iterable[Any] = ()) -> type:
+        """`base` (the dataclass of the part's config node) extended by the settings of part `name` and of
+        `sources` (the observation parts a network reads), with `key` defaulting to `name`: what Hydra types the
+        node with once the part is chosen. Made once per part and kept in the part's module, where pickle finds it
+        again (a launcher's job process imports that module to read the config it is sent)."""
+        part = self.lookup(name)
+        cache = self.__dict__.setdefault("_schemas", {})
+        if (name, base, part) in cache:  # keyed by the part too: a module imported again registers a new class
+            return cache[(name, base, part)]
+        taken = {f.name for f in dataclasses.fields(base)}
+        specs: dict[str, tuple[str, Any, Any]] = {}
+        for source in [part, *sources] if part is not None else []:
+            for f in dataclasses.fields(settings_of(source, f"{self.setting}={name}")):
+                if f.name not in taken:
+                    value = dataclasses.field(default=f.default, default_factory=f.default_factory)
+                    specs[f.name] = (f.name, f.type, value)
+        specs[key] = (key, str, dataclasses.field(default=name))
+        module = getattr(part, "__module__", base.__module__) if part is not None else base.__module__
+        label = "".join(c if c.isalnum() else "_" for c in f"{base.__name__}_{name}")
+        schema = dataclasses.make_dataclass(f"_{label}", list(specs.values()), bases=(base,))
+        schema.__module__ = module
+        setattr(sys.modules[module], schema.__name__, schema)
+        cache[(name, base, part)] = schema
+        return schema
+
     def settings(self, name: str) -> type:
         """The settings dataclass of the part `name` (`settings_of` its class)."""
         return settings_of(self.lookup(name), f"{self.setting}={name}")
-
-    def configure(self, name: str, values: Mapping[str, Any], where: str | None = None) -> Any:
-        """The settings of part `name` from a config node's `values` (those besides `name` the node holds), checked
-        by its dataclass; ConfigError naming `where.<setting>` (default the registry's setting) for a setting the
-        part does not take (with the nearest) or a value of another type."""
-        schema = self.settings(name)
-        where = where or self.setting.rpartition(".")[0] or self.setting
-        names = [f.name for f in dataclasses.fields(schema)]
-        for key, value in values.items():
-            if key not in names:
-                near = get_close_matches(str(key), names, n=1)
-                hint = f" (did you mean {where}.{near[0]}?)" if near else ""
-                takes = ", ".join(names) or "none"
-                raise ConfigError(f"{where}.{key}={value!r} is not allowed: {name} takes {takes}{hint}")
-            _check_type(f"{where}.{key}", value, get_type_hints(schema)[key])
-        return schema(**values)
 
 
 def settings_of(part: Any, label: str = "part") -> type:
@@ -131,28 +141,3 @@ def settings_of(part: Any, label: str = "part") -> type:
             )
         )
     return dataclasses.make_dataclass(f"{getattr(part, '__name__', 'Part')}Settings", specs, frozen=True)
-
-
-def _check_type(where: str, value: Any, kind: Any) -> None:
-    """ConfigError unless `value` fits the annotation `kind` (int for float, a list's items, None for Optional)."""
-    origin, args = get_origin(kind), get_args(kind)
-    if kind is Any or (value is None and type(None) in args):
-        return
-    if args and origin not in (list, tuple):  # a union: any of its members
-        if any(_fits(value, member) for member in args):
-            return
-    elif _fits(value, kind):
-        return
-    name = getattr(kind, "__name__", str(kind))
-    raise ConfigError(f"{where}={value!r} is not allowed: a {name}")
-
-
-def _fits(value: Any, kind: Any) -> bool:
-    origin, args = get_origin(kind), get_args(kind)
-    if origin in (list, tuple):
-        return isinstance(value, (list, tuple)) and all(_fits(v, args[0]) for v in value) if args else True
-    if kind is float:
-        return isinstance(value, (int, float)) and not isinstance(value, bool)
-    if kind is int:
-        return isinstance(value, int) and not isinstance(value, bool)
-    return isinstance(value, kind) if isinstance(kind, type) else True

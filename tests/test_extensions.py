@@ -142,7 +142,7 @@ def test_a_registered_reward_is_what_the_env_pays():
     """The env pays the reward object's value of each step's result; the world and its metrics are unchanged."""
     import numpy as np
 
-    from searchrl.envs.rewards import make_reward
+    from searchrl.envs.rewards import RewardConfig, make_reward
     from searchrl.envs.vec_env import SearchVecEnv
     from searchrl.world.config import WorldConfig
     from searchrl.world.engine import SearchWorld
@@ -161,7 +161,7 @@ def test_a_registered_reward_is_what_the_env_pays():
         found += int(result.targets_found.sum())
     assert found > 0  # the test saw the reward's target term
     with pytest.raises(ValueError, match=r"reward='papr' is not allowed: .* .did you mean 'paper'"):
-        make_reward({"name": "papr"})
+        make_reward(RewardConfig("papr"))
 
 
 def test_a_module_that_cannot_be_imported_is_refused_in_one_line(tmp_path):

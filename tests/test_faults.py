@@ -30,7 +30,7 @@ from searchrl.envs.parallel_env import SearchParallelEnv
 from searchrl.evaluate.app import evaluate
 from searchrl.evaluate.results import load
 from searchrl.multirun import exits
-from searchrl.policies.checkpoint import REBUILT, load_checkpoint, run_config
+from searchrl.policies.checkpoint import REBUILT, load_checkpoint, policy_record, run_config
 from searchrl.shared_schema import CONF_DIR
 from searchrl.train.app import train
 from searchrl.world.config import ConfigError, WorldConfig
@@ -914,7 +914,7 @@ def test_a_model_zip_with_an_entry_twice_is_refused(tmp_path):
     with zipfile.ZipFile(twice, "a") as archive, pytest.warns(UserWarning, match="Duplicate name"):
         archive.writestr("data", "{}")
     with pytest.raises(ValueError, match="holds the entry 'data' twice"):
-        load_checkpoint(twice, run_config(REFERENCE_B / "model.zip"))
+        load_checkpoint(twice, policy_record(run_config(REFERENCE_B / "model.zip"), twice))
 
 
 def test_a_run_folder_with_a_space_in_its_path_resumes(tmp_path, tiny_run, capsys):

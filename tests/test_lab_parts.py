@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 
 from searchrl.controllers.registry import make_controller
-from searchrl.envs.rewards import make_reward
+from searchrl.envs.rewards import RewardConfig, make_reward
 from searchrl.policies.slim import ROLLOUT_STATE, is_slim, weights_sha256
 from searchrl.world.config import WorldConfig
 from searchrl.world.engine import SearchWorld
@@ -42,7 +42,7 @@ def _result(found: np.ndarray) -> StepResult:
 
 def test_the_team_reward_pays_every_agent_its_worlds_finds_and_nothing_else():
     found = np.array([[0, 2, 0], [0, 0, 0], [1, 1, 3]], np.int64)
-    reward = make_reward({"name": "team_found"})(WorldConfig(), _result(found))
+    reward = make_reward(RewardConfig("team_found"))(WorldConfig(), _result(found))
     assert reward.dtype == np.float32 and reward.shape == (3, 3)
     assert reward.tolist() == [[2, 2, 2], [0, 0, 0], [5, 5, 5]]  # the paper's reward (7), information, ignored
     assert reward.flags.writeable  # a fresh array, not a read-only broadcast view
@@ -50,7 +50,7 @@ def test_the_team_reward_pays_every_agent_its_worlds_finds_and_nothing_else():
 
 def test_the_own_reward_pays_each_agent_its_own_finds_and_nothing_else():
     found = np.array([[0, 2, 0], [1, 1, 3]], np.int64)
-    reward = make_reward({"name": "own_found"})(WorldConfig(), _result(found))
+    reward = make_reward(RewardConfig("own_found"))(WorldConfig(), _result(found))
     assert reward.dtype == np.float32 and reward.tolist() == [[0, 2, 0], [1, 1, 3]]
 
 

@@ -350,3 +350,38 @@ def test_no_tracked_file_is_a_link_out_of_the_repository():
     links = [line.split("\t", 1)[1] for line in listing.stdout.splitlines() if line.startswith("120000 ")]
     outside = [link for link in links if not (ROOT / link).resolve().is_relative_to(ROOT.resolve())]
     assert not outside, f"tracked links that point out of the repository: {outside}"
+
+
+# Below the training plan (searchrl/train/plan.py) the settings are typed objects: the world, the envs, the policies,
+# the controllers, imitation and what a run is built from read dataclasses, never a config. The checkpoint reader is
+# the one border below it: it reads a run's config.yaml into a typed PolicyRecord.
+BELOW_THE_PLAN = [
+    name
+    for name in MODULES
+    if name.split(".")[1:2] in (["world"], ["envs"], ["policies"], ["controllers"], ["imitation"])
+    or name in ("searchrl.train.build", "searchrl.train.callbacks", "searchrl.train.logs", "searchrl.registry")
+]
+RECORD_READERS = {"searchrl.policies.checkpoint"}
+
+
+def _config_imports(path: Path) -> list[str]:
+    """The config libraries (omegaconf, hydra) a module imports, at any depth."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        names = [a.name for a in node.names] if isinstance(node, ast.Import) else []
+        names += [node.module or ""] if isinstance(node, ast.ImportFrom) else []
+        found += [n for n in names if n.split(".")[0] in ("omegaconf", "hydra")]
+    return found
+
+
+def test_nothing_below_the_plan_reads_a_config():
+    assert len(BELOW_THE_PLAN) > 40
+    reading = {name: _config_imports(MODULES[name]) for name in BELOW_THE_PLAN if name not in RECORD_READERS}
+    assert not {name: found for name, found in reading.items() if found}
+
+
+def test_the_config_finder_finds_a_planted_one(tmp_path):
+    planted = tmp_path / "planted.py"
+    planted.write_text("def f(cfg):\n    from omegaconf import DictConfig\n    import hydra.utils\n    return cfg\n")
+    assert _config_imports(planted) == ["omegaconf", "hydra.utils"]
+    assert _config_imports(MODULES["searchrl.train.plan"])  # the plan reads the composed config

@@ -147,7 +147,7 @@ def test_init_copies_policy_weights_only(tmp_path, capsys):
     source = _run(tmp_path / "source", ["+model=b", *TINY, "validation.every=0"])
     plan = make_plan(_compose(["+model=b", *TINY]))
     model = make_algorithm(plan, make_vec_env(plan))
-    init_weights(model, str(source), plan.record())
+    init_weights(model, str(source), plan.policy_record())
     loaded = RecurrentPPO.load(source)
     for name, value in loaded.policy.state_dict().items():
         torch.testing.assert_close(model.policy.state_dict()[name], value)
@@ -155,7 +155,7 @@ def test_init_copies_policy_weights_only(tmp_path, capsys):
     wider = make_plan(_compose(["+model=b", *TINY, "network.lstm_hidden_size=16"]))
     other = make_algorithm(wider, make_vec_env(wider))
     with pytest.raises(ValueError, match="does not fit this run's policy"):
-        init_weights(other, str(source), wider.record())
+        init_weights(other, str(source), wider.policy_record())
 
 
 @pytest.mark.slow  # resume after a kill is in the default run

@@ -20,6 +20,7 @@ from searchrl.policies.recurrent import SequenceLstmPolicy
 from searchrl.train.build import make_algorithm, make_vec_env
 from searchrl.train.callbacks import run_episodes
 from searchrl.train.plan import Plan, make_plan
+from searchrl.train.run_record import config_record
 from searchrl.world.config import WorldConfig
 from searchrl.world.scenario import IidObstacles, Scenario
 from tests.test_train import TINY, _compose
@@ -110,7 +111,7 @@ def test_validation_acts_with_a_copy_and_reports_what_evaluation_reports(trained
     assert all(torch.equal(value, weights[name]) for name, value in policy.state_dict().items())
     assert all(torch.equal(now, then) for now, then in zip(_generators(), generators, strict=True))
     model.save(tmp_path / "model.zip")
-    OmegaConf.save(plan.record(), tmp_path / "config.yaml")  # what checkpoint_config reads the world and algo from
+    OmegaConf.save(config_record(plan.settings), tmp_path / "config.yaml")  # what the checkpoint is read by
     actor = load_actor(tmp_path / "model.zip", plan.world, device=model.device)
     frame = run_cell(lambda config, streams: PolicyController(actor, config, False, streams), plan.world, cell, 0,
                      maps=4, repeats=1, seed=11)  # fmt: skip

@@ -11,12 +11,13 @@ eq. 17). Episode metrics (R, found fraction) stay the world's whatever the rewar
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Mapping
-from typing import Any, Protocol
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
-from searchrl.registry import Registry
+from searchrl.registry import Registry, settings_of
 from searchrl.world.config import WorldConfig
 from searchrl.world.step import StepResult
 
@@ -26,6 +27,18 @@ class RewardFn(Protocol):
 
 
 REWARDS: Registry[Callable[[], RewardFn]] = Registry("reward")
+
+
+@dataclass
+class RewardConfig:
+    """A run's `reward` node: the reward by name; a registered reward's settings extend it (`reward_schema`)."""
+
+    name: str = "paper"  # what the env pays per step; paper: the world's
+
+
+def reward_schema(name: str) -> type[RewardConfig]:
+    """RewardConfig extended by the settings of reward `name`."""
+    return REWARDS.schema(name, RewardConfig, "name")
 
 
 def register_reward(name: str) -> Callable[[Callable[[], RewardFn]], Callable[[], RewardFn]]:
@@ -41,10 +54,8 @@ class PaperReward:
         return result.reward
 
 
-def make_reward(node: Mapping[str, Any]) -> RewardFn:
-    """The reward of a run's `reward` node (`name` and its settings); ConfigError naming the nearest registered name
-    or setting, or a value of another type."""
-    values = dict(node)
-    name = values.pop("name", None)
-    settings = REWARDS.configure(name, values)
-    return REWARDS[name](**dataclasses.asdict(settings))
+def make_reward(node: RewardConfig) -> RewardFn:
+    """The reward of a run's `reward` node (its name and settings, typed by `reward_schema`); ConfigError naming
+    an unregistered name."""
+    cls = REWARDS.lookup(node.name)
+    return cls(**{f.name: getattr(node, f.name) for f in dataclasses.fields(settings_of(cls)) if hasattr(node, f.name)})

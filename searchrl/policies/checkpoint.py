@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import json
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +27,15 @@ from searchrl.envs.spaces import action_space, observation_space
 from searchrl.migrations import upgrade_run_config
 from searchrl.policies.actor import Actor
 from searchrl.policies.algorithms import ALGORITHMS
-from searchrl.policies.networks import chosen, observation_parts, policy_kwargs
+from searchrl.policies.networks import (
+    CRITICS,
+    CriticConfig,
+    NetworkConfig,
+    critic_schema,
+    network_schema,
+    observation_parts,
+    policy_kwargs,
+)
 from searchrl.policies.recurrent import OwnCriticLstmPolicy
 from searchrl.policies.slim import ROLLOUT_STATE
 from searchrl.world.config import WorldConfig
@@ -57,6 +66,45 @@ def run_config(path: str | Path) -> DictConfig:
     raise FileNotFoundError(f"checkpoint={str(path)!r} has no run config.yaml beside it or one folder up")
 
 
+@dataclass(frozen=True)
+class PolicyRecord:
+    """What a run's policy is rebuilt from, typed: read from its config.yaml (`policy_record`) or made by a training
+    plan (`Plan.policy_record`). `network` and `critic` are their parts' schemas (`network_schema`, with a
+    network's own settings)."""
+
+    algo: str
+    learning_rate: float
+    clip_range: float | None  # PPO's; A2C has none
+    world: WorldConfig
+    network: NetworkConfig
+    critic: CriticConfig
+    extensions: tuple[str, ...] = ()
+
+
+def policy_record(record: DictConfig, path: str | Path) -> PolicyRecord:
+    """The typed `PolicyRecord` of a run's config (`run_config`) for the checkpoint at `path`; ValueError in one
+    line naming a part its run registered through extensions this process has not imported."""
+    extensions = tuple(str(m) for m in record.get("extensions") or [])
+    try:
+        network = _typed(record.get("network"), network_schema, NetworkConfig, "extractor")
+        critic = _typed(record.get("critic"), critic_schema, CriticConfig, "name")
+    except ValueError as err:  # a part registered by a module this process has not imported
+        hint = f"; its run had extensions={list(extensions)}: pass them here too" if extensions else ""
+        raise ValueError(f"checkpoint={str(path)!r}: its run's {err}{hint}") from None
+    world = WorldConfig.from_dict(OmegaConf.to_container(record.env.world, resolve=True))
+    clip = record.algo.get("clip_range")
+    algo, rate = str(record.algo.name), float(record.algo.learning_rate)
+    return PolicyRecord(algo, rate, None if clip is None else float(clip), world, network, critic, extensions)
+
+
+def _typed(node: DictConfig | None, schema_of: Callable[[str], type], base: type, key: str) -> Any:
+    """A run config's part node as its part's schema; a record made before the node or a setting existed takes
+    the defaults."""
+    values = OmegaConf.to_container(node, resolve=True) if node is not None else {}
+    name = str(values.get(key, getattr(base(), key)))
+    return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema_of(name)), values))
+
+
 def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:
     """(world settings, algorithm name, model name) of a checkpoint's run (`run_config`)."""
     record = run_config(path)
@@ -83,13 +131,13 @@ def checkpoint_label(path: str | Path) -> str:
     return name if path.name == "model.zip" else f"{name}@{path.stem}"
 
 
-def policy_class(algo: str, critic: Mapping[str, Any] | None = None) -> type:
+def policy_class(algo: str, critic: CriticConfig | None = None) -> type:
     """The SB3 policy class a run of `algo` is built with: the algorithm's, or, with a critic of its own
     (`critic.name` other than shared), `OwnCriticLstmPolicy` (RecurrentPPO only)."""
     cls, policy = ALGORITHMS[algo]
-    if critic is not None and chosen({}, critic)[1] is not None:
+    if critic is not None and CRITICS.lookup(critic.name) is not None:
         if algo != "recurrent_ppo":
-            raise ValueError(f"critic.name={critic['name']!r} needs algo=recurrent_ppo (its critic LSTM), not {algo}")
+            raise ValueError(f"critic.name={critic.name!r} needs algo=recurrent_ppo (its critic LSTM), not {algo}")
         return OwnCriticLstmPolicy
     return cls.policy_aliases[policy] if isinstance(policy, str) else policy
 
@@ -131,10 +179,10 @@ def pickled_entries(path: str | Path) -> list[str]:
     return [k for k, v in _data(path).items() if isinstance(v, dict) and ":serialized:" in v]
 
 
-def rebuilt_entries(path: str | Path, record: DictConfig) -> dict[str, Any]:
-    """SB3 `custom_objects` for the model.zip at `path` of a run whose record (its config.yaml, read or made by a
-    Plan) is `record`: every entry of REBUILT, made from `record` and searchrl's code; ValueError in one line if the
-    file pickles any other entry (it is not opened)."""
+def rebuilt_entries(path: str | Path, record: PolicyRecord) -> dict[str, Any]:
+    """SB3 `custom_objects` for the model.zip at `path` of a run whose record is `record`: every entry of REBUILT,
+    made from `record` and searchrl's code; ValueError in one line if the file pickles any other entry (it is not
+    opened)."""
     unknown = [name for name in pickled_entries(path) if name not in REBUILT]
     if unknown:
         raise ValueError(
@@ -142,28 +190,16 @@ def rebuilt_entries(path: str | Path, record: DictConfig) -> dict[str, Any]:
             "refused, since unpickling a file runs whatever code it holds (a searchrl model pickles only "
             f"{', '.join(REBUILT)})"
         )
-    algo, world = str(record.algo.name), WorldConfig.from_dict(OmegaConf.to_container(record.env.world, resolve=True))
-    clip_range = record.algo.get("clip_range")
-    critic = record.get("critic")
-    try:
-        kwargs, parts = policy_kwargs(record.network, algo, critic), observation_parts(record.network, critic)
-    except ValueError as err:  # a part registered by a module this process has not imported
-        named = list(record.get("extensions") or [])
-        hint = f"; its run had extensions={named}: pass them here too" if named else ""
-        raise ValueError(f"checkpoint={str(path)!r}: its run's {err}{hint}") from None
     return dict.fromkeys(LEFT_EMPTY) | {
-        "policy_class": policy_class(algo, critic),
-        "policy_kwargs": kwargs,
-        "observation_space": observation_space(world, parts),
-        "action_space": action_space(world),
-        "clip_range": None if clip_range is None else float(clip_range),  # SB3 makes it a schedule again
-        "lr_schedule": FloatSchedule(float(record.algo.learning_rate)),  # made again from learning_rate too
+        "policy_class": policy_class(record.algo, record.critic),
+        "policy_kwargs": policy_kwargs(record.network, record.algo, record.critic),
+        "observation_space": observation_space(record.world, observation_parts(record.network, record.critic)),
+        "action_space": action_space(record.world),
+        "clip_range": record.clip_range,  # SB3 makes it a schedule again
+        "lr_schedule": FloatSchedule(record.learning_rate),  # made again from learning_rate too
     }
 
 
-# The member of a model.zip that searchrl writes beside SB3's: {"step": agent-steps, "run": the run's settings,
-# "log": a digest of its log before that step} (searchrl/train/run_record.py). SB3 ignores members it does not
-# know, so plain SB3 still opens the file.
 IDENTITY = "searchrl.json"
 
 
@@ -224,16 +260,16 @@ def saved_step(path: str | Path) -> int | None:
 
 
 def load_checkpoint(
-    path: str | Path, record: DictConfig | None = None, cls: type[BaseAlgorithm] | None = None, **kwargs: object
+    path: str | Path, record: PolicyRecord | None = None, cls: type[BaseAlgorithm] | None = None, **kwargs: object
 ) -> BaseAlgorithm:
     """The SB3 model saved at `path` by a run whose record is `record` (default: the run's own config.yaml,
-    `run_config`), loaded as `cls` (a subclass of the run's algorithm class, if given), without unpickling anything
+    `policy_record`), loaded as `cls` (a subclass of the run's algorithm class, if given), without unpickling anything
     of the file: its pickled entries are rebuilt (`rebuilt_entries`) and its tensors read by SB3 with torch's
     weights-only loader. ValueError in one line naming the file if it cannot be read (truncated, not an SB3 zip,
     another algorithm's or network's weights, a pickled entry searchrl does not rebuild, tensors that are not
     weights only). An OSError (no permission now, an I/O fault) passes through as it is: the file may be whole."""
-    record = run_config(path) if record is None else record
-    algo = str(record.algo.name)
+    record = policy_record(run_config(path), path) if record is None else record
+    algo = record.algo
     if algo not in ALGORITHMS:
         raise ValueError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
     custom = rebuilt_entries(path, record)

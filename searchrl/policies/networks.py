@@ -20,15 +20,15 @@ A network's own settings (and those of the parts it reads) are its constructor's
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from dataclasses import fields
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any, ClassVar
 
 import torch
 from gymnasium import spaces
 from torch import nn
 
-from searchrl.envs.parts import make_parts
+from searchrl.envs.parts import PARTS, make_parts
 from searchrl.policies.extractor import SearchCNN
 from searchrl.registry import Registry, settings_of
 from searchrl.world.coarse import ObservationPart
@@ -109,50 +109,78 @@ class TrueStateCritic(WithGrid):
     gated = False
 
 
-# A run config's choices, read where a config may predate them (a run saved before they existed chose these).
-DEFAULT_EXTRACTOR, DEFAULT_CRITIC, DEFAULT_GRID = "search_cnn", "shared", 16
+@dataclass
+class NetworkConfig:
+    """A run's `network` node: the actor's extractor by name and the paper network's widths; a registered network's
+    own settings (and its parts') extend it (`network_schema`)."""
+
+    extractor: str = "search_cnn"  # the actor's features extractor by name
+    conv_channels: list[int] = field(default_factory=lambda: [32, 64, 128])  # three conv pairs
+    vector_size: int = 32  # FC on the 3-vector
+    fc_sizes: list[int] = field(default_factory=lambda: [256, 256])  # FC after concatenation
+    lstm_hidden_size: int = 256  # recurrent algorithms only
+    grid: int = 16  # side of the coarse whole-map view an extractor such as own_map_cnn reads
 
 
-def chosen(network: Mapping[str, Any], critic: Mapping[str, Any] | None) -> tuple[type[SearchCNN], type | None]:
-    """(the actor's extractor class, the critic's or None for the shared one) of a run's `network` and `critic`
-    settings; ValueError naming an unregistered choice."""
-    actor = NETWORKS.lookup(str(network.get("extractor", DEFAULT_EXTRACTOR)))
-    name = DEFAULT_CRITIC if critic is None else str(critic.get("name", DEFAULT_CRITIC))
-    return actor, CRITICS.lookup(name)
+@dataclass
+class CriticConfig:
+    """A run's `critic` node; a registered critic's own settings extend it (`critic_schema`)."""
+
+    name: str = "shared"  # shared: the value head on the actor's features; or a critic's own extractor by name
+    grid: int = 16  # side of the coarse true-state view a critic such as true_state reads
 
 
-def observation_parts(network: Mapping[str, Any], critic: Mapping[str, Any] | None) -> tuple[ObservationPart, ...]:
-    """The observation parts the env must add for the actor's and the critic's extractors, each on its grid
-    (`network.grid`, `critic.grid`)."""
+def _parts_of(extractor: type | None) -> list:
+    return [PARTS.lookup(name) for name in getattr(extractor, "parts", ())]
+
+
+def network_schema(name: str) -> type[NetworkConfig]:
+    """NetworkConfig extended by the settings of network `name` and of the observation parts it reads."""
+    return NETWORKS.schema(name, NetworkConfig, "extractor", _parts_of(NETWORKS.lookup(name)))
+
+
+def critic_schema(name: str) -> type[CriticConfig]:
+    """CriticConfig extended by the settings of critic `name` and of the observation parts it reads."""
+    return CRITICS.schema(name, CriticConfig, "name", _parts_of(CRITICS.lookup(name)))
+
+
+def chosen(network: NetworkConfig, critic: CriticConfig | None) -> tuple[type[SearchCNN], type | None]:
+    """(the actor's extractor class, the critic's or None for the shared one); ConfigError naming an unregistered
+    choice."""
+    return NETWORKS.lookup(network.extractor), CRITICS.lookup("shared" if critic is None else critic.name)
+
+
+def observation_parts(network: NetworkConfig, critic: CriticConfig | None) -> tuple[ObservationPart, ...]:
+    """The observation parts the env must add for the actor's and the critic's extractors, each with the settings
+    of its node that its class takes (`grid` and its own)."""
     actor, critic_cls = chosen(network, critic)
-    requests = [(name, {"grid": DEFAULT_GRID, **network}) for name in getattr(actor, "parts", ())]
+    requests = [(name, asdict(network)) for name in getattr(actor, "parts", ())]
     if critic_cls is not None:
-        requests += [(name, {"grid": DEFAULT_GRID, **critic}) for name in getattr(critic_cls, "parts", ())]
+        requests += [(name, asdict(critic)) for name in getattr(critic_cls, "parts", ())]
     return make_parts(requests)
 
 
-def own_settings(extractor: type, node: Mapping[str, Any]) -> dict[str, Any]:
+def own_settings(extractor: type, node: NetworkConfig | CriticConfig) -> dict[str, Any]:
     """The values in a `network` (or `critic`) node of the settings `extractor` itself takes (its typed keyword
     arguments), as keyword arguments of its constructor."""
-    names = [f.name for f in fields(settings_of(extractor))]
-    return {name: node[name] for name in names if name in node}
+    return {f.name: getattr(node, f.name) for f in fields(settings_of(extractor)) if hasattr(node, f.name)}
 
 
-def policy_kwargs(network: Mapping[str, Any], algo: str, critic: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """SB3 policy_kwargs of a run's `network` and `critic` settings (its config's nodes) for algorithm `algo`."""
+def policy_kwargs(network: NetworkConfig, algo: str, critic: CriticConfig | None = None) -> dict[str, Any]:
+    """SB3 policy_kwargs of a run's `network` and `critic` settings for algorithm `algo`."""
     actor, critic_cls = chosen(network, critic)
     kwargs: dict[str, Any] = {
         "features_extractor_class": actor,
         "features_extractor_kwargs": {
-            "conv_channels": [int(c) for c in network["conv_channels"]],
-            "vector_size": int(network["vector_size"]),
-            "fc_sizes": [int(c) for c in network["fc_sizes"]],
+            "conv_channels": list(network.conv_channels),
+            "vector_size": network.vector_size,
+            "fc_sizes": list(network.fc_sizes),
             **own_settings(actor, network),
         },
         "net_arch": [],  # policy and value heads are linear on the features (or the LSTM output), as in PRIMAL
     }
     if algo == "recurrent_ppo":
-        kwargs["lstm_hidden_size"] = int(network["lstm_hidden_size"])
+        kwargs["lstm_hidden_size"] = network.lstm_hidden_size
     if critic_cls is not None:
         kwargs["critic_extractor_class"] = critic_cls
         kwargs["critic_extractor_kwargs"] = own_settings(critic_cls, critic)

@@ -35,7 +35,7 @@ from searchrl.atomic import FolderBusy, hold, storage_message, write_text_atomic
 from searchrl.multirun import JobFailed, Stopped, in_sweep, refuse
 from searchrl.policies.checkpoint import save_model
 from searchrl.shared_schema import CONF_DIR, dotted_leaves, override_keys
-from searchrl.train.build import make_vec_env, prepare_folder, record_config, set_logs, start_model, warm_start
+from searchrl.train.build import make_vec_env, prepare_folder, set_logs, start_model, warm_start
 from searchrl.train.callbacks import (
     AtomicCheckpointCallback,
     HParamsCallback,
@@ -46,7 +46,15 @@ from searchrl.train.callbacks import (
 )
 from searchrl.train.logs import check_log, validated_at
 from searchrl.train.plan import Plan, make_plan
-from searchrl.train.run_record import is_finished, other_log, read_score, run_identity, stored_score, write_score
+from searchrl.train.run_record import (
+    is_finished,
+    other_log,
+    read_score,
+    record_config,
+    run_identity,
+    stored_score,
+    write_score,
+)
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig, register_configs, saved_config
 from searchrl.world.config import ConfigError
 from searchrl.world.scenario import Scenario
@@ -139,7 +147,7 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool, started: Callable[[
         problem = other_log(run_dir / "checkpoints" / f"step_{start_step}.zip", start_step)
         if problem:
             refuse(f"resume={cfg.resume!r}: {problem}; nothing was changed")
-    record_config(plan, run_dir)
+    record_config(plan.settings, run_dir)
     if started is not None:
         started()
     if not resuming and plan.clones:

@@ -9,7 +9,6 @@ from dataclasses import asdict
 from pathlib import Path
 
 import pandas as pd
-from omegaconf import DictConfig, OmegaConf
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import VecEnv
@@ -23,13 +22,20 @@ from searchrl.imitation.clone import clone, collect
 from searchrl.imitation.teacher_labels import TeacherLabels
 from searchrl.imitation.teacher_term import TeacherTerm
 from searchrl.multirun import refuse
-from searchrl.policies.checkpoint import load_checkpoint, policy_class, run_config, save_model
+from searchrl.policies.checkpoint import (
+    PolicyRecord,
+    load_checkpoint,
+    policy_class,
+    policy_record,
+    run_config,
+    save_model,
+)
 from searchrl.policies.networks import observation_parts, policy_kwargs
 from searchrl.threads import use_threads
 from searchrl.train.callbacks import checkpoints
 from searchrl.train.logs import AppendingCSV, ContinuedClock, ResumableTensorBoard, clock_offsets, start_wandb
 from searchrl.train.plan import Plan
-from searchrl.train.run_record import config_record, foreign_checkpoint, run_identity, set_aside_logs
+from searchrl.train.run_record import foreign_checkpoint, run_identity, set_aside_logs
 from searchrl.train.schema import TrainConfig
 
 
@@ -60,8 +66,8 @@ def prepare_folder(cfg: TrainConfig, run_dir: Path, resuming: bool) -> None:
 def make_vec_env(plan: Plan, seed: int | None = None) -> VecEnv:
     """One SearchVecEnv, or a TeamMixVecEnv when env.extra_teams adds groups (group j seeded with seed + j); with
     the teacher term, wrapped to label every step with the teacher's action (`TeacherLabels`)."""
-    parts = observation_parts(asdict(plan.settings.network), asdict(plan.settings.critic))
-    reward = make_reward(asdict(plan.settings.reward))
+    parts = observation_parts(plan.settings.network, plan.settings.critic)
+    reward = make_reward(plan.settings.reward)
     envs = [
         SearchVecEnv(
             world,
@@ -104,7 +110,7 @@ def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple
     model = make_algorithm(plan, env)
     if cfg.init is not None:
         try:
-            fresh = init_weights(model, cfg.init, plan.record())
+            fresh = init_weights(model, cfg.init, plan.policy_record())
         except ValueError as err:
             refuse(str(err))
         print(f"policy weights from {cfg.init}" + (f"; fresh: {', '.join(fresh)}" if fresh else ""), file=sys.stderr)
@@ -139,7 +145,7 @@ def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[Base
 def load_algorithm(plan: Plan, path: str, env: VecEnv) -> BaseAlgorithm:
     """A checkpoint with its step count and optimiser state, attached to `env` (and its teacher labels); ValueError
     naming the file if it cannot be read."""
-    model = load_checkpoint(path, plan.record(), cls=plan.algorithm, env=env, device=plan.settings.device)
+    model = load_checkpoint(path, plan.policy_record(), cls=plan.algorithm, env=env, device=plan.settings.device)
     attach_teacher(plan, model, env)
     return model
 
@@ -149,13 +155,12 @@ def make_algorithm(plan: Plan, env: VecEnv) -> BaseAlgorithm:
     s = plan.settings
     algo = asdict(s.algo)
     algo.pop("name")
-    network, critic = asdict(s.network), asdict(s.critic)  # the policies read a run's record: mappings
     model = plan.algorithm(
-        policy_class(s.algo.name, critic),
+        policy_class(s.algo.name, s.critic),
         env,
         seed=s.seed,
         device=s.device,
-        policy_kwargs=policy_kwargs(network, s.algo.name, critic),
+        policy_kwargs=policy_kwargs(s.network, s.algo.name, s.critic),
         verbose=0,
         **algo,
     )
@@ -171,18 +176,18 @@ def attach_teacher(plan: Plan, model: BaseAlgorithm, env: VecEnv) -> None:
         model.configure_teacher(im.rl_weight, im.rl_schedule, im.critic_warmup, source, im.rl_anneal_steps)
 
 
-def init_weights(model: BaseAlgorithm, path: str, cfg: DictConfig) -> list[str]:
+def init_weights(model: BaseAlgorithm, path: str, record: PolicyRecord) -> list[str]:
     """Copy the policy weights of checkpoint `path` (read as `load_checkpoint` reads any file, by its own run's
-    config, or by `cfg` for a file without one beside it) into the fresh `model` of a run configured by `cfg`; its
+    config, or by `record` for a file without one beside it) into the fresh `model` of a run of `record`; its
     optimiser state is not taken. Every tensor the
     two policies both have is copied and must have the same shape, and the actor's head must be among them, so a
     policy of another size or action set is refused (ValueError with the reason); the parts only `model` has (a
     whole-map branch, a critic of its own) keep their fresh weights. Returns the names of those parts."""
     try:
         try:
-            own = run_config(path)
+            own = policy_record(run_config(path), path)
         except FileNotFoundError:  # a zip copied out of its run: read as this run's network
-            own = cfg
+            own = record
         theirs = load_checkpoint(path, own, device="cpu").policy.state_dict()
     except ValueError as err:  # a zip of no run, a corrupt file: all end here
         raise ValueError(f"init={path!r} does not fit this run's policy: {err}") from None
@@ -203,12 +208,6 @@ def init_weights(model: BaseAlgorithm, path: str, cfg: DictConfig) -> list[str]:
     # named_parameters names a module shared under two names (the actor's extractor) once
     fresh = [name for name, _ in model.policy.named_parameters() if name not in theirs]
     return sorted({".".join(name.split(".")[:2]) for name in fresh})
-
-
-def record_config(plan: Plan, run_dir: Path) -> None:
-    """The run's record (`config_record`), written once the run has started well: a resume writes back what it
-    changed (say total_timesteps) but never what it resumes from."""
-    write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(config_record(plan.settings)))
 
 
 def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:

@@ -28,7 +28,7 @@ from searchrl.envs.rewards import make_reward
 from searchrl.imitation.clone import lr_factor
 from searchrl.imitation.teacher_term import TEACHER_ALGORITHMS, check_settings
 from searchrl.policies.algorithms import ALGORITHMS
-from searchrl.policies.checkpoint import policy_class
+from searchrl.policies.checkpoint import PolicyRecord, policy_class
 from searchrl.policies.device import check_device
 from searchrl.policies.extractor import SearchCNN
 from searchrl.policies.networks import observation_parts
@@ -74,9 +74,13 @@ class Plan:
         """A warm start: the teacher is cloned before RL."""
         return self.teacher is not None and self.settings.imitation.epochs > 0
 
-    def record(self) -> DictConfig:
-        """The settings as a DictConfig, the form a run's config.yaml and its checkpoints' loaders read."""
-        return OmegaConf.structured(self.settings)
+    def policy_record(self) -> PolicyRecord:
+        """What the run's policy is built from, as a checkpoint's loader reads it from the run's config.yaml."""
+        s = self.settings
+        clip = getattr(s.algo, "clip_range", None)
+        return PolicyRecord(
+            s.algo.name, s.algo.learning_rate, clip, self.world, s.network, s.critic, tuple(s.extensions)
+        )
 
 
 def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
@@ -231,9 +235,9 @@ def check_numbers(cfg: TrainConfig) -> None:
 def check_network_choices(cfg: TrainConfig) -> None:
     """reward, network.extractor and critic.name registered, their grids large enough, and a run that can feed them."""
     try:
-        make_reward(asdict(cfg.reward))
-        parts = observation_parts(asdict(cfg.network), asdict(cfg.critic))  # unregistered names, with the nearest
-        policy_class(cfg.algo.name, asdict(cfg.critic))  # a critic of its own needs RecurrentPPO
+        make_reward(cfg.reward)
+        parts = observation_parts(cfg.network, cfg.critic)  # unregistered names, with the nearest
+        policy_class(cfg.algo.name, cfg.critic)  # a critic of its own needs RecurrentPPO
     except ValueError as err:
         raise ConfigError(str(err)) from None
     for name, value in (("network.grid", cfg.network.grid), ("critic.grid", cfg.critic.grid)):

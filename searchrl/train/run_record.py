@@ -45,6 +45,12 @@ def config_record(settings: TrainConfig) -> dict[str, Any]:
     return OmegaConf.to_container(record, resolve=True)
 
 
+def record_config(settings: TrainConfig, run_dir: Path) -> None:
+    """The run's record (`config_record`) as `run_dir/config.yaml`, written once the run has started well: a resume
+    writes back what it changed (say total_timesteps) but never what it resumes from."""
+    write_text_atomic(run_dir / "config.yaml", OmegaConf.to_yaml(config_record(settings)))
+
+
 def run_identity(settings: TrainConfig) -> dict[str, Any]:
     """The settings that make a run the run it is: its record less what a resume may change."""
     return {k: v for k, v in config_record(settings).items() if k not in (*RESUME_OVERRIDES, "resume", "hydra")}

@@ -16,16 +16,16 @@ from the command line to the policy.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from omegaconf import MISSING, DictConfig, OmegaConf
 
+from searchrl.envs.rewards import REWARDS, RewardConfig, reward_schema
 from searchrl.migrations import upgrade_run_config
+from searchrl.policies.networks import CRITICS, NETWORKS, CriticConfig, NetworkConfig, critic_schema, network_schema
 from searchrl.shared_schema import (
     CONF_DIR,
     EnvConfig,
@@ -35,27 +35,6 @@ from searchrl.shared_schema import (
     repository_root,
     scenario_default,
 )
-
-
-@dataclass
-class NetworkConfig:
-    extractor: str = "search_cnn"  # the actor's features extractor by name (searchrl/policies/networks.py)
-    conv_channels: list[int] = field(default_factory=lambda: [32, 64, 128])  # three conv pairs
-    vector_size: int = 32  # FC on the 3-vector
-    fc_sizes: list[int] = field(default_factory=lambda: [256, 256])  # FC after concatenation
-    lstm_hidden_size: int = 256  # recurrent algorithms only
-    grid: int = 16  # side of the coarse whole-map view an extractor such as own_map_cnn reads
-
-
-@dataclass
-class CriticConfig:
-    name: str = "shared"  # shared: the value head on the actor's features; or a critic's own extractor by name
-    grid: int = 16  # side of the coarse true-state view a critic such as true_state reads
-
-
-@dataclass
-class RewardConfig:
-    name: str = "paper"  # what the env pays per step, by name (searchrl/envs/rewards.py); paper: the world's
 
 
 @dataclass
@@ -180,60 +159,23 @@ def saved_config(path: str | Path) -> DictConfig:
     return typed_parts(OmegaConf.create(upgrade_run_config(loaded)))
 
 
-def _part_nodes() -> list[tuple[str, str, Any, type]]:
-    """(node, the setting in it that names the part, the registry, the node's base dataclass) of each part a run
-    config chooses by name."""
-    from searchrl.envs.rewards import REWARDS
-    from searchrl.policies.networks import CRITICS, NETWORKS
-
+def _part_nodes() -> list[tuple[str, str, Any, Any]]:
+    """(node, the setting in it that names the part, the registry, the schema of a part by name) of each part a
+    run config chooses by name."""
     return [
-        ("network", "extractor", NETWORKS, NetworkConfig),
-        ("critic", "name", CRITICS, CriticConfig),
-        ("reward", "name", REWARDS, RewardConfig),
+        ("network", "extractor", NETWORKS, network_schema),
+        ("critic", "name", CRITICS, critic_schema),
+        ("reward", "name", REWARDS, reward_schema),
     ]
 
 
-_SCHEMAS: dict[tuple[str, str, Any], type] = {}
-
-
-def part_schema(node: str, key: str, registry: Any, base: type, name: str) -> type:
-    """`base` extended by the settings of `registry`'s part `name` (searchrl/registry.py `settings_of`: its typed
-    keyword arguments; a network's or critic's also those of the observation parts it reads), with `key` = name.
-    Made once per part and kept in the part's module, where pickle finds it again (a launcher's job process
-    imports that module to read the config it is sent)."""
-    from searchrl.envs.parts import PARTS
-    from searchrl.registry import settings_of
-
-    part = registry.lookup(name)
-    if (node, name, part) in _SCHEMAS:  # keyed by the part too: a module imported again registers a new class
-        return _SCHEMAS[(node, name, part)]
-    sources = [part, *(PARTS.lookup(p) for p in getattr(part, "parts", ()))] if part is not None else []
-    specs: dict[str, tuple[str, Any, Any]] = {}
-    for source in sources:
-        for f in dataclasses.fields(settings_of(source, f"{registry.setting}={name}")):
-            if f.name not in {b.name for b in dataclasses.fields(base)}:
-                specs[f.name] = (
-                    f.name,
-                    f.type,
-                    dataclasses.field(default=f.default, default_factory=f.default_factory),
-                )
-    specs[key] = (key, str, dataclasses.field(default=name))
-    module = getattr(part, "__module__", __name__) if part is not None else __name__
-    label = "".join(c if c.isalnum() else "_" for c in f"{node}_{name}")
-    schema = dataclasses.make_dataclass(f"_{label}_settings", list(specs.values()), bases=(base,))
-    schema.__module__ = module
-    setattr(sys.modules[module], schema.__name__, schema)
-    _SCHEMAS[(node, name, part)] = schema
-    return schema
-
-
 def typed_parts(cfg: DictConfig) -> DictConfig:
-    """`cfg` with each part's node (network, critic, reward) typed by its part's settings (`part_schema`): a part
+    """`cfg` with each part's node (network, critic, reward) typed by its part's schema (`Registry.schema`): a part
     chosen by value (`network.extractor=swept_cnn` on `network=small`) gains its settings at their defaults, and a
     saved config's node merges into the schema it was made with. ConfigError naming an unregistered part."""
-    for node, key, registry, base in _part_nodes():
+    for node, key, _, schema_of in _part_nodes():
         if isinstance(cfg.get(node), (dict, DictConfig)) and cfg[node].get(key) is not None:
-            schema = part_schema(node, key, registry, base, str(cfg[node][key]))
+            schema = schema_of(str(cfg[node][key]))
             cfg[node] = OmegaConf.merge(OmegaConf.structured(schema), OmegaConf.to_container(cfg[node], resolve=True))
     return cfg
 
@@ -296,10 +238,10 @@ def register_configs() -> None:
     cs.store(group="critic", name="critic_schema", node=CriticConfig)
     # Each registered network, critic and reward is an option of its group at its settings' defaults (an
     # extension's too: the entry point runs this again once it has imported them), but where a yaml holds it
-    for node, key, registry, base in _part_nodes():
+    for node, _, registry, schema_of in _part_nodes():
         for name, part in registry.items():
             if part is not None and not (CONF_DIR / node / f"{name}.yaml").is_file():
-                cs.store(group=node, name=name, node=part_schema(node, key, registry, base, name))
+                cs.store(group=node, name=name, node=schema_of(name))
     cs.store(group="logger", name="logger_schema", node=LoggerConfig)
     cs.store(group="algo", name="recurrent_ppo_schema", node=RecurrentPPOConfig)
     cs.store(group="algo", name="a2c_schema", node=A2CConfig)
