@@ -12,7 +12,7 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
-from searchrl.policies.checkpoint import load_checkpoint, run_config
+from searchrl.policies.checkpoint import load_checkpoint, policy_record, run_config
 from searchrl.policies.slim import is_slim, main, slim_checkpoint, weights_sha256
 
 pytestmark = pytest.mark.app  # runs an app, a script or PPO updates: not in the fast layer (docs/testing.md)
@@ -44,7 +44,7 @@ def test_slimming_keeps_the_weights_and_the_file_loads(trained, tmp_path):
     assert not is_slim(trained) and is_slim(out)
     assert weights_sha256(out) == weights_sha256(trained)
     assert out.stat().st_size < trained.stat().st_size
-    full, slim = (load_checkpoint(p, run_config(trained), device="cpu") for p in (trained, out))
+    full, slim = (load_checkpoint(p, policy_record(run_config(trained), trained), device="cpu") for p in (trained, out))
     for name, value in full.policy.state_dict().items():
         assert torch.equal(slim.policy.state_dict()[name], value), name
     assert slim.num_timesteps == full.num_timesteps and not slim.policy.optimizer.state
@@ -81,7 +81,7 @@ def test_a_checkpoint_written_on_a_gpu_is_slimmed_and_resumed_on_a_cpu(trained, 
     assert not is_slim(gpu)
     out = slim_checkpoint(gpu, tmp_path / "slim.zip")
     assert is_slim(out) and weights_sha256(out) == weights_sha256(trained)
-    model = load_checkpoint(gpu, run_config(trained), device="cpu")  # resume= on a CPU machine
+    model = load_checkpoint(gpu, policy_record(run_config(trained), trained), device="cpu")  # resume= on a CPU machine
     assert model.policy.optimizer.state and all(
         t.device.type == "cpu" for s in model.policy.optimizer.state.values() for t in s.values() if torch.is_tensor(t)
     )

@@ -3,12 +3,12 @@
 
 conf/env, conf/model, conf/scenario -> searchrl/shared_schema.py (shared with evaluation)
 conf/algo      -> RecurrentPPOConfig | A2CConfig
-conf/network   -> NetworkConfig, or a registered network's settings (`part_schema`: network=<name>)
+conf/network   -> NetworkConfig (searchrl/policies/networks.py), or a registered network's schema: network=<name>
 conf/critic    -> CriticConfig, or a registered critic's likewise
 reward         -> RewardConfig, or a registered reward's (reward=<name>; stored, no yaml)
 conf/train.yaml-> TrainConfig
 
-A part's settings extend its node's base dataclass (`part_schema`): `network=swept_cnn network.width=64` composes
+A part's settings extend its node's base dataclass (`Registry.schema`): `network=swept_cnn network.width=64` composes
 as the swept network's settings, typed by Hydra; `typed_parts` types a node whose part was chosen by value
 (`network.extractor=swept_cnn`) or read from a saved config.yaml the same way, so the settings are one dataclass
 from the command line to the policy.
