@@ -22,11 +22,13 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from searchrl.world.config import ConfigError
+
 TMP_SUFFIX = ".tmp"
 
 
-class FolderBusy(RuntimeError):
-    """Another process holds the lock; the message names it and says what to do."""
+class FolderBusy(ConfigError):
+    """Another process holds the lock; the message names it and says what to do. A refusal (exit status 2)."""
 
 
 def temporary_path(path: str | Path) -> Path:
@@ -55,27 +57,27 @@ def remove_temporaries(folder: str | Path, target: str | None = None) -> list[Pa
 
 
 def check_writable(path: str | Path, name: str, folder: bool = False) -> None:
-    """ValueError "name=path is not allowed: ..." unless `path` (a file, or a folder if `folder`) can be made
+    """ConfigError "name=path is not allowed: ..." unless `path` (a file, or a folder if `folder`) can be made
     here: each part of it that exists is a folder (its last part a file or a folder, as asked), and the nearest
     existing one is writable. Checked before any work, so a run never ends unable to write its result."""
     path = Path(path)
     what = "a folder" if folder else "a file path"
     if path.exists() and path.is_dir() != folder:
-        raise ValueError(f"{name}={str(path)!r} is not allowed: {what} (this is {'a file' if folder else 'a folder'})")
+        raise ConfigError(f"{name}={str(path)!r} is not allowed: {what} (this is {'a file' if folder else 'a folder'})")
     parent = path if folder else path.parent
     while not parent.exists():
         parent = parent.parent
     if not parent.is_dir():
-        raise ValueError(f"{name}={str(path)!r} is not allowed: {parent} is a file, not a folder")
+        raise ConfigError(f"{name}={str(path)!r} is not allowed: {parent} is a file, not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{name}={str(path)!r} is not allowed: {parent} is not writable")
+        raise ConfigError(f"{name}={str(path)!r} is not allowed: {parent} is not writable")
 
 
 STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS)  # a full disk, a quota, a read-only file system
 
 
 def check_own_files(folder: str | Path, name: str) -> None:
-    """ValueError in one line unless every entry of `folder` and of its subfolders one level down (a run's
+    """ConfigError in one line unless every entry of `folder` and of its subfolders one level down (a run's
     checkpoints/, an evaluation's cells/) is its own: a link out of the folder would be written through, and a
     resume's pruning would delete what it finds there."""
     folder = Path(folder)
@@ -86,7 +88,7 @@ def check_own_files(folder: str | Path, name: str) -> None:
     entries += [part for entry in entries if entry.is_dir() and not entry.is_symlink() for part in entry.iterdir()]
     for entry in sorted(entries):
         if entry.is_symlink() and not entry.resolve().is_relative_to(inside):
-            raise ValueError(
+            raise ConfigError(
                 f"{name}={str(folder)!r} is not allowed: its {entry.relative_to(folder)} is a link out of it (to "
                 f"{entry.resolve()}); a run's or an evaluation's files stay in its folder, so replace the link by them"
             )

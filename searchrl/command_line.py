@@ -140,7 +140,7 @@ def held_run(run_dir: Path) -> str | None:
 
 def check_group_choices(argv: list[str]) -> None:
     """Before Hydra reads the command line: every `[+]group=option` names an option that exists, else a refusal
-    (`multirun.Refused`) in one line with the nearest option, where Hydra's own is a page of search paths. A sweep's
+    (`ConfigError`) in one line with the nearest option, where Hydra's own is a page of search paths. A sweep's
     comma-separated options are each checked; sweep functions (`choice(...)`) and Hydra's own groups are left to
     Hydra. A heuristic asked for as a model is pointed to `controller=`."""
     from searchrl.controllers.registry import HEURISTICS
@@ -227,7 +227,7 @@ def job_variants(argv: list[str]) -> list[tuple[str, list[str]]] | None:
 
 def check_jobs_compose(argv: list[str], config_name: str) -> None:
     """Compose the app `config_name` (conf/<config_name>.yaml, its schemas registered) from `argv` as each of its
-    `job_variants`; the first that fails is refused in one line (`multirun.Refused`) naming the value."""
+    `job_variants`; the first that fails is refused in one line (`ConfigError`) naming the value."""
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 

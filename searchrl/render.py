@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
         config, scenario, factory, label = episode_setup(
             args.checkpoint, args.model, args.controller, sizes, args.scenario, args.device
         )
-    except (ConfigError, FileNotFoundError, ValueError) as err:
+    except ConfigError as err:
         p.error(str(err))
     state, frames = render_episode(
         config, scenario, factory, args.seed, args.agent, args.cell, args.fps, args.out, label

@@ -12,7 +12,8 @@ from hydra.types import RunMode
 from omegaconf import OmegaConf
 
 import searchrl.multirun as multirun
-from searchrl.multirun import FAILED, FailedJobs, JobFailed, Refused, Stopped, in_sweep, summarize
+from searchrl.multirun import FAILED, FailedJobs, JobFailed, Stopped, in_sweep, summarize
+from searchrl.world.config import ConfigError
 
 
 def _hydra(mode: RunMode, sweep_dir: Path, num: int = 0):
@@ -78,7 +79,7 @@ def hydra_mode(monkeypatch):
 
 
 def _refuse() -> None:
-    raise Refused("x=3 is not allowed: 1 or 2")
+    raise ConfigError("x=3 is not allowed: 1 or 2")
 
 
 def _stop() -> None:

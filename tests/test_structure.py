@@ -18,8 +18,8 @@ MODULES = {
     for path in PACKAGE.rglob("*.py")
     for rel in [path.relative_to(ROOT).with_suffix("")]
 }
-# Allowed to end the process: multirun.exits (how every entry point turns Refused/Stopped into an exit status) and the
-# notebooks' command line (a notebook is a script; its refusal is its last line).
+# Allowed to end the process: multirun.exits (how every entry point turns a ConfigError or Stopped into an exit
+# status) and the notebooks' command line (a notebook is a script; its refusal is its last line).
 ENDS_THE_PROCESS = {"searchrl.multirun", "searchrl.reporting.cli"}
 
 
@@ -133,7 +133,7 @@ def test_the_cycle_finder_finds_a_cycle():
 
 
 def test_nothing_below_the_entry_points_ends_the_process():
-    """Below the entry points a refusal raises (multirun.Refused); only an entry point exits."""
+    """Below the entry points a refusal raises (ConfigError); only an entry point exits."""
     for name, path in MODULES.items():
         if _is_entry_point(path) or name in ENDS_THE_PROCESS:
             continue

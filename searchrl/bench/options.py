@@ -130,14 +130,14 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
     if getattr(args, "overrides", None):  # each composes onto the recipe, or one line names it (as the app's would)
         from searchrl.bench.train import composed_overrides
         from searchrl.command_line import check_group_choices, check_jobs_compose
-        from searchrl.multirun import Refused
         from searchrl.train.schema import register_configs
+        from searchrl.world.config import ConfigError
 
         register_configs()
         try:
             check_group_choices(args.overrides)
             check_jobs_compose(composed_overrides(args.network, experiment, args.machine, args.overrides), "train")
-        except Refused as refusal:
+        except ConfigError as refusal:
             parser.error(refusal.message)
     checkpoint = getattr(args, "checkpoint", None)
     if getattr(args, "inference", "torch") != "torch" and not (checkpoint and args.device == "cpu"):

@@ -19,7 +19,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
 from tqdm import tqdm
 
 from searchrl.atomic import FolderBusy, check_writable, hold, remove_temporaries, storage_message, write_atomic
@@ -33,7 +32,7 @@ from searchrl.evaluate.record import CELL_SETTINGS, claim_folder, evaluation_set
 from searchrl.evaluate.results import cell_table, paired_table
 from searchrl.evaluate.runner import cell_config, run_cell
 from searchrl.evaluate.schema import EvaluateConfig, register_configs
-from searchrl.multirun import Stopped, refuse
+from searchrl.multirun import Stopped, refuse, said_as_refusal
 from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, load_actor, training_scenario
 from searchrl.policies.device import resolve_device
 from searchrl.shared_schema import check_known_keys, check_world_node
@@ -93,6 +92,7 @@ class Evaluation:
     record: dict | None = None  # what its claimed folder records, and so each cell it writes
 
 
+@said_as_refusal
 def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | None = None) -> Evaluation:
     """Every check of an evaluation, before any work or file (ConfigError naming the bad value)."""
     import_modules(cfg.get("extensions") or [])  # their parts, in a launcher's job process too
@@ -152,8 +152,6 @@ def evaluate(cfg: DictConfig, overrides: list[str] | None = None) -> Path:
     try:
         plan = plan_evaluation(cfg, overrides or [])
         claim_evaluation(plan)
-    except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException, FolderBusy) as err:
-        fail(str(err))
     except OSError as err:  # writing the folder's record: a full disk, a read-only file system
         fail(storage_message(err) or f"out_dir={str(plan.out_dir if plan else cfg.out_dir)!r}: {err}")
     return run_evaluation(plan)

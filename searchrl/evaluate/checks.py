@@ -151,8 +151,6 @@ def check_out_dir(out_dir: Path) -> None:
         for part in ("cells", LOCKS):
             check_writable(out_dir / part, f"out_dir/{part}", folder=True)
         out_dir.mkdir(parents=True, exist_ok=True)  # /proc, /sys, a full disk: refused here, in one line
-    except ValueError as err:
-        raise ConfigError(str(err)) from None
     except OSError as err:
         raise ConfigError(
             f"out_dir={str(out_dir)!r} is not allowed: its folders cannot be made there "

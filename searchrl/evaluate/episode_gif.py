@@ -16,6 +16,7 @@ from PIL import Image, ImageDraw, ImageFont
 from searchrl.atomic import write_atomic
 from searchrl.controllers.episodes import ControllerFactory, episode_streams, play
 from searchrl.controllers.factory import heuristic_factory, policy_factory
+from searchrl.multirun import said_as_refusal
 from searchrl.shared_schema import group_option, model_world
 from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
@@ -83,6 +84,7 @@ def episode_world(base: WorldConfig | str, sizes: dict[str, tuple[str, int]]) ->
         raise ConfigError(f"{sizes[field][0]}={sizes[field][1]} ({err})" if field else str(err)) from None
 
 
+@said_as_refusal
 def episode_setup(
     checkpoint: str | None,
     model: str | None,

@@ -20,9 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
 
-from searchrl.atomic import FolderBusy, storage_message, write_text_atomic
+from searchrl.atomic import storage_message, write_text_atomic
 from searchrl.evaluate.app import claim_evaluation, fail, plan_evaluation, run_evaluation
 from searchrl.evaluate.checks import given_out_dir
 from searchrl.evaluate.schema import EvaluateConfig, GridConfig
@@ -117,8 +116,6 @@ def evaluate_suite(cfg: DictConfig, overrides: list[str]) -> list[Path]:
         # what the suite is, beside its scenario folders: a table of part of it can say what it lacks
         record = {"suite": suite["name"], "seed": suite["seed"], "scenarios": [s.label for s in scenarios]}
         write_text_atomic(base / SUITE_RECORD, OmegaConf.to_yaml(OmegaConf.create(record)))
-    except (ConfigError, ValueError, FileNotFoundError, OmegaConfBaseException, FolderBusy) as err:
-        fail(str(err))
-    except OSError as err:
+    except OSError as err:  # a refusal (ConfigError) passes as it is
         fail(storage_message(err) or f"suite={cfg.suite.name}: {err}")
     return [run_evaluation(plan) for plan in plans]

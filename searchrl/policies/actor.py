@@ -29,6 +29,7 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
 
 from searchrl.envs.parts import make_parts
+from searchrl.world.config import ConfigError
 
 # The inference paths of a CPU actor: "torch", the traced and frozen TorchScript extractor every golden episode was
 # recorded with; "onnx", the extractor run by ONNX Runtime, faster and not bit for bit (searchrl/policies/
@@ -39,9 +40,9 @@ INFERENCE = ("torch", "onnx")
 def check_inference(inference: str, device: str | torch.device = "cpu") -> None:
     """ValueError in one line for an unknown path, or the onnx path on a device that is not the CPU."""
     if inference not in INFERENCE:
-        raise ValueError(f"inference={inference!r} is not allowed: one of {', '.join(INFERENCE)}")
+        raise ConfigError(f"inference={inference!r} is not allowed: one of {', '.join(INFERENCE)}")
     if inference == "onnx" and torch.device(device).type != "cpu":
-        raise ValueError(f"inference=onnx runs on the CPU, not device={str(device)!r}: use inference=torch there")
+        raise ConfigError(f"inference=onnx runs on the CPU, not device={str(device)!r}: use inference=torch there")
 
 
 def _optimized(extractor: nn.Module, example: dict[str, torch.Tensor]) -> nn.Module:

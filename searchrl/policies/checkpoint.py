@@ -38,15 +38,15 @@ from searchrl.policies.networks import (
 )
 from searchrl.policies.recurrent import OwnCriticLstmPolicy
 from searchrl.policies.slim import ROLLOUT_STATE
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, MissingFile, WorldConfig
 
 
 def run_config(path: str | Path) -> DictConfig:
     """The run config of a checkpoint: `<run>/model.zip` or `<run>/checkpoints/step_*.zip`, next to or above which
-    the run's `config.yaml` lies, read as plain YAML (OmegaConf's loader is YAML's safe one); FileNotFoundError or
-    ValueError in one line naming the file."""
+    the run's `config.yaml` lies, read as plain YAML (OmegaConf's loader is YAML's safe one); ConfigError in one
+    line naming the file (MissingFile, a FileNotFoundError too, where there is none)."""
     if not str(path).strip() or not Path(path).is_file():  # checkpoint= (empty) is Path("."), a folder
-        raise FileNotFoundError(f"checkpoint={str(path)!r} does not exist (expected a model.zip of a run)")
+        raise MissingFile(f"checkpoint={str(path)!r} does not exist (expected a model.zip of a run)")
     path = Path(path)
     for folder in (path.parent, path.parent.parent):
         if (folder / "config.yaml").exists():
@@ -58,12 +58,12 @@ def run_config(path: str | Path) -> DictConfig:
                 str(record.algo.name)
                 return record
             except Exception as err:  # not YAML, not a mapping, no env.world or algo.name: all say the same
-                raise ValueError(
+                raise ConfigError(
                     f"checkpoint={str(path)!r}: its run's {folder / 'config.yaml'} cannot be read as a run config "
                     f"({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}); restore the file "
                     "that searchrl.train wrote"
                 ) from None
-    raise FileNotFoundError(f"checkpoint={str(path)!r} has no run config.yaml beside it or one folder up")
+    raise MissingFile(f"checkpoint={str(path)!r} has no run config.yaml beside it or one folder up")
 
 
 @dataclass(frozen=True)
@@ -90,7 +90,7 @@ def policy_record(record: DictConfig, path: str | Path) -> PolicyRecord:
         critic = _typed(record.get("critic"), critic_schema, CriticConfig, "name")
     except ValueError as err:  # a part registered by a module this process has not imported
         hint = f"; its run had extensions={list(extensions)}: pass them here too" if extensions else ""
-        raise ValueError(f"checkpoint={str(path)!r}: its run's {err}{hint}") from None
+        raise ConfigError(f"checkpoint={str(path)!r}: its run's {err}{hint}") from None
     world = WorldConfig.from_dict(OmegaConf.to_container(record.env.world, resolve=True))
     clip = record.algo.get("clip_range")
     algo, rate = str(record.algo.name), float(record.algo.learning_rate)
@@ -137,7 +137,7 @@ def policy_class(algo: str, critic: CriticConfig | None = None) -> type:
     cls, policy = ALGORITHMS[algo]
     if critic is not None and CRITICS.lookup(critic.name) is not None:
         if algo != "recurrent_ppo":
-            raise ValueError(f"critic.name={critic.name!r} needs algo=recurrent_ppo (its critic LSTM), not {algo}")
+            raise ConfigError(f"critic.name={critic.name!r} needs algo=recurrent_ppo (its critic LSTM), not {algo}")
         return OwnCriticLstmPolicy
     return cls.policy_aliases[policy] if isinstance(policy, str) else policy
 
@@ -160,14 +160,14 @@ REBUILT = FROM_CONFIG + LEFT_EMPTY
 
 
 def _data(path: str | Path) -> dict[str, Any]:
-    """The JSON `data` member of a model.zip, read as JSON only; ValueError in one line if the file is no SB3 zip."""
+    """The JSON `data` member of a model.zip, read as JSON only; ConfigError in one line if the file is no SB3 zip."""
     raw = _member(path, "data")
     try:
         data = json.loads(raw) if raw is not None else None
     except ValueError:
         data = None
     if not isinstance(data, dict):
-        raise ValueError(
+        raise ConfigError(
             f"checkpoint={str(path)!r} cannot be read as an SB3 model (no JSON data mapping); it may be "
             "truncated or not a searchrl model"
         )
@@ -181,11 +181,11 @@ def pickled_entries(path: str | Path) -> list[str]:
 
 def rebuilt_entries(path: str | Path, record: PolicyRecord) -> dict[str, Any]:
     """SB3 `custom_objects` for the model.zip at `path` of a run whose record is `record`: every entry of REBUILT,
-    made from `record` and searchrl's code; ValueError in one line if the file pickles any other entry (it is not
+    made from `record` and searchrl's code; ConfigError in one line if the file pickles any other entry (it is not
     opened)."""
     unknown = [name for name in pickled_entries(path) if name not in REBUILT]
     if unknown:
-        raise ValueError(
+        raise ConfigError(
             f"checkpoint={str(path)!r} holds a pickled {unknown[0]!r} entry that searchrl does not rebuild; it is "
             "refused, since unpickling a file runs whatever code it holds (a searchrl model pickles only "
             f"{', '.join(REBUILT)})"
@@ -217,7 +217,7 @@ def save_model(model: BaseAlgorithm, path: str | Path, run: dict[str, Any], log:
 
 
 def _member(path: str | Path, name: str) -> bytes | None:
-    """A member of the zip at `path`, None if it has none; ValueError in one line if it is no zip."""
+    """A member of the zip at `path`, None if it has none; ConfigError in one line if it is no zip."""
     try:
         with zipfile.ZipFile(path) as archive:
             names = archive.namelist()
@@ -227,12 +227,12 @@ def _member(path: str | Path, name: str) -> bytes | None:
     except OSError:
         raise
     except Exception as err:  # BadZipFile, a truncated member
-        raise ValueError(
+        raise ConfigError(
             f"checkpoint={str(path)!r} cannot be read as an SB3 model ({type(err).__name__}: "
             f"{str(err).splitlines()[0] if str(err) else 'no detail'}); it may be truncated or not a "
             "searchrl model"
         ) from None
-    raise ValueError(
+    raise ConfigError(
         f"checkpoint={str(path)!r} holds the entry {twice[0]!r} twice: one copy would hide the other; not a file "
         "searchrl or SB3 wrote"
     )
@@ -249,7 +249,7 @@ def saved_identity(path: str | Path) -> dict[str, Any] | None:
     except ValueError:
         identity = None
     if not isinstance(identity, dict):
-        raise ValueError(f"checkpoint={str(path)!r}: its {IDENTITY} is damaged (not a JSON mapping)")
+        raise ConfigError(f"checkpoint={str(path)!r}: its {IDENTITY} is damaged (not a JSON mapping)")
     return identity
 
 
@@ -265,20 +265,20 @@ def load_checkpoint(
     """The SB3 model saved at `path` by a run whose record is `record` (default: the run's own config.yaml,
     `policy_record`), loaded as `cls` (a subclass of the run's algorithm class, if given), without unpickling anything
     of the file: its pickled entries are rebuilt (`rebuilt_entries`) and its tensors read by SB3 with torch's
-    weights-only loader. ValueError in one line naming the file if it cannot be read (truncated, not an SB3 zip,
+    weights-only loader. ConfigError in one line naming the file if it cannot be read (truncated, not an SB3 zip,
     another algorithm's or network's weights, a pickled entry searchrl does not rebuild, tensors that are not
     weights only). An OSError (no permission now, an I/O fault) passes through as it is: the file may be whole."""
     record = policy_record(run_config(path), path) if record is None else record
     algo = record.algo
     if algo not in ALGORITHMS:
-        raise ValueError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
+        raise ConfigError(f"checkpoint={str(path)!r} was trained with algo {algo!r}; known: {sorted(ALGORITHMS)}")
     custom = rebuilt_entries(path, record)
     try:
         return (cls or ALGORITHMS[algo][0]).load(str(path), custom_objects=custom, **kwargs)
     except OSError:
         raise
     except Exception as err:  # BadZipFile, EOFError, KeyError, torch's UnpicklingError, state_dict mismatches, ...
-        raise ValueError(
+        raise ConfigError(
             f"checkpoint={str(path)!r} cannot be read as a {algo} model of its run's config ({type(err).__name__}: "
             f"{str(err).strip().splitlines()[0] if str(err).strip() else 'no detail'}); it may be truncated, not "
             "a searchrl model, or of another network"
@@ -293,20 +293,20 @@ def load_actor(
     inference: str = "torch",
 ) -> Actor:
     """The actor of a saved RecurrentPPO / PPO / A2C model.zip, its network on `device` (a checked one:
-    searchrl/policies/device.py); ValueError if it sees another field of view (channels, side) or acts in another
+    searchrl/policies/device.py); ConfigError if it sees another field of view (channels, side) or acts in another
     action set than `config`'s world. `inference`: the extractor's path on the CPU (searchrl/policies/actor.py)."""
     # Loaded on the CPU and moved to `device` by the Actor: one path for every device.
     model = load_checkpoint(path, device="cpu")
     space = observation_space(config)
     seen, shown = model.observation_space["map"].shape, space["map"].shape
     if seen != shown:
-        raise ValueError(
+        raise ConfigError(
             f"checkpoint={str(path)!r} sees a {seen} field of view but the world shows {shown}"
             " (channels, side, side: fov and belief_age_channel must be the checkpoint's)"
         )
     actor = Actor(model.policy, optimize=optimize, device=device, inference=inference)
     if actor.n_actions != config.n_actions:
-        raise ValueError(
+        raise ConfigError(
             f"checkpoint={str(path)!r} acts with {actor.n_actions} actions but the world has {config.n_actions}"
         )
     return actor

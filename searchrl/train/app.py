@@ -27,11 +27,10 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
-from omegaconf.errors import OmegaConfBaseException
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
-from searchrl.atomic import FolderBusy, hold, storage_message, write_text_atomic
+from searchrl.atomic import hold, storage_message, write_text_atomic
 from searchrl.multirun import JobFailed, Stopped, in_sweep, refuse
 from searchrl.policies.checkpoint import save_model
 from searchrl.shared_schema import CONF_DIR, dotted_leaves, override_keys
@@ -102,17 +101,12 @@ def train(
     config record (then `started()`: Hydra's record, `hydra_record`), the clone, the logs, the callbacks, RL, the
     final model and score."""
     cfg, run_dir, resuming = resolve_run(cfg, Path(output_dir), overrides or [])
-    try:
-        plan = make_plan(cfg, [] if resuming else overrides or [])
-    except (ConfigError, ValueError, OmegaConfBaseException) as err:
-        refuse(str(err))
+    plan = make_plan(cfg, [] if resuming else overrides or [])  # a refusal (ConfigError) before any file
     for note in plan.notes:
         print(f"note: {note}", file=sys.stderr)
     try:
         with hold(run_dir / ".lock", f"run folder {str(run_dir)!r}"):
-            return _train_locked(plan, run_dir, resuming, started)
-    except FolderBusy as err:
-        refuse(str(err))
+            return _train_locked(plan, run_dir, resuming, started)  # FolderBusy: a refusal
     except OSError as err:  # a full disk mid-run: the last checkpoint stands, resume once there is space
         message = storage_message(err)
         if message is None:
@@ -244,7 +238,7 @@ def main(cfg: DictConfig) -> float:
     hydra_cfg, task_cfg = HydraConfig.get(), cfg
     run_dir, overrides = Path(hydra_cfg.runtime.output_dir), list(hydra_cfg.overrides.task)
     if hydra_cfg.mode == RunMode.MULTIRUN:  # a sweep started again into its folder continues it
-        cfg, overrides, finished = in_sweep(continue_sweep_job, cfg, run_dir, overrides)
+        cfg, overrides, finished = in_sweep(continued_job, cfg, run_dir, overrides)
         if finished:
             try:
                 score = float(stored_score(run_dir)["score"])
@@ -290,13 +284,6 @@ def hydra_record(cfg: DictConfig) -> Callable[[], None]:
         write_text_atomic(folder / "overrides.yaml", OmegaConf.to_yaml(hydra_cfg.overrides.task))
 
     return write
-
-
-def continue_sweep_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple[DictConfig, list[str], bool]:
-    try:
-        return continued_job(cfg, run_dir, overrides)
-    except ConfigError as err:
-        refuse(str(err))
 
 
 def _settings(cfg: DictConfig) -> dict[str, Any]:

@@ -49,15 +49,9 @@ def prepare_folder(cfg: TrainConfig, run_dir: Path, resuming: bool) -> None:
             f"resume={str(run_dir)!r} is a finished run with no checkpoints/ left (a shipped folder): start a new "
             f"run from its weights with init={run_dir / 'model.zip'}"
         )
-    try:  # a checkpoints/ linked elsewhere would be pruned there
-        check_own_files(run_dir, "resume" if resuming else "hydra.run.dir")
-    except ValueError as err:
-        refuse(str(err))
+    check_own_files(run_dir, "resume" if resuming else "hydra.run.dir")  # a checkpoints/ linked elsewhere
     for folder in (run_dir, run_dir / "checkpoints"):  # a folder made read-only: said now, not after a rollout
-        try:
-            check_writable(folder, "resume" if resuming else "hydra.run.dir", folder=True)
-        except ValueError as err:
-            refuse(str(err))
+        check_writable(folder, "resume" if resuming else "hydra.run.dir", folder=True)
     for folder in (run_dir, run_dir / "checkpoints"):  # left by a killed writer; we hold the folder's lock
         remove_temporaries(folder)
     use_threads(cfg.threads, network_on_cpu=cfg.device == "cpu")  # torch's and the world's (numba's)
@@ -127,9 +121,7 @@ def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[Base
     for step, path in found:
         try:
             problem = foreign_checkpoint(path, step, plan.settings)  # a whole file of another run is not set aside
-            if problem:
-                refuse(f"resume={plan.settings.resume!r}: checkpoints/{path.name} {problem}; nothing was changed")
-            return load_algorithm(plan, str(path), env), path
+            model = None if problem else load_algorithm(plan, str(path), env)
         except OSError as err:  # cannot be read now (permission, I/O): maybe whole, so nothing is set aside
             refuse(
                 f"resume={plan.settings.resume!r}: {path.name} cannot be read now ({type(err).__name__}: "
@@ -139,6 +131,10 @@ def load_newest_checkpoint(plan: Plan, run_dir: Path, env: VecEnv) -> tuple[Base
             aside = path.with_name(f"{path.name}.unreadable")
             path.rename(aside)
             print(f"warning: {err}; set aside as {aside.name}, trying the checkpoint before it", file=sys.stderr)
+            continue
+        if problem:
+            refuse(f"resume={plan.settings.resume!r}: checkpoints/{path.name} {problem}; nothing was changed")
+        return model, path
     refuse(f"resume={plan.settings.resume!r}: no checkpoint under checkpoints/ can be read (set aside as *.unreadable)")
 
 

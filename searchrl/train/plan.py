@@ -27,6 +27,7 @@ from searchrl.controllers.registry import make_teacher
 from searchrl.envs.rewards import make_reward
 from searchrl.imitation.clone import lr_factor
 from searchrl.imitation.teacher_term import TEACHER_ALGORITHMS, check_settings
+from searchrl.multirun import said_as_refusal
 from searchrl.policies.algorithms import ALGORITHMS
 from searchrl.policies.checkpoint import PolicyRecord, policy_class
 from searchrl.policies.device import check_device
@@ -83,6 +84,7 @@ class Plan:
         )
 
 
+@said_as_refusal
 def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> Plan:
     """Check every setting of `cfg` (a composed train config) and read it into a Plan holding its typed settings;
     ConfigError naming the first bad value. `overrides` (the command line's) only choose the notes on settings the

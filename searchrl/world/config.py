@@ -16,7 +16,19 @@ from searchrl.world.footprint import GAMMA
 
 
 class ConfigError(ValueError):
-    """A configuration value outside its allowed range; the message names the field."""
+    """The one refusal of the library: a setting outside what is allowed, or a file or folder it cannot use; the
+    message names the value and what is allowed. The entry points print it as one line and exit with `code`
+    (searchrl/multirun.py); a multirun fails that job only."""
+
+    code = 2
+
+    @property
+    def message(self) -> str:
+        return str(self)
+
+
+class MissingFile(ConfigError, FileNotFoundError):
+    """A file a setting names does not exist: a refusal that a caller may also catch as FileNotFoundError."""
 
 
 def need(ok: bool, name: str, value: object, allowed: str) -> None:
