@@ -103,3 +103,19 @@ def test_the_parts_listing_shows_every_registry_with_settings_and_a_users_parts(
     assert main(["extensions=[no_such_module]"]) == 2 and main(["seed=3"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2 and "'no_such_module' cannot be imported" in err[0] and err[1].startswith("error: seed=3")
+
+
+def test_a_part_asked_for_twice_with_one_setting_is_built_once_and_with_two_refused():
+    """The actor's and the critic's requests of one observation part: the same settings give one part (the env holds
+    one observation per name); other settings are refused in one line, not built with the first."""
+    from searchrl.envs.parts import make_parts
+    from searchrl.policies.networks import CriticConfig, NetworkConfig, observation_parts
+
+    (part,) = make_parts([("own_map", {"grid": 8}), ("own_map", {"grid": 8, "unrelated": 1})])
+    assert part.grid == 8
+    with pytest.raises(ConfigError) as refused:
+        make_parts([("own_map", {"grid": 16}), ("own_map", {"grid": 8})])
+    assert "observation part 'own_map' is asked for with {'grid': 16} and with {'grid': 8}" in str(refused.value)
+    assert "\n" not in str(refused.value)
+    parts = observation_parts(NetworkConfig(extractor="own_map_cnn", grid=12), CriticConfig("true_state", grid=8))
+    assert [(p.key, p.grid) for p in parts] == [("own_map", 12), ("true_state", 8)]  # two parts, each its own grid

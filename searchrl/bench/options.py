@@ -8,6 +8,7 @@ import math
 
 from searchrl.controllers.registry import HEURISTICS
 from searchrl.shared_schema import CONF_DIR, recipes
+from searchrl.world.config import ConfigError
 
 SUITES = {
     "world": "engine throughput, batched against the oracle, at numba thread counts (--threads 1,2, --seconds)",
@@ -93,7 +94,6 @@ def _device(parser: argparse.ArgumentParser, device: str, checkpoint: str | None
     if not checkpoint and device == "cpu":
         return device
     from searchrl.policies.device import policy_device
-    from searchrl.world.config import ConfigError
 
     try:
         return policy_device(device, bool(checkpoint))
@@ -131,7 +131,6 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
         from searchrl.bench.train import composed_overrides
         from searchrl.command_line import check_group_choices, check_jobs_compose
         from searchrl.train.schema import register_configs
-        from searchrl.world.config import ConfigError
 
         register_configs()
         try:
@@ -157,7 +156,7 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
 
         try:
             load_checkpoint(checkpoint, device="cpu")
-        except (ValueError, FileNotFoundError) as err:
+        except ConfigError as err:
             parser.error(str(err))
     if args.suite == "world":
         from searchrl.bench import world
@@ -198,7 +197,6 @@ def import_extensions(argv: list[str]) -> str | None:
     """Import the modules of `--extensions A,B` (or `--extensions=A,B`) in `argv`, as the apps' `extensions=` does;
     the one-line refusal of a module that cannot be imported, else None."""
     from searchrl.command_line import import_modules
-    from searchrl.world.config import ConfigError
 
     modules: list[str] = []
     for i, arg in enumerate(argv):

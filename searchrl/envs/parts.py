@@ -14,6 +14,7 @@ from typing import Any
 
 from searchrl.registry import Registry
 from searchrl.world.coarse import ObservationPart, OwnMap, TrueState
+from searchrl.world.config import ConfigError
 
 PARTS: Registry[Callable[..., ObservationPart]] = Registry("observation part", (OwnMap, TrueState), key="key")
 
@@ -26,15 +27,26 @@ def register_part(cls: Callable[..., ObservationPart]) -> Callable[..., Observat
 def make_part(name: str, /, **settings: Any) -> ObservationPart:
     """The part registered as `name`, built with those of `settings` its class takes (a coarse part takes `grid`,
     a part of one vector per agent none); ConfigError naming the nearest registered name."""
-    cls = PARTS.lookup(name)
-    takes = inspect.signature(cls).parameters
-    return cls(**{key: value for key, value in settings.items() if key in takes})
+    return PARTS.lookup(name)(**_taken(name, settings))
+
+
+def _taken(name: str, settings: dict[str, Any]) -> dict[str, Any]:
+    takes = inspect.signature(PARTS.lookup(name)).parameters
+    return {key: value for key, value in settings.items() if key in takes}
 
 
 def make_parts(requests: Iterable[tuple[str, dict[str, Any]]]) -> tuple[ObservationPart, ...]:
-    """One part per distinct name of (name, settings) requests, in order of first request."""
-    seen: dict[str, ObservationPart] = {}
+    """One part per distinct name of (name, settings) requests, in order of first request. The env holds one
+    observation per name, so a part asked for twice with other settings (the actor's grid and the critic's) is
+    refused in one line rather than built once with the first."""
+    seen: dict[str, tuple[dict[str, Any], ObservationPart]] = {}
     for name, settings in requests:
+        taken = _taken(name, settings)
+        if name in seen and seen[name][0] != taken:
+            raise ConfigError(
+                f"observation part {name!r} is asked for with {seen[name][0]} and with {taken}: the env holds one "
+                f"{name!r}, so give both the same settings (say network.grid and critic.grid)"
+            )
         if name not in seen:
-            seen[name] = make_part(name, **settings)
-    return tuple(seen.values())
+            seen[name] = (taken, make_part(name, **taken))
+    return tuple(part for _, part in seen.values())
