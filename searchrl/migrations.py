@@ -1,15 +1,20 @@
-"""Older folders read as the current version: each change to what a run's config.yaml holds is one upgrade here,
-applied once on read, so no reader keeps branches for the versions before it.
+"""Older folders read as the current version: each change to what a run's config.yaml, an evaluation's record or a
+cell's rows hold is one upgrade here, applied once on read, so no reader keeps branches for the versions before it.
 
-An upgrade takes the plain mapping of a record and returns it in the next form; `upgrade_run_config` applies every
-upgrade that applies (each checks the form it upgrades, so a current record passes through unchanged). Each has a
-test with a record of the form it upgrades (tests/test_migrations.py).
+An upgrade takes a record in an older form and returns it in the next; `upgrade_run_config` and `upgrade_cell`
+apply every upgrade that applies (each checks the form it upgrades, so a current record passes unchanged), and
+`EVALUATION_RECORD_ADDED` holds what an evaluation record made before a setting existed ran with. Each has a test
+with a record of the form it upgrades (tests/test_migrations.py).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from typing import Any
+
+import pandas as pd
+
+from searchrl.world.scenario import PAPER
 
 Record = dict[str, Any]
 
@@ -29,3 +34,20 @@ def upgrade_run_config(record: Record) -> Record:
     for upgrade in RUN_CONFIG_UPGRADES:
         record = upgrade(record)
     return record
+
+
+# Settings an evaluation record (evaluation.yaml, a cell's attrs) gained after folders were made, with the value
+# those folders ran with: scenarios (the paper's), grid.agents (every team size), device (the CPU), inference
+# (torch). A record that lacks one matches a run at that value (searchrl/evaluate/record.py `option_defaults`).
+EVALUATION_RECORD_ADDED: dict[str, Any] = {"scenario": PAPER.to_dict(), "grid": {"agents": None}}
+POLICY_RECORD_ADDED: dict[str, Any] = {"device": "cpu", "inference": "torch"}
+
+
+def upgrade_cell(frame: pd.DataFrame, world_label: Callable[[], str]) -> pd.DataFrame:
+    """A cell's rows in the current form: a cell made before the `world` column gets its folder's sensing label
+    (`world_label()`, read only then), one made before scenarios existed the paper's."""
+    if "world" not in frame:
+        frame.insert(2, "world", world_label())
+    if "scenario" not in frame:
+        frame.insert(3, "scenario", PAPER.label)
+    return frame

@@ -36,3 +36,17 @@ def test_the_readers_of_a_run_see_the_upgraded_record(tmp_path):
         saved = saved_config(run / "config.yaml")
     assert OmegaConf.to_container(saved.reward) == {"name": "own_found"}
     assert OmegaConf.load(run / "config.yaml").reward == "own_found"  # read, never rewritten
+
+
+def test_a_cell_made_before_the_world_and_scenario_columns_gains_them():
+    import pandas as pd
+
+    from searchrl.migrations import upgrade_cell
+
+    old = pd.DataFrame({"controller": ["surfing"], "model": ["b"], "n": [20], "found_fraction": [0.5]})
+    asked = []
+    new = upgrade_cell(old.copy(), lambda: asked.append(1) or "k=1")
+    assert list(new.columns[:4]) == ["controller", "model", "world", "scenario"] and asked == [1]
+    assert (new.world == "k=1").all() and (new.scenario == "paper").all()
+    current = new.copy()
+    assert upgrade_cell(current, lambda: asked.append(2) or "other").equals(new) and asked == [1]  # not read again

@@ -26,10 +26,11 @@ from omegaconf import OmegaConf
 
 from searchrl.atomic import write_text_atomic
 from searchrl.evaluate.grid import cell_files
+from searchrl.migrations import EVALUATION_RECORD_ADDED, POLICY_RECORD_ADDED
 from searchrl.policies.device import resolve_device
 from searchrl.shared_schema import dotted_leaves
 from searchrl.world.config import ConfigError, WorldConfig
-from searchrl.world.scenario import PAPER, Scenario
+from searchrl.world.scenario import Scenario
 
 if TYPE_CHECKING:
     from searchrl.evaluate.schema import EvaluateConfig
@@ -73,11 +74,11 @@ def evaluation_settings(cfg: EvaluateConfig, label: str, model_name: str) -> dic
 def option_defaults(cfg: EvaluateConfig) -> dict[str, Any]:
     """Flattened defaults of the heuristic's own schema (`controller_args.<name>`) and of the world (`world.<name>`):
     an option added to a controller or the world after a folder was recorded is absent there, and at its default
-    it plays the episodes the record describes. A record made before scenarios existed ran the paper's, one made
-    before `device` existed on the CPU, one before `inference` with torch."""
-    defaults = dotted_leaves({"scenario": PAPER.to_dict(), "grid": {"agents": None}})
+    it plays the episodes the record describes. What a record made before a setting existed ran with is
+    searchrl/migrations.py's."""
+    defaults = dotted_leaves(EVALUATION_RECORD_ADDED)
     if cfg.checkpoint is not None:
-        return defaults | {"device": "cpu", "inference": "torch"}
+        return defaults | POLICY_RECORD_ADDED
     world = {f.name: list(f.default) if isinstance(f.default, tuple) else f.default for f in fields(WorldConfig)}
     defaults |= dotted_leaves({"world": world})
     schema = type(cfg.controller)

@@ -11,8 +11,9 @@ from omegaconf import OmegaConf
 from searchrl.evaluate.cell_checks import check_cell
 from searchrl.evaluate.grid import cell_files
 from searchrl.evaluate.record import CELL_SETTINGS, setting_differences
+from searchrl.migrations import EVALUATION_RECORD_ADDED, upgrade_cell
 from searchrl.world.config import WorldConfig
-from searchrl.world.scenario import PAPER, Scenario
+from searchrl.world.scenario import Scenario
 
 
 def world_config_of(out_dir: str | Path) -> WorldConfig | None:
@@ -60,10 +61,7 @@ def load(*out_dirs: str | Path) -> pd.DataFrame:
                     f"{f} and {first[0].name} hold results of other settings ({'; '.join(differ)}): "
                     "one folder holds one evaluation; remove the cell that does not belong"
                 )
-            if "world" not in frame:
-                frame.insert(2, "world", world_of(d))
-            if "scenario" not in frame:  # cells made before scenarios existed ran the paper's
-                frame.insert(3, "scenario", PAPER.label)
+            frame = upgrade_cell(frame, lambda folder=d: world_of(folder))  # an older cell's columns
             check_cell(frame, f)  # a damaged or edited cell is refused, never summarised
             frame["folder"] = str(d)
             frames.append(frame)
@@ -108,7 +106,7 @@ def coverage(out_dir: str | Path) -> dict[str, object]:
     agents = grid.get("agents")
     wanted = [c.key for c in cells if agents is None or c.n_agents in agents]
     held = {f.stem for f in cell_files(out_dir)}
-    scenario = Scenario.from_dict(record.get("scenario")).label if record.get("scenario") else PAPER.label
+    scenario = Scenario.from_dict(record.get("scenario") or EVALUATION_RECORD_ADDED["scenario"]).label
     return {
         "controller": record.get("controller"),
         "scenario": scenario,
