@@ -168,3 +168,36 @@ def test_a_module_that_cannot_be_imported_is_refused_in_one_line(tmp_path):
     assert out.returncode == 2 and out.stderr.count("\n") == 1
     assert f"'{PACKAGE}.nothing' cannot be imported" in out.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_the_commands_of_extending_md_run_as_written(tmp_path):
+    """docs/extending.md's commands, each part with one setting of its own: each composes and passes its app's
+    plan (every setting checked by the part's schema) with the extensions it names, as the entry point runs them."""
+    from hydra import compose, initialize_config_dir
+
+    from searchrl.command_line import from_command_line, import_modules
+    from searchrl.evaluate.app import plan_evaluation
+    from searchrl.evaluate.schema import register_configs as evaluate_configs
+    from searchrl.shared_schema import CONF_DIR
+    from searchrl.train.plan import make_plan
+    from searchrl.train.schema import register_configs as train_configs
+    from tests.registries import isolated_registries
+    from tests.test_docs import bash_commands
+
+    commands = [c for c in bash_commands((ROOT / "docs" / "extending.md").read_text()) if "searchrl." in c]
+    assert len(commands) == 2 and all("extensions=" in c for c in commands)
+    with isolated_registries("tests.extension_example"):
+        for command in commands:
+            app, args = command.split()[2].removeprefix("searchrl."), command.split()[3:]
+            import_modules(from_command_line(args))
+            train_configs(), evaluate_configs()
+            with initialize_config_dir(str(CONF_DIR), version_base="1.3"):
+                cfg = compose(
+                    config_name=app, overrides=[*args, f"out_dir={tmp_path / 'e'}"] if app == "evaluate" else args
+                )
+            if app == "train":
+                settings = make_plan(cfg).settings
+                assert (settings.network.width, settings.network.scale, settings.reward.weight) == (24, 0.5, 2.0)
+            else:
+                assert plan_evaluation(cfg, args).settings.controller.margin == 2
+    assert not (tmp_path / "e").exists()
