@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
-import sys
 from collections.abc import Iterable
 from difflib import get_close_matches
 from typing import Any, TypeVar, get_type_hints
@@ -90,8 +89,9 @@ class Registry(dict[str, T]):
     def schema(self, name: str, base: type, key: str, sources: Iterable[Any] = ()) -> type:
         """`base` (the dataclass of the part's config node) extended by the settings of part `name` and of
         `sources` (the observation parts a network reads), with `key` defaulting to `name`: what Hydra types the
-        node with once the part is chosen. Made once per part and kept in the part's module, where pickle finds it
-        again (a launcher's job process imports that module to read the config it is sent)."""
+        node with once the part is chosen. Made once per part and named after its module but not kept there, so a
+        launcher (joblib's loky, submitit: cloudpickle) sends the class itself with a job's config: a job process
+        that has not yet imported the part's module could not find it there."""
         part = self.lookup(name)
         cache = self.__dict__.setdefault("_schemas", {})
         if (name, base, part) in cache:  # keyed by the part too: a module imported again registers a new class
@@ -108,7 +108,6 @@ class Registry(dict[str, T]):
         label = "".join(c if c.isalnum() else "_" for c in f"{base.__name__}_{name}")
         schema = dataclasses.make_dataclass(f"_{label}", list(specs.values()), bases=(base,))
         schema.__module__ = module
-        setattr(sys.modules[module], schema.__name__, schema)
         cache[(name, base, part)] = schema
         return schema
 
