@@ -12,7 +12,7 @@ way to ask for a name. Its rules, the same for every kind (tests/test_registry_r
 - `lookup` gives the part of a name or refuses in one line: the setting, the value, every registered name and the
   nearest one (`controller='planer' is not allowed: one of surfing, …, rollout (did you mean 'rollout'?)`).
 
-- `settings` gives a part's settings dataclass: the typed keyword arguments of its constructor with their defaults
+- `settings_of` gives a part's settings dataclass: the typed keyword arguments of its constructor with their defaults
   (`def __init__(self, weight: float = 1.0)` is the setting `weight`), less those the app gives it; `schema`
   extends a config node's dataclass by them, which Hydra then types (a setting the part does not take, or a value
   of another type, refused before any work).
@@ -110,10 +110,6 @@ class Registry(dict[str, T]):
         schema.__module__ = module
         cache[(name, base, part)] = schema
         return schema
-
-    def settings(self, name: str) -> type:
-        """The settings dataclass of the part `name` (`settings_of` its class)."""
-        return settings_of(self.lookup(name), f"{self.setting}={name}")
 
 
 def settings_of(part: Any, label: str = "part") -> type:
