@@ -15,7 +15,8 @@ from searchrl.world import scenario
 
 
 def _ours(module: str, packages: tuple[str, ...]) -> bool:
-    return module.split(".")[0] in packages
+    """Whether `module` is one of `packages` or below one (a package may be dotted: tests.extension_example)."""
+    return any(module == p or module.startswith(f"{p}.") for p in packages)
 
 
 @contextlib.contextmanager
