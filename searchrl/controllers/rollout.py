@@ -10,7 +10,7 @@ own random moves and tie-breaks (`value=sampled` counts the imagined targets fou
 with the same random numbers (common random numbers); every candidate × sample × world of the batch is one world of
 one `SearchWorld`, stepped by the compiled engine. With more than one sample, sampling stops early, in rounds of
 `chunk`, where one move leads every other by `stop` standard errors of the paired difference; an agent leaves the
-base move only for a move whose mean gain exceeds `confidence` standard errors (0: any higher mean). `team` limits
+base move for any move of a higher mean paired gain. `team` limits
 the imagined worlds to the deciding agent and its nearest teammates, for large teams. Centralised: it reads the
 whole team's positions and knowledge, never the true targets (unless `truth`, the privileged probe's scores, for
 tests and probes only).
@@ -55,7 +55,6 @@ class RolloutConfig(ControllerConfig):
     horizon: int = 0  # steps imagined from the decision, the decision's included (0: to the episode's end)
     chunk: int = 8  # samples per round of the early stop
     stop: float = 3.0  # stop sampling once the leading move leads every other by this many standard errors (0: never)
-    confidence: float = 0.0  # leave the base move only for one better by this many standard errors
     # expected: a path's expected finds under the team's posterior (no sampling noise; tests/test_rollout.py checks
     # it against the sampled mean); sampled: the imagined targets' finds
     value: str = "expected"
@@ -80,18 +79,17 @@ class Rollout:
         if values["base"] == "rollout":
             raise ConfigError("controller.base='rollout' is not allowed: the planner's base is a rule")
         samples, horizon, chunk = int(values["samples"]), int(values["horizon"]), int(values["chunk"])
-        if samples < 1 or horizon < 0 or chunk < 1 or values["stop"] < 0 or values["confidence"] < 0:
+        if samples < 1 or horizon < 0 or chunk < 1 or values["stop"] < 0:
             raise ValueError(
-                f"samples={samples}, horizon={horizon}, chunk={chunk}, stop={values['stop']}, confidence="
-                f"{values['confidence']} are not allowed: samples >= 1, horizon >= 0, chunk >= 1, stop >= 0,"
-                " confidence >= 0"
+                f"samples={samples}, horizon={horizon}, chunk={chunk}, stop={values['stop']} are not allowed: "
+                "samples >= 1, horizon >= 0, chunk >= 1, stop >= 0"
             )
         if values["value"] not in ("expected", "sampled") or (values["truth"] and values["value"] != "sampled"):
             raise ValueError(f"value={values['value']!r} is not allowed: expected or sampled (truth needs sampled)")
         if not 0 <= int(values["team"]) <= config.n_agents:
             raise ValueError(f"team={values['team']!r} is not allowed: 0 (the whole team) to N = {config.n_agents}")
         self.config, self.samples, self.horizon, self.chunk = config, samples, horizon, min(chunk, samples)
-        self.stop, self.confidence = float(values["stop"]), float(values["confidence"])
+        self.stop = float(values["stop"])
         self.value, self.truth = values["value"], bool(values["truth"])
         self.team = int(values["team"]) if 0 < int(values["team"]) < config.n_agents else 0
         self.rules, self.base_name, self.base_settings = rules, values["base"], values["base_settings"]
@@ -129,7 +127,7 @@ class Rollout:
             members = self.members(state, worlds, agent)  # (W, k) ascending
             first = self.first(chosen, worlds, np.full(worlds.size, agent), members)
             scores = self.score(state, worlds, first, targets, [[int(keys[w])] for w in worlds], members)
-            chosen[worlds, agent] = choose(scores, base[worlds, agent], self.confidence)
+            chosen[worlds, agent] = choose(scores, base[worlds, agent], 0.0)
         return chosen
 
     def first(self, moves: np.ndarray, worlds: np.ndarray, agents: np.ndarray, members: np.ndarray) -> np.ndarray:

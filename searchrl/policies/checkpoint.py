@@ -86,8 +86,8 @@ def policy_record(record: DictConfig, path: str | Path) -> PolicyRecord:
     line naming a part its run registered through extensions this process has not imported."""
     extensions = tuple(str(m) for m in record.get("extensions") or [])
     try:
-        network = _typed(record.get("network"), network_schema, NetworkConfig, "extractor")
-        critic = _typed(record.get("critic"), critic_schema, CriticConfig, "name")
+        network = OmegaConf.to_object(typed_node(record.get("network"), network_schema, NetworkConfig, "extractor"))
+        critic = OmegaConf.to_object(typed_node(record.get("critic"), critic_schema, CriticConfig, "name"))
     except ValueError as err:  # a part registered by a module this process has not imported
         hint = f"; its run had extensions={list(extensions)}: pass them here too" if extensions else ""
         raise ConfigError(f"checkpoint={str(path)!r}: its run's {err}{hint}") from None
@@ -97,12 +97,11 @@ def policy_record(record: DictConfig, path: str | Path) -> PolicyRecord:
     return PolicyRecord(algo, rate, None if clip is None else float(clip), world, network, critic, extensions)
 
 
-def _typed(node: DictConfig | None, schema_of: Callable[[str], type], base: type, key: str) -> Any:
-    """A run config's part node as its part's schema; a record made before the node or a setting existed takes
-    the defaults."""
+def typed_node(node: DictConfig | None, schema_of: Callable[[str], type], base: type, key: str) -> DictConfig:
+    """A run config's part node (`network`, `critic`, `reward`) merged into its part's schema (`schema_of` the name
+    at `key`), so its settings are typed; a record made before the node or a setting existed takes the defaults."""
     values = OmegaConf.to_container(node, resolve=True) if node is not None else {}
-    name = str(values.get(key, getattr(base(), key)))
-    return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema_of(name)), values))
+    return OmegaConf.merge(OmegaConf.structured(schema_of(str(values.get(key, getattr(base(), key))))), values)
 
 
 def checkpoint_config(path: str | Path) -> tuple[dict, str, str]:

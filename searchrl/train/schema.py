@@ -25,6 +25,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 
 from searchrl.envs.rewards import REWARDS, RewardConfig, reward_schema
 from searchrl.migrations import upgrade_run_config
+from searchrl.policies.checkpoint import typed_node
 from searchrl.policies.networks import CRITICS, NETWORKS, CriticConfig, NetworkConfig, critic_schema, network_schema
 from searchrl.shared_schema import (
     CONF_DIR,
@@ -159,13 +160,13 @@ def saved_config(path: str | Path) -> DictConfig:
     return typed_parts(OmegaConf.create(upgrade_run_config(loaded)))
 
 
-def _part_nodes() -> list[tuple[str, str, Any, Any]]:
-    """(node, the setting in it that names the part, the registry, the schema of a part by name) of each part a
-    run config chooses by name."""
+def _part_nodes() -> list[tuple[str, str, Any, Any, type]]:
+    """(node, the setting in it that names the part, the registry, the schema of a part by name, the node's base
+    dataclass) of each part a run config chooses by name."""
     return [
-        ("network", "extractor", NETWORKS, network_schema),
-        ("critic", "name", CRITICS, critic_schema),
-        ("reward", "name", REWARDS, reward_schema),
+        ("network", "extractor", NETWORKS, network_schema, NetworkConfig),
+        ("critic", "name", CRITICS, critic_schema, CriticConfig),
+        ("reward", "name", REWARDS, reward_schema, RewardConfig),
     ]
 
 
@@ -173,10 +174,9 @@ def typed_parts(cfg: DictConfig) -> DictConfig:
     """`cfg` with each part's node (network, critic, reward) typed by its part's schema (`Registry.schema`): a part
     chosen by value (`network.extractor=swept_cnn` on `network=small`) gains its settings at their defaults, and a
     saved config's node merges into the schema it was made with. ConfigError naming an unregistered part."""
-    for node, key, _, schema_of in _part_nodes():
+    for node, key, _, schema_of, base in _part_nodes():
         if isinstance(cfg.get(node), (dict, DictConfig)) and cfg[node].get(key) is not None:
-            schema = schema_of(str(cfg[node][key]))
-            cfg[node] = OmegaConf.merge(OmegaConf.structured(schema), OmegaConf.to_container(cfg[node], resolve=True))
+            cfg[node] = typed_node(cfg[node], schema_of, base, key)
     return cfg
 
 
@@ -238,7 +238,7 @@ def register_configs() -> None:
     cs.store(group="critic", name="critic_schema", node=CriticConfig)
     # Each registered network, critic and reward is an option of its group at its settings' defaults (an
     # extension's too: the entry point runs this again once it has imported them), but where a yaml holds it
-    for node, _, registry, schema_of in _part_nodes():
+    for node, _, registry, schema_of, _ in _part_nodes():
         for name, part in registry.items():
             if part is not None and not (CONF_DIR / node / f"{name}.yaml").is_file():
                 cs.store(group=node, name=name, node=schema_of(name))
