@@ -40,16 +40,19 @@ def test_the_command_line_names_the_modules():
 
 def test_train_evaluate_and_sweep_with_a_users_parts(tmp_path):
     """Each part with a setting of its own from the command line: the network's width, its observation part's
-    scale, the reward's weight and the heuristic's margin; recorded, and read back by evaluation."""
+    scale, the critic's grid (its own copy of the part), the reward's weight and the heuristic's margin; recorded,
+    and read back by evaluation."""
     parts = f"extensions=[{PACKAGE}.swept,{PACKAGE}.pillars,{PACKAGE}.found_only]"
     run = tmp_path / "run"
     small = [a for a in TINY if a != "network=small"] + ["network=swept_cnn", "network.conv_channels=[16,32,64]",
              "network.vector_size=16", "network.fc_sizes=[128,128]", "network.lstm_hidden_size=128"]  # fmt: skip
     out = _app("train", *small, parts, "network.width=24", "network.scale=0.5", "scenario=pillars",
-               "reward=found_only", "reward.weight=2", f"hydra.run.dir={run}")  # fmt: skip
+               "reward=found_only", "reward.weight=2", "critic=swept_critic", "critic.grid=4",
+               f"hydra.run.dir={run}")  # fmt: skip
     assert out.returncode == 0, out.stderr[-2000:]
     record = yaml.safe_load((run / "config.yaml").read_text())
     assert record["network"]["extractor"] == "swept_cnn" and record["network"]["width"] == 24
+    assert record["critic"] == {"name": "swept_critic", "grid": 4, "scale": 1.0}  # its own copy of the part
     assert record["network"]["scale"] == 0.5 and record["reward"] == {"name": "found_only", "weight": 2.0}
     # its checkpoint needs the same extensions: the folder's word is not enough to import code
     out = _app("evaluate", f"checkpoint={run / 'model.zip'}", *SLICE, f"out_dir={tmp_path / 'bare'}")

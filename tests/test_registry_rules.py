@@ -8,7 +8,10 @@ import re
 from pathlib import Path
 from unittest import mock
 
+import numpy as np
 import pytest
+import torch
+from gymnasium import spaces
 
 from searchrl.controllers.registry import HEURISTICS, Heuristic
 from searchrl.envs.parts import PARTS
@@ -105,11 +108,16 @@ def test_the_parts_listing_shows_every_registry_with_settings_and_a_users_parts(
     assert len(err) == 2 and "'no_such_module' cannot be imported" in err[0] and err[1].startswith("error: seed=3")
 
 
-def test_a_part_asked_for_twice_with_one_setting_is_built_once_and_with_two_refused():
-    """The actor's and the critic's requests of one observation part: the same settings give one part (the env holds
-    one observation per name); other settings are refused in one line, not built with the first."""
+def test_a_part_asked_for_by_the_actor_and_the_critic_with_two_settings_keeps_both():
+    """The actor's and the critic's requests of one observation part: the same settings give one part; other
+    settings give two, the critic's copy observed as `critic.<part>` and read by its extractor under the part's name
+    (the actor's keeps the name a checkpoint's actor reads alone). One requester asking twice is refused."""
     from searchrl.envs.parts import make_parts
-    from searchrl.policies.networks import CriticConfig, NetworkConfig, observation_parts
+    from searchrl.envs.spaces import observation_space
+    from searchrl.policies.checkpoint import policy_class
+    from searchrl.policies.networks import CriticConfig, NetworkConfig, observation_parts, policy_kwargs
+    from searchrl.world.config import WorldConfig
+    from tests.registries import isolated_registries
 
     (part,) = make_parts([("own_map", {"grid": 8}), ("own_map", {"grid": 8, "unrelated": 1})])
     assert part.grid == 8
@@ -119,3 +127,27 @@ def test_a_part_asked_for_twice_with_one_setting_is_built_once_and_with_two_refu
     assert "\n" not in str(refused.value)
     parts = observation_parts(NetworkConfig(extractor="own_map_cnn", grid=12), CriticConfig("true_state", grid=8))
     assert [(p.key, p.grid) for p in parts] == [("own_map", 12), ("true_state", 8)]  # two parts, each its own grid
+    with isolated_registries("tests.extension_example"):
+        import tests.extension_example.swept  # noqa: F401  (registers swept, swept_cnn, swept_critic)
+
+        network, critic = NetworkConfig(extractor="swept_cnn", grid=8), CriticConfig(name="swept_critic", grid=4)
+        network.width = 16  # the network's own setting (its schema's), absent from the base dataclass
+        same = observation_parts(network, CriticConfig(name="swept_critic", grid=8))
+        assert [(p.key, p.grid) for p in same] == [("swept", 8)]  # one part for both
+        parts = observation_parts(network, critic)
+        assert [(p.key, p.grid) for p in parts] == [("swept", 8), ("critic.swept", 4)]
+        world = WorldConfig(n_agents=2, world_size=(12, 12), n_targets=(2, 2), n_distributions=(4, 4), max_steps=9)
+        space = observation_space(world, parts)
+        kwargs = policy_kwargs(network, "recurrent_ppo", critic)
+        assert kwargs["critic_keys"] == {"swept": "critic.swept"}
+        policy = policy_class("recurrent_ppo", critic)(space, spaces.Discrete(5), lambda _: 1e-3, **kwargs)
+        obs = {k: torch.as_tensor(np.stack([space[k].sample() for _ in range(3)])) for k in space.spaces}
+        seen = {}
+        for name, extractor in (
+            ("actor", policy.features_extractor),
+            ("critic", policy.vf_features_extractor.extractor),
+        ):
+            extractor.register_forward_pre_hook(lambda _, args, name=name: seen.update({name: args[0]["swept"].shape}))
+        policy.predict_values(obs, (torch.zeros(1, 3, 256),) * 2, torch.zeros(3))
+        policy.get_distribution(obs, (torch.zeros(1, 3, 256),) * 2, torch.zeros(3))
+        assert seen == {"actor": (3, 1, 8, 8), "critic": (3, 1, 4, 4)}  # each reads its own under the part's name

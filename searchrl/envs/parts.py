@@ -27,25 +27,26 @@ def register_part(cls: Callable[..., ObservationPart]) -> Callable[..., Observat
 def make_part(name: str, /, **settings: Any) -> ObservationPart:
     """The part registered as `name`, built with those of `settings` its class takes (a coarse part takes `grid`,
     a part of one vector per agent none); ConfigError naming the nearest registered name."""
-    return PARTS.lookup(name)(**_taken(name, settings))
+    return PARTS.lookup(name)(**taken_settings(name, settings))
 
 
-def _taken(name: str, settings: dict[str, Any]) -> dict[str, Any]:
+def taken_settings(name: str, settings: dict[str, Any]) -> dict[str, Any]:
+    """Those of `settings` part `name`'s class takes."""
     takes = inspect.signature(PARTS.lookup(name)).parameters
     return {key: value for key, value in settings.items() if key in takes}
 
 
 def make_parts(requests: Iterable[tuple[str, dict[str, Any]]]) -> tuple[ObservationPart, ...]:
     """One part per distinct name of (name, settings) requests, in order of first request. The env holds one
-    observation per name, so a part asked for twice with other settings (the actor's grid and the critic's) is
-    refused in one line rather than built once with the first."""
+    observation per key, so a part asked for twice with other settings is refused in one line rather than built
+    once with the first (an actor's and a critic's requests are kept apart: searchrl/policies/networks.py)."""
     seen: dict[str, tuple[dict[str, Any], ObservationPart]] = {}
     for name, settings in requests:
-        taken = _taken(name, settings)
+        taken = taken_settings(name, settings)
         if name in seen and seen[name][0] != taken:
             raise ConfigError(
                 f"observation part {name!r} is asked for with {seen[name][0]} and with {taken}: the env holds one "
-                f"{name!r}, so give both the same settings (say network.grid and critic.grid)"
+                f"{name!r}, so give both the same settings"
             )
         if name not in seen:
             seen[name] = (taken, make_part(name, **taken))

@@ -28,7 +28,7 @@ import torch
 from gymnasium import spaces
 from torch import nn
 
-from searchrl.envs.parts import PARTS, make_parts
+from searchrl.envs.parts import PARTS, make_parts, taken_settings
 from searchrl.policies.extractor import SearchCNN
 from searchrl.registry import Registry, settings_of
 from searchrl.world.coarse import ObservationPart
@@ -150,14 +150,34 @@ def chosen(network: NetworkConfig, critic: CriticConfig | None) -> tuple[type[Se
     return NETWORKS.lookup(network.extractor), CRITICS.lookup("shared" if critic is None else critic.name)
 
 
+def critic_keys(network: NetworkConfig, critic: CriticConfig | None) -> dict[str, str]:
+    """{part name: observation key} of the critic's parts that the actor reads with other settings (the actor's
+    grid and the critic's): the env observes both, the actor's under the part's name (what a checkpoint's actor
+    reads alone) and the critic's copy under `critic.<name>`."""
+    actor, critic_cls = chosen(network, critic)
+    if critic_cls is None:
+        return {}
+    actors = {name: taken_settings(name, asdict(network)) for name in getattr(actor, "parts", ())}
+    return {
+        name: f"critic.{name}"
+        for name in getattr(critic_cls, "parts", ())
+        if name in actors and taken_settings(name, asdict(critic)) != actors[name]
+    }
+
+
 def observation_parts(network: NetworkConfig, critic: CriticConfig | None) -> tuple[ObservationPart, ...]:
     """The observation parts the env must add for the actor's and the critic's extractors, each with the settings
-    of its node that its class takes (`grid` and its own)."""
+    of its node that its class takes (`grid` and its own); a part both read with other settings is held twice
+    (`critic_keys`)."""
     actor, critic_cls = chosen(network, critic)
-    requests = [(name, asdict(network)) for name in getattr(actor, "parts", ())]
-    if critic_cls is not None:
-        requests += [(name, asdict(critic)) for name in getattr(critic_cls, "parts", ())]
-    return make_parts(requests)
+    parts = make_parts((name, asdict(network)) for name in getattr(actor, "parts", ()))
+    if critic_cls is None:
+        return parts
+    renamed, shared = critic_keys(network, critic), getattr(actor, "parts", ())
+    own = make_parts((n, asdict(critic)) for n in getattr(critic_cls, "parts", ()) if n in renamed or n not in shared)
+    for part in own:
+        part.key = renamed.get(part.key, part.key)  # the critic's copy: the class's `key` names the actor's
+    return parts + own
 
 
 def own_settings(extractor: type, node: NetworkConfig | CriticConfig) -> dict[str, Any]:
@@ -184,4 +204,6 @@ def policy_kwargs(network: NetworkConfig, algo: str, critic: CriticConfig | None
     if critic_cls is not None:
         kwargs["critic_extractor_class"] = critic_cls
         kwargs["critic_extractor_kwargs"] = own_settings(critic_cls, critic)
+        if renamed := critic_keys(network, critic):
+            kwargs["critic_keys"] = renamed
     return kwargs

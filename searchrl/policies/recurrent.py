@@ -18,6 +18,7 @@ import copy
 from typing import Any
 
 import torch
+from gymnasium import spaces
 from sb3_contrib.common.recurrent.policies import RecurrentMultiInputActorCriticPolicy
 from stable_baselines3.common.distributions import Distribution
 from torch import nn
@@ -81,7 +82,9 @@ class OwnCriticLstmPolicy(SequenceLstmPolicy):
     """`SequenceLstmPolicy` whose critic has a features extractor of its own class, `critic_extractor_class`
     (searchrl/policies/networks.py), built with the actor's widths (`features_extractor_kwargs` less the actor's
     own settings) and its own settings (`critic_extractor_kwargs`), feeding the critic's LSTM; the actor's
-    extractor, LSTM and head are the ones a shared policy has, under the same names."""
+    extractor, LSTM and head are the ones a shared policy has, under the same names. `critic_keys` ({part name:
+    observation key}, searchrl/policies/networks.py `critic_keys`) are the parts the critic reads from its own copy:
+    its extractor sees each copy under the part's name."""
 
     WIDTHS = ("conv_channels", "vector_size", "fc_sizes")
 
@@ -90,10 +93,12 @@ class OwnCriticLstmPolicy(SequenceLstmPolicy):
         *args: Any,
         critic_extractor_class: type[nn.Module],
         critic_extractor_kwargs: dict[str, Any] | None = None,
+        critic_keys: dict[str, str] | None = None,
         **kwargs: Any,
     ) -> None:
         self.critic_extractor_class = critic_extractor_class
         self.critic_extractor_kwargs = dict(critic_extractor_kwargs or {})
+        self.critic_keys = dict(critic_keys or {})
         super().__init__(*args, **{**kwargs, "share_features_extractor": False})
 
     def make_features_extractor(self) -> nn.Module:
@@ -101,17 +106,33 @@ class OwnCriticLstmPolicy(SequenceLstmPolicy):
         if not isinstance(getattr(self, "features_extractor", None), nn.Module):
             return super().make_features_extractor()
         widths = {k: v for k, v in self.features_extractor_kwargs.items() if k in self.WIDTHS}
-        critic = self.critic_extractor_class(self.observation_space, **widths, **self.critic_extractor_kwargs)
+        space = self.observation_space
+        if self.critic_keys:  # the critic's copies, each seen under its part's name
+            space = spaces.Dict({**space.spaces, **{name: space[key] for name, key in self.critic_keys.items()}})
+        critic = self.critic_extractor_class(space, **widths, **self.critic_extractor_kwargs)
         if critic.features_dim != self.features_extractor.features_dim:  # the critic's LSTM takes the actor's width
             raise ValueError(
                 f"the critic's features ({critic.features_dim}) must be as wide as the actor's "
                 f"({self.features_extractor.features_dim})"
             )
-        return critic
+        return ReadsCopies(critic, self.critic_keys) if self.critic_keys else critic
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         return {
             **super()._get_constructor_parameters(),
             "critic_extractor_class": self.critic_extractor_class,
             "critic_extractor_kwargs": self.critic_extractor_kwargs,
+            **({"critic_keys": self.critic_keys} if self.critic_keys else {}),
         }
+
+
+class ReadsCopies(nn.Module):
+    """An extractor that reads, under a part's name, the observation held under another key ({name: key})."""
+
+    def __init__(self, extractor: nn.Module, keys: dict[str, str]) -> None:
+        super().__init__()
+        self.extractor, self.keys = extractor, keys
+        self.features_dim = extractor.features_dim
+
+    def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
+        return self.extractor({**observations, **{name: observations[key] for name, key in self.keys.items()}})

@@ -127,9 +127,10 @@ class ObservationPart(Protocol):
     array of `shape(config)` ((N, ...)) per world, in [0, high], filled for the worlds listed after every reset and
     step. A part that remembers its episode (a rule's memory, a tracker) also has `reset(state, config, worlds)`,
     called for the listed worlds when they start an episode, before they are filled; every world holds its own
-    copy of each part."""
+    copy of each part. A copy built for a critic with other settings than the actor's holds its own `key`
+    (searchrl/policies/networks.py `critic_keys`)."""
 
-    key: ClassVar[str]
+    key: str  # the class's name for it
     privileged: ClassVar[bool]  # the true state: for a critic during training, never for an actor
     high: ClassVar[float]
 

@@ -8,7 +8,7 @@ import numpy as np
 from torch import nn
 
 from searchrl.envs.parts import register_part
-from searchrl.policies.networks import WithGrid, grid_encoder, register_network
+from searchrl.policies.networks import WithGrid, grid_encoder, register_critic, register_network
 
 
 @register_part
@@ -43,3 +43,9 @@ class SweptCNN(WithGrid):
         super().__init__(observation_space, **sizes)
         channels, grid, _ = observation_space[self.part].shape
         self.grid = nn.Sequential(grid_encoder(channels, grid, width), nn.Linear(width, self.features_dim))
+
+
+@register_critic("swept_critic")
+class SweptCritic(WithGrid):
+    part = "swept"
+    gated = False
