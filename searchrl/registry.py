@@ -25,11 +25,15 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import types
+import typing
 from collections.abc import Iterable
 from difflib import get_close_matches
 from typing import Any, TypeVar, get_type_hints
 
-from searchrl.world.config import ConfigError
+import numpy as np
+
+from searchrl.world.config import ConfigError, is_int
 
 T = TypeVar("T")
 _DECORATE = object()  # `register(name)` without a part: a decorator (a part may be None: the shared critic)
@@ -77,14 +81,15 @@ class Registry(dict[str, T]):
         self[name] = part
         return part
 
-    def lookup(self, name: object, setting: str | None = None) -> T:
+    def lookup(self, name: object, setting: str | None = None, other: str = "") -> T:
         """The part registered as `name`; ConfigError naming `setting` (default the registry's), the value, every
-        registered name and the nearest one."""
+        registered name (and `other`, what the setting's command takes instead) and the nearest one."""
         if isinstance(name, str) and name in self:
             return self[name]
         near = get_close_matches(name, list(self), n=1) if isinstance(name, str) else []
         hint = f" (did you mean {near[0]!r}?)" if near else ""
-        raise ConfigError(f"{setting or self.setting}={name!r} is not allowed: one of {', '.join(self)}{hint}")
+        names = ", ".join(self) + (f", or {other}" if other else "")
+        raise ConfigError(f"{setting or self.setting}={name!r} is not allowed: one of {names}{hint}")
 
     def schema(self, name: str, base: type, key: str, sources: Iterable[Any] = ()) -> type:
         """`base` (the dataclass of the part's config node) extended by the settings of part `name` and of
@@ -136,3 +141,47 @@ def settings_of(part: Any, label: str = "part") -> type:
             )
         )
     return dataclasses.make_dataclass(f"{getattr(part, '__name__', 'Part')}Settings", specs, frozen=True)
+
+
+def typed_settings(schema: type, values: dict[str, Any], where: str) -> dict[str, Any]:
+    """`values` (settings of the dataclass `schema`, each a field of it) checked against their fields' types, as
+    Hydra checks a node: an int given for a float becomes that float; ConfigError "where.key=value is not allowed:
+    a <type>" for a value of another type. The path of settings that come as a mapping (a teacher's arguments, a
+    planner's base rule, a bench's JSON) rather than through a typed config node."""
+    hints = get_type_hints(schema)
+    checked = {}
+    for key, value in values.items():
+        ok, checked[key] = _fits(value, hints.get(key, Any))
+        if not ok:
+            raise ConfigError(f"{where}.{key}={value!r} is not allowed: a value of type {_name(hints[key])}")
+    return checked
+
+
+def _fits(value: Any, hint: Any) -> tuple[bool, Any]:
+    """(whether `value` is of the type `hint`, the value as that type: an int as a float where a float is asked)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if hint is Any:
+        return True, value
+    if origin in (typing.Union, types.UnionType):
+        for arm in args:
+            ok, as_arm = _fits(value, arm)
+            if ok:
+                return True, as_arm
+        return False, value
+    if hint is type(None):
+        return value is None, value
+    if hint is float:
+        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+        return number, float(value) if number else value
+    if hint is int:
+        return is_int(value), int(value) if is_int(value) else value
+    if origin in (list, tuple) and isinstance(value, (list, tuple)):
+        items = [_fits(item, args[0] if args else Any) for item in value]
+        return all(ok for ok, _ in items), origin(item for _, item in items)
+    if origin is dict:
+        return isinstance(value, dict), value
+    return isinstance(value, origin or hint), value
+
+
+def _name(hint: Any) -> str:
+    return str(hint).replace("typing.", "") if typing.get_args(hint) else getattr(hint, "__name__", str(hint))

@@ -163,7 +163,7 @@ def checked(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[
 
         try:  # "1,2" and repeated flags alike; each count within what numba can run here
             threads = list(dict.fromkeys(t for text in args.world_threads or [] for t in world.thread_counts(text)))
-        except ValueError as err:
+        except ConfigError as err:
             parser.error(str(err))
         for t in (t for t in threads if not 1 <= t <= world.max_threads()):
             parser.error(f"--threads={t} is not allowed: 1 <= threads <= {world.max_threads()} (numba's threads here)")
@@ -188,7 +188,7 @@ def settings(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict:
     if values:
         try:
             heuristic_factory(args.controller or "surfing", values, check=WorldConfig())
-        except (ConfigError, ValueError, TypeError) as err:
+        except ConfigError as err:
             parser.error(f"--settings={args.settings} is not allowed: {err}")
     return values
 

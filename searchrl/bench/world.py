@@ -11,7 +11,7 @@ from typing import TextIO
 import numba
 import numpy as np
 
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.observe import observation_buffers, observe
 from searchrl.world.reset import reset_worlds
 from searchrl.world.state import WorldState, allocate
@@ -48,7 +48,7 @@ def thread_counts(text: str) -> list[int]:
     try:
         return [int(part) for part in text.split(",")]
     except ValueError:
-        raise ValueError(f"--threads={text} is not allowed: thread counts separated by commas, e.g. 1,2") from None
+        raise ConfigError(f"--threads={text} is not allowed: thread counts separated by commas, e.g. 1,2") from None
 
 
 def case_config(n: int, n_agents: int) -> WorldConfig:

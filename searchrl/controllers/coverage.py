@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 
 from searchrl.controllers.base import ControllerConfig
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.footprint import MOVES
 from searchrl.world.state import WorldState
 
@@ -125,7 +125,7 @@ class GeometricCoverage:
 
     def __init__(self, config: WorldConfig, radius: int = CoverageConfig.radius) -> None:  # CoverageConfig's default
         if radius < 0:
-            raise ValueError(f"radius={radius!r} is not allowed: must be >= 0")
+            raise ConfigError(f"radius={radius!r} is not allowed: must be >= 0")
         self.config, self.radius = config, radius
         self.waypoints = np.zeros((0, 0, 1, 2), np.int64)
         self.n_points = np.zeros((0, 0), np.int64)

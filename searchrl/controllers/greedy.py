@@ -57,7 +57,7 @@ import numpy as np
 
 from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
 from searchrl.controllers.greedy_kernels import GreedyMemory, GreedyParams, greedy_actions, reach_weights
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.footprint import GAMMA, MOVES, SUPPORT, team_sensing_rate
 from searchrl.world.parallel import world_threads
 from searchrl.world.seen import remember_sightings
@@ -129,21 +129,21 @@ class FootprintGreedy(FallbackHeuristic):
     ) -> None:
         view = config.fov // 2
         if not 1 <= horizon <= view:
-            raise ValueError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the view)")
+            raise ConfigError(f"horizon={horizon!r} is not allowed: 1 <= horizon <= {view} (half the view)")
         if not 0 < discount <= 1:
-            raise ValueError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
+            raise ConfigError(f"discount={discount!r} is not allowed: 0 < discount <= 1")
         if not all(0 <= w < math.inf for w in (w_p, w_u, w_t)) or w_p + w_u + w_t == 0:
-            raise ValueError(f"w_p={w_p}, w_u={w_u}, w_t={w_t} are not allowed: all >= 0, not all 0")
+            raise ConfigError(f"w_p={w_p}, w_u={w_u}, w_t={w_t} are not allowed: all >= 0, not all 0")
         if not 0 <= contested <= 1:
-            raise ValueError(f"contested={contested!r} is not allowed: 0 <= contested <= 1")
+            raise ConfigError(f"contested={contested!r} is not allowed: 0 <= contested <= 1")
         if not 0 <= reach <= 4:
-            raise ValueError(f"reach={reach!r} is not allowed: 0 <= reach <= 4 (0: every cell counts the same)")
+            raise ConfigError(f"reach={reach!r} is not allowed: 0 <= reach <= 4 (0: every cell counts the same)")
         if not 0 <= age <= 4:
-            raise ValueError(f"age={age!r} is not allowed: 0 <= age <= 4 (0: a belief does not age)")
+            raise ConfigError(f"age={age!r} is not allowed: 0 <= age <= 4 (0: a belief does not age)")
         if not 0 <= hedge <= 1:
-            raise ValueError(f"hedge={hedge!r} is not allowed: 0 <= hedge <= 1 (0: the belief as it is)")
+            raise ConfigError(f"hedge={hedge!r} is not allowed: 0 <= hedge <= 1 (0: the belief as it is)")
         if (seen or age > 0) and not config.bayesian_sensing:
-            raise ValueError(
+            raise ConfigError(
                 f"seen={seen!r}, age={age!r} are not allowed in this world: both model sensing as p·(1 − Γ), so they "
                 f"need lam * k = 1 and k_per_n = 0 (here k={config.k}, k_per_n={config.k_per_n})"
             )

@@ -25,8 +25,8 @@ from searchrl.controllers.rollout import Rollout, RolloutConfig
 from searchrl.controllers.surfing import InformationSurfing, SurfingConfig
 from searchrl.controllers.switch import EvidenceSwitch, SwitchConfig
 from searchrl.controllers.walls import PathGreedy, PathGreedyConfig, SweepConfig, SweepCoverage
-from searchrl.registry import Registry
-from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.registry import Registry, typed_settings
+from searchrl.world.config import ConfigError, WorldConfig, in_context
 from searchrl.world.streams import WorldStreams
 
 
@@ -77,9 +77,10 @@ def allowed() -> str:
     return ", ".join(HEURISTICS)
 
 
-def heuristic(name: object, key: str = "controller") -> Heuristic:
-    """The entry of `name`; ConfigError "`key`=name is not allowed: one of …" listing the registered names."""
-    return HEURISTICS.lookup(name, key)
+def heuristic(name: object, key: str = "controller", other: str = "") -> Heuristic:
+    """The entry of `name`; ConfigError "`key`=name is not allowed: one of …" listing the registered names (and
+    `other`)."""
+    return HEURISTICS.lookup(name, key, other)
 
 
 def make_controller(
@@ -91,14 +92,14 @@ def make_controller(
 ) -> Controller:
     """The controller `name` in the world `config`: its schema's defaults, overridden by `settings` (plain values
     without `name`), seeded with `seed` where it draws random moves; a controller that plays other rules (the
-    rollout planner's base) gets this factory as `rules`. ConfigError for an unknown name (naming `key`) or
-    setting; the class's own ValueError for a value it refuses."""
+    rollout planner's base) gets this factory as `rules`. ConfigError for an unknown name (naming `key`), an
+    unknown setting, a value of another type than its field's (`typed_settings`) or one the class refuses."""
     entry = heuristic(name, key)
     values = entry.settings()
     unknown = sorted(set(settings or {}) - set(values))
     if unknown:
         raise ConfigError(f"{name} takes no setting {unknown[0]!r}; its settings are {sorted(values)}")
-    values.update(settings or {})
+    values.update(typed_settings(entry.schema, dict(settings or {}), key))
     parameters = inspect.signature(entry.cls).parameters
     if "seed" in parameters:
         values["seed"] = seed
@@ -129,7 +130,5 @@ def make_teacher(teacher: str, config: WorldConfig, seed: int | WorldStreams, ar
     args = dict(args or {})
     if "seed" in args:
         raise ConfigError("imitation.teacher_args.seed is not allowed: the teacher is seeded from the run's seed")
-    try:
-        return make_controller(teacher, config, seed=seed, settings=args, key="imitation.teacher")
-    except (TypeError, ValueError) as err:
-        raise ConfigError(f"imitation.teacher_args={args} is not allowed for teacher {teacher!r}: {err}") from err
+    with in_context(f"imitation.teacher_args={args} is not allowed for teacher {teacher!r}"):
+        return make_controller(teacher, config, seed=seed, settings=args, key="imitation.teacher_args")

@@ -80,14 +80,14 @@ class Rollout:
             raise ConfigError("controller.base='rollout' is not allowed: the planner's base is a rule")
         samples, horizon, chunk = int(values["samples"]), int(values["horizon"]), int(values["chunk"])
         if samples < 1 or horizon < 0 or chunk < 1 or values["stop"] < 0:
-            raise ValueError(
+            raise ConfigError(
                 f"samples={samples}, horizon={horizon}, chunk={chunk}, stop={values['stop']} are not allowed: "
                 "samples >= 1, horizon >= 0, chunk >= 1, stop >= 0"
             )
         if values["value"] not in ("expected", "sampled") or (values["truth"] and values["value"] != "sampled"):
-            raise ValueError(f"value={values['value']!r} is not allowed: expected or sampled (truth needs sampled)")
+            raise ConfigError(f"value={values['value']!r} is not allowed: expected or sampled (truth needs sampled)")
         if not 0 <= int(values["team"]) <= config.n_agents:
-            raise ValueError(f"team={values['team']!r} is not allowed: 0 (the whole team) to N = {config.n_agents}")
+            raise ConfigError(f"team={values['team']!r} is not allowed: 0 (the whole team) to N = {config.n_agents}")
         self.config, self.samples, self.horizon, self.chunk = config, samples, horizon, min(chunk, samples)
         self.stop = float(values["stop"])
         self.value, self.truth = values["value"], bool(values["truth"])

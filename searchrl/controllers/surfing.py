@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.footprint import MOVES
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
@@ -125,9 +125,9 @@ class InformationSurfing(FallbackHeuristic):
     ) -> None:
         scales = SurfingConfig().scales if scales is None else scales
         if not scales or min(scales) < 1:
-            raise ValueError(f"scales={list(scales)!r} is not allowed: one or more positive block sizes")
+            raise ConfigError(f"scales={list(scales)!r} is not allowed: one or more positive block sizes")
         if not (0 <= w_p < math.inf and 0 <= w_u < math.inf and 0 <= repulsion < math.inf) or w_p + w_u == 0:
-            raise ValueError(
+            raise ConfigError(
                 f"w_p={w_p}, w_u={w_u}, repulsion={repulsion} are not allowed: finite, >= 0, w_p + w_u > 0"
             )
         super().__init__(config, seed)

@@ -23,7 +23,7 @@ from numba import njit
 from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.coverage import GeometricCoverage
 from searchrl.controllers.greedy import FootprintGreedy
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.footprint import SUPPORT_DC, SUPPORT_DR, SUPPORT_G
 from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
@@ -59,7 +59,7 @@ class EvidenceSwitch:
         self, config: WorldConfig, threshold: float = SwitchConfig.threshold, seed: int | WorldStreams = 0
     ) -> None:
         if not 0 <= threshold <= 1:
-            raise ValueError(f"threshold={threshold!r} is not allowed: 0 <= threshold <= 1 (0: never switch)")
+            raise ConfigError(f"threshold={threshold!r} is not allowed: 0 <= threshold <= 1 (0: never switch)")
         self.config, self.threshold = config, float(threshold)
         self.greedy = FootprintGreedy(config, horizon=3, w_p=0.0, w_u=0.0, w_t=1.0, reach=2.0, seed=seed)
         self.coverage = GeometricCoverage(config)

@@ -29,7 +29,7 @@ from searchrl.controllers.base import ControllerConfig, FallbackHeuristic
 from searchrl.controllers.greedy import FootprintGreedy
 from searchrl.controllers.greedy_kernels import cell_information, footprint_information, view_scratch, view_values
 from searchrl.controllers.switch import sweep_footprints
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.footprint import MOVES, SUPPORT_DC, SUPPORT_DR, SUPPORT_G
 from searchrl.world.parallel import chunk_count, chunk_span, world_threads
 from searchrl.world.state import WorldState
@@ -159,9 +159,9 @@ class PathGreedy(FootprintGreedy):
         seed: int | WorldStreams = 0,
     ) -> None:
         if not 1 <= radius <= config.fov // 2:
-            raise ValueError(f"radius={radius!r} is not allowed: 1 <= radius <= {config.fov // 2} (half the view)")
+            raise ConfigError(f"radius={radius!r} is not allowed: 1 <= radius <= {config.fov // 2} (half the view)")
         if not 0 < worth <= 1:
-            raise ValueError(f"worth={worth!r} is not allowed: 0 < worth <= 1 (a share of the prior's mean)")
+            raise ConfigError(f"worth={worth!r} is not allowed: 0 < worth <= 1 (a share of the prior's mean)")
         super().__init__(config, horizon=1, discount=discount, w_p=0.0, w_u=0.0, w_t=1.0, reach=2.0, seed=seed)
         self.radius, self.worth = int(radius), float(worth)
         self._floor = np.zeros(0)
@@ -212,7 +212,7 @@ class SweepCoverage(FallbackHeuristic):
 
     def __init__(self, config: WorldConfig, spacing: int = SweepConfig.spacing, seed: int | WorldStreams = 0) -> None:
         if not 0 <= spacing <= 16:
-            raise ValueError(f"spacing={spacing!r} is not allowed: 0 <= spacing <= 16 (cells)")
+            raise ConfigError(f"spacing={spacing!r} is not allowed: 0 <= spacing <= 16 (cells)")
         super().__init__(config, seed)
         self.spacing = int(spacing)
         self.left = np.ones((0, 0, 0))  # (K, S, S) float64: what the team's footprints left of each cell

@@ -15,7 +15,7 @@ from pettingzoo import ParallelEnv
 
 from searchrl.envs.spaces import action_space, observation_space
 from searchrl.world.coarse import ObservationPart
-from searchrl.world.config import WorldConfig, check_seed, is_int
+from searchrl.world.config import ConfigError, WorldConfig, check_seed, is_int
 from searchrl.world.engine import SearchWorld
 from searchrl.world.frames import world_frame
 from searchrl.world.scenario import PAPER, Scenario
@@ -38,9 +38,9 @@ class SearchParallelEnv(ParallelEnv):
         parts: Sequence[ObservationPart] = (),
     ) -> None:
         if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
+            raise ConfigError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
         if config is not None and not isinstance(config, WorldConfig):
-            raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
+            raise ConfigError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
         self.config = config if config is not None else WorldConfig()
         self.world = SearchWorld(self.config, 1, scenario=scenario, auto_reset=False, parts=parts)
         self.render_mode = render_mode
@@ -65,7 +65,7 @@ class SearchParallelEnv(ParallelEnv):
     def _check_agent(self, agent: AgentID) -> None:
         if agent not in self.possible_agents:
             last = len(self.possible_agents) - 1
-            raise ValueError(f"agent={agent!r} is not allowed: one of possible_agents, agent_0 … agent_{last}")
+            raise ConfigError(f"agent={agent!r} is not allowed: one of possible_agents, agent_0 … agent_{last}")
 
     def reset(self, seed: int | None = None, options: dict | None = None) -> tuple[dict, dict]:
         check_seed(seed)  # ConfigError, a ValueError
@@ -77,18 +77,18 @@ class SearchParallelEnv(ParallelEnv):
         if not self.agents:
             raise RuntimeError("step() called before reset() or after the episode ended: call reset() first")
         if not isinstance(actions, dict):
-            raise ValueError(f"actions={actions!r} is not allowed: a dict {{agent name: action}}")
+            raise ConfigError(f"actions={actions!r} is not allowed: a dict {{agent name: action}}")
         missing = [agent for agent in self.agents if agent not in actions]
         if missing:
             raise KeyError(f"actions missing for {missing}: every live agent acts at every step")
         unknown = [agent for agent in actions if agent not in self.agents]
         if unknown:
-            raise ValueError(f"actions for {unknown} are not allowed: the live agents are {self.agents}")
+            raise ConfigError(f"actions for {unknown} are not allowed: the live agents are {self.agents}")
         n = self.config.n_actions
         for agent in self.agents:
             a = actions[agent]
             if not (is_int(a) or (isinstance(a, np.ndarray) and a.shape == () and is_int(a[()]))) or not 0 <= a < n:
-                raise ValueError(f"actions[{agent!r}]={a!r} is not allowed: an integer in [0, {n})")
+                raise ConfigError(f"actions[{agent!r}]={a!r} is not allowed: an integer in [0, {n})")
         joint = np.array([[int(actions[agent]) for agent in self.possible_agents]], np.int64)
         transition = self.world.step(joint)
         result = transition.result

@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 
 from searchrl.envs.parallel_env import SearchParallelEnv
-from searchrl.world.config import WorldConfig, check_seed
+from searchrl.world.config import ConfigError, WorldConfig, check_seed
 from searchrl.world.scenario import PAPER, Scenario
 
 
@@ -22,7 +22,7 @@ class SearchEnv(gym.Env):
         self, config: WorldConfig | None = None, render_mode: str | None = None, scenario: Scenario = PAPER
     ) -> None:
         if config is not None and not isinstance(config, WorldConfig):
-            raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
+            raise ConfigError(f"config={config!r} is not allowed: a searchrl.WorldConfig or None")
         config = replace(config if config is not None else WorldConfig(), n_agents=1)
         self._env = SearchParallelEnv(config, render_mode=render_mode, scenario=scenario)
         self._agent = self._env.possible_agents[0]

@@ -17,6 +17,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from searchrl.envs.vec_env import SearchVecEnv
+from searchrl.world.config import ConfigError
 
 
 class TeamMixVecEnv(VecEnv):
@@ -24,7 +25,7 @@ class TeamMixVecEnv(VecEnv):
 
     def __init__(self, envs: Sequence[SearchVecEnv]) -> None:
         if len(envs) < 1:
-            raise ValueError("envs=[] is not allowed: give at least one SearchVecEnv")
+            raise ConfigError("envs=[] is not allowed: give at least one SearchVecEnv")
         first = envs[0]
         for j, env in enumerate(envs[1:], start=1):
             if env.observation_space != first.observation_space or env.action_space != first.action_space:

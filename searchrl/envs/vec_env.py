@@ -21,7 +21,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvIndices, VecEnvO
 from searchrl.envs.rewards import RewardFn
 from searchrl.envs.spaces import action_space, observation_space
 from searchrl.world.coarse import ObservationPart
-from searchrl.world.config import WorldConfig, check_seed
+from searchrl.world.config import ConfigError, WorldConfig, check_seed
 from searchrl.world.engine import SearchWorld
 from searchrl.world.frames import world_frames
 from searchrl.world.scenario import PAPER, Scenario
@@ -44,9 +44,9 @@ class SearchVecEnv(VecEnv):
         reward: RewardFn | None = None,
     ) -> None:
         if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
+            raise ConfigError(f"render_mode={render_mode!r} is not allowed: None or 'rgb_array'")
         if not isinstance(config, WorldConfig):
-            raise ValueError(f"config={config!r} is not allowed: a searchrl.WorldConfig")
+            raise ConfigError(f"config={config!r} is not allowed: a searchrl.WorldConfig")
         self.config = config
         self.render_mode = render_mode
         self.world = SearchWorld(config, n_worlds, seed=seed, scenario=scenario, parts=parts)

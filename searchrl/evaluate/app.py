@@ -37,7 +37,7 @@ from searchrl.policies.checkpoint import checkpoint_config, checkpoint_label, lo
 from searchrl.policies.device import resolve_device
 from searchrl.shared_schema import check_known_keys, check_world_node
 from searchrl.threads import use_threads
-from searchrl.world.config import ConfigError, WorldConfig
+from searchrl.world.config import WorldConfig, in_context
 from searchrl.world.obstacles import IidObstacles
 from searchrl.world.scenario import Scenario, ScenarioMix
 
@@ -67,10 +67,7 @@ def make_controller_factory(cfg: EvaluateConfig) -> tuple[WorldConfig, str, str,
     model_name = cfg.model.name if cfg.model is not None else "b"
     settings = asdict(cfg.controller)
     name = settings.pop("name")
-    try:
-        entry = heuristic(name)
-    except ConfigError as err:
-        raise ConfigError(f"{err}, or checkpoint=<model.zip>") from None
+    entry = heuristic(name, other="checkpoint=<model.zip>")
     return world, entry.label, model_name, heuristic_factory(name, settings, check=world), False
 
 
@@ -102,14 +99,12 @@ def plan_evaluation(cfg: DictConfig, overrides: list[str], default_dir: Path | N
     cells, out_dir, scenario = check_evaluation(cfg, overrides)
     world, controller_name, model_name, factory, needs_obs = make_controller_factory(cfg)
     for index, cell in cells:  # a cell impossible for its n or N fails now, not when reached
-        try:
+        with in_context(f"grid cell {index} (n={cell.n}, N={cell.n_agents})"):
             scenario.check(cell_config(world, cell))  # first: each value's type and range
             factory(cell_config(world, cell))
             walls = draws_walls(scenario)
             for m in range(cfg.grid.maps_per_cell if walls else 0):  # exact: every map its episodes will draw
                 map_prior(cell_config(world, cell), map_seed(cfg.seed, index, m), scenario)
-        except ConfigError as err:
-            raise ConfigError(f"grid cell {index} (n={cell.n}, N={cell.n_agents}): {err}") from None
     if cfg.checkpoint is not None:  # a policy met outside its training distribution: said beside its results
         trained = Scenario.from_dict(training_scenario(cfg.checkpoint)).label
         if trained != scenario.label:

@@ -7,6 +7,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from searchrl.world.config import ConfigError
+
 CELL_FILE_RE = re.compile(r"n\d+_N\d+\.parquet")  # the file name of a finished cell (Cell.key)
 
 
@@ -33,15 +35,15 @@ def table2_cells(
             f"n_distributions={n_distributions}, max_agents={max_agents}; give one entry per world size"
         )
     if not world_sizes:
-        raise ValueError("grid.world_sizes=[] is not allowed: one or more world sizes (with their other lists)")
+        raise ConfigError("grid.world_sizes=[] is not allowed: one or more world sizes (with their other lists)")
     if len(set(world_sizes)) != len(world_sizes):
-        raise ValueError(f"grid.world_sizes={world_sizes} is not allowed: each size once (a cell is named n<n>_N<N>)")
+        raise ConfigError(f"grid.world_sizes={world_sizes} is not allowed: each size once (a cell is named n<n>_N<N>)")
     cells = []
     for n, targets, dists, top in zip(world_sizes, n_targets, n_distributions, max_agents, strict=True):
         if min(n, targets, dists, top) < 1:
             raise ValueError(f"grid entry n={n}, targets={targets}, m={dists}, max N={top}: all must be >= 1")
         if top & (top - 1):  # N doubles from 1: another largest team would not be run, yet be recorded
-            raise ValueError(
+            raise ConfigError(
                 f"grid.max_agents={max_agents} is not allowed: each a power of two (N = 1, 2, 4, … up to it), not {top}"
             )
         agents = 1

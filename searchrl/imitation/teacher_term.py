@@ -32,6 +32,7 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.utils import explained_variance
 
 from searchrl.policies.slot_buffer import SlotRolloutBuffer
+from searchrl.world.config import ConfigError
 
 SCHEDULES = ("constant", "linear", "anneal")
 
@@ -45,11 +46,11 @@ class LabelSource(Protocol):
 def check_settings(weight: float, schedule: str, critic_warmup: int) -> None:
     """ValueError naming the `imitation.*` setting that is not allowed (the training app checks them before work)."""
     if not (weight >= 0 and np.isfinite(weight)):
-        raise ValueError(f"imitation.rl_weight={weight!r} is not allowed: a number >= 0 (0: plain PPO)")
+        raise ConfigError(f"imitation.rl_weight={weight!r} is not allowed: a number >= 0 (0: plain PPO)")
     if schedule not in SCHEDULES:
-        raise ValueError(f"imitation.rl_schedule={schedule!r} is not allowed: one of {', '.join(SCHEDULES)}")
+        raise ConfigError(f"imitation.rl_schedule={schedule!r} is not allowed: one of {', '.join(SCHEDULES)}")
     if int(critic_warmup) < 0:
-        raise ValueError(
+        raise ConfigError(
             f"imitation.critic_warmup={critic_warmup!r} is not allowed: an integer >= 0 (rollouts of "
             "critic-only fitting)"
         )

@@ -16,6 +16,8 @@ from gymnasium import spaces
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from torch import nn
 
+from searchrl.world.config import ConfigError
+
 
 def _conv_block(c_in: int, c_out: int, pool: bool) -> list[nn.Module]:
     layers: list[nn.Module] = [
@@ -77,11 +79,11 @@ class SearchCNN(BaseFeaturesExtractor):
         if fov < 5:
             raise ValueError(f"env.world.fov={fov!r} is too small for the network: two 2x2 max-pools need fov >= 5")
         if len(conv_channels) != 3 or min(conv_channels) < 1:
-            raise ValueError(f"network.conv_channels={list(conv_channels)!r} is not allowed: three positive counts")
+            raise ConfigError(f"network.conv_channels={list(conv_channels)!r} is not allowed: three positive counts")
         if vector_size < 1:
-            raise ValueError(f"network.vector_size={vector_size!r} is not allowed: must be >= 1")
+            raise ConfigError(f"network.vector_size={vector_size!r} is not allowed: must be >= 1")
         if not fc_sizes or min(fc_sizes) < 1:
-            raise ValueError(f"network.fc_sizes={list(fc_sizes)!r} is not allowed: one or more positive widths")
+            raise ConfigError(f"network.fc_sizes={list(fc_sizes)!r} is not allowed: one or more positive widths")
 
     def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
         """observations: {"map": (B, C, F, F), "vector": (B, V)} -> (B, features_dim)."""

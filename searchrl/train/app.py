@@ -54,8 +54,8 @@ from searchrl.train.run_record import (
     stored_score,
     write_score,
 )
-from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig, register_configs, saved_config
-from searchrl.world.config import ConfigError
+from searchrl.train.schema import RESUME_OVERRIDES, register_configs, saved_run
+from searchrl.world.config import ConfigError, in_context
 from searchrl.world.scenario import Scenario
 
 register_configs()
@@ -77,14 +77,8 @@ def resolve_run(cfg: DictConfig, output_dir: Path, overrides: list[str]) -> tupl
     if other:
         refuse(f"resume keeps the run's saved config; {other} cannot change (allowed: {', '.join(RESUME_OVERRIDES)})")
     # Merged into the schema: a run saved by an older version gains new fields' defaults, and types are checked.
-    try:
-        loaded = saved_config(run_dir / "config.yaml")
-        if loaded.get("model") is None or loaded.get("algo") is None:
-            raise ValueError("it names no model or algo")
-        saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), loaded)
-    except Exception as err:  # empty, not YAML, wrong types, unreadable: the run's record is damaged
-        detail = str(err).splitlines()[0] if str(err) else type(err).__name__
-        refuse(f"resume={cfg.resume!r}: its config.yaml does not fit the current schema or cannot be read ({detail})")
+    with in_context(f"resume={cfg.resume!r}"):
+        saved = saved_run(run_dir / "config.yaml")
     saved.resume = cfg.resume
     for key in keys:
         if key in RESUME_OVERRIDES:
@@ -134,10 +128,8 @@ def _train_locked(plan: Plan, run_dir: Path, resuming: bool, started: Callable[[
             print(f"{run_dir} has trained its {start_step} agent-steps and saved model.zip", file=sys.stderr)
         return run_dir / "model.zip"
     if resuming:  # a damaged log is refused before anything is rewritten
-        try:
+        with in_context(f"resume={cfg.resume!r}"):
             check_log(run_dir / "progress.csv", start_step, plan.rollout * cfg.log_interval)
-        except ValueError as err:
-            refuse(f"resume={cfg.resume!r}: {err}")
         problem = other_log(run_dir / "checkpoints" / f"step_{start_step}.zip", start_step)
         if problem:
             refuse(f"resume={cfg.resume!r}: {problem}; nothing was changed")
@@ -198,10 +190,8 @@ def score_again(run_dir: Path, score_last: int, why: ValueError) -> dict[str, ob
     """Write a finished run's score.json again from its progress.csv, the mean of its last `score_last`
     validations (`why`: what was wrong with it), saying so; refused in one line when the log cannot be read
     either."""
-    try:
+    with in_context(f"{why}; writing it again"):
         score = write_score(run_dir, score_last)
-    except (UnicodeDecodeError, ValueError):  # pandas' parser errors are ValueErrors
-        refuse(f"{why}; its progress.csv cannot be read to write it again")
     print(f"score.json written again from {run_dir / 'progress.csv'} ({str(why).split(';')[0]})", file=sys.stderr)
     return score
 
@@ -304,10 +294,8 @@ def continued_job(cfg: DictConfig, run_dir: Path, overrides: list[str]) -> tuple
     run of other settings, naming the first that differs."""
     if cfg.get("resume") is not None or not (run_dir / "config.yaml").is_file():
         return cfg, overrides, False
-    try:
-        saved = OmegaConf.merge(OmegaConf.structured(TrainConfig), saved_config(run_dir / "config.yaml"))
-    except Exception as err:  # damaged: said as resume= would say it
-        raise ConfigError(f"{run_dir} holds a run whose config.yaml cannot be read ({err}); move it away") from None
+    with in_context(f"{run_dir} holds a run that cannot be continued (move it away)"):
+        saved = saved_run(run_dir / "config.yaml")
     before, now = _settings(saved), _settings(cfg)
     differ = sorted(k for k in before.keys() | now.keys() if before.get(k, "<absent>") != now.get(k, "<absent>"))
     if differ:

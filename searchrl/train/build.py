@@ -37,6 +37,7 @@ from searchrl.train.logs import AppendingCSV, ContinuedClock, ResumableTensorBoa
 from searchrl.train.plan import Plan
 from searchrl.train.run_record import foreign_checkpoint, run_identity, set_aside_logs
 from searchrl.train.schema import TrainConfig
+from searchrl.world.config import ConfigError
 
 
 def prepare_folder(cfg: TrainConfig, run_dir: Path, resuming: bool) -> None:
@@ -103,10 +104,7 @@ def start_model(plan: Plan, run_dir: Path, env: VecEnv, resuming: bool) -> tuple
         )
     model = make_algorithm(plan, env)
     if cfg.init is not None:
-        try:
-            fresh = init_weights(model, cfg.init, plan.policy_record())
-        except ValueError as err:
-            refuse(str(err))
+        fresh = init_weights(model, cfg.init, plan.policy_record())
         print(f"policy weights from {cfg.init}" + (f"; fresh: {', '.join(fresh)}" if fresh else ""), file=sys.stderr)
     return model, False
 
@@ -177,7 +175,7 @@ def init_weights(model: BaseAlgorithm, path: str, record: PolicyRecord) -> list[
     config, or by `record` for a file without one beside it) into the fresh `model` of a run of `record`; its
     optimiser state is not taken. Every tensor the
     two policies both have is copied and must have the same shape, and the actor's head must be among them, so a
-    policy of another size or action set is refused (ValueError with the reason); the parts only `model` has (a
+    policy of another size or action set is refused (ConfigError with the reason); the parts only `model` has (a
     whole-map branch, a critic of its own) keep their fresh weights. Returns the names of those parts."""
     try:
         try:
@@ -186,7 +184,7 @@ def init_weights(model: BaseAlgorithm, path: str, record: PolicyRecord) -> list[
             own = record
         theirs = load_checkpoint(path, own, device="cpu").policy.state_dict()
     except ValueError as err:  # a zip of no run, a corrupt file: all end here
-        raise ValueError(f"init={path!r} does not fit this run's policy: {err}") from None
+        raise ConfigError(f"init={path!r} does not fit this run's policy: {err}") from None
     ours = model.policy.state_dict()
     shared = [name for name in ours if name in theirs]
     wrong = [name for name in shared if ours[name].shape != theirs[name].shape]
@@ -196,7 +194,7 @@ def init_weights(model: BaseAlgorithm, path: str, record: PolicyRecord) -> list[
             if wrong
             else "it has no actor head of this policy"
         )
-        raise ValueError(
+        raise ConfigError(
             f"init={path!r} does not fit this run's policy (algo, network, observation and action "
             f"spaces must match): {why}"
         )

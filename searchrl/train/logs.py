@@ -40,7 +40,7 @@ def _whole_rows(text: str) -> csv.DictReader:
 
 
 def check_log(path: Path, resume_step: int, every: int) -> None:
-    """ValueError naming what is wrong with the log `path` a run resumes at `resume_step` from, before anything is
+    """ConfigError naming what is wrong with the log `path` a run resumes at `resume_step` from, before anything is
     rewritten: not UTF-8 text, no step column, steps going back, or a gap wider than `every` agent-steps (one log
     row per `every`: rows lost to a damaged file) up to the checkpoint. A missing log is fine (none yet)."""
     if not path.exists():
@@ -49,18 +49,18 @@ def check_log(path: Path, resume_step: int, every: int) -> None:
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
-        raise ValueError(f"{where} is not UTF-8 text: move it aside to resume with a new log") from None
+        raise ConfigError(f"{where} is not UTF-8 text: move it aside to resume with a new log") from None
     reader = _whole_rows(text)
     rows = list(reader)
     if not rows:  # nothing logged yet (the header alone, or an empty file written when the log was opened)
         return
     if STEP_KEY not in (reader.fieldnames or []):
-        raise ValueError(f"{where} has no {STEP_KEY} column: move it aside to resume with a new log")
+        raise ConfigError(f"{where} has no {STEP_KEY} column: move it aside to resume with a new log")
     steps = [_step(row) for row in rows]
     kept = [s for s in steps if s <= resume_step]
     for before, after in zip([0.0, *kept], [*kept, float(resume_step)], strict=True):
         if after < before or after - before > every:
-            raise ValueError(
+            raise ConfigError(
                 f"{where} jumps from step {before:g} to {after:g} (a row every {every} agent-steps "
                 f"up to the checkpoint at {resume_step}): it is damaged; move it aside to resume with "
                 "a new log"

@@ -236,12 +236,9 @@ def check_numbers(cfg: TrainConfig) -> None:
 
 def check_network_choices(cfg: TrainConfig) -> None:
     """reward, network.extractor and critic.name registered, their grids large enough, and a run that can feed them."""
-    try:
-        make_reward(cfg.reward)
-        parts = observation_parts(cfg.network, cfg.critic)  # unregistered names, with the nearest
-        policy_class(cfg.algo.name, cfg.critic)  # a critic of its own needs RecurrentPPO
-    except ValueError as err:
-        raise ConfigError(str(err)) from None
+    make_reward(cfg.reward)
+    parts = observation_parts(cfg.network, cfg.critic)  # unregistered names, with the nearest
+    policy_class(cfg.algo.name, cfg.critic)  # a critic of its own needs RecurrentPPO
     for name, value in (("network.grid", cfg.network.grid), ("critic.grid", cfg.critic.grid)):
         need(value >= 4, name, value, "an integer >= 4 (two stride-2 convolutions)")
     if parts and cfg.imitation.teacher is not None and cfg.imitation.epochs > 0:

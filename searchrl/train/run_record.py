@@ -31,6 +31,7 @@ from searchrl.policies.checkpoint import saved_identity, saved_step
 from searchrl.shared_schema import dotted_leaves
 from searchrl.train.logs import NO_ROWS, log_digest
 from searchrl.train.schema import RESUME_OVERRIDES, TrainConfig
+from searchrl.world.config import ConfigError
 from searchrl.world.scenario import Scenario
 
 
@@ -134,9 +135,13 @@ STEP = "time/total_timesteps"
 
 def run_score(run_dir: Path, last: int) -> dict[str, object]:
     """{"score", "metric", "validations" (how many were averaged), "steps" (their agent-steps), "last"} from
-    `run_dir/progress.csv`; score is NaN when the run logged no validation."""
+    `run_dir/progress.csv`; score is NaN when the run logged no validation. ConfigError when the log cannot be
+    read."""
     path = Path(run_dir) / "progress.csv"
-    frame = pd.read_csv(path) if path.is_file() and path.stat().st_size else pd.DataFrame()
+    try:
+        frame = pd.read_csv(path) if path.is_file() and path.stat().st_size else pd.DataFrame()
+    except ValueError as err:  # pandas' parser errors and UnicodeDecodeError are ValueErrors
+        raise ConfigError(f"{path} cannot be read as a run's log ({type(err).__name__})") from None
     points = frame.reindex(columns=[STEP, METRIC]).dropna().tail(last)  # no validation logged: no rows
     score = float(points[METRIC].mean()) if len(points) else math.nan
     return {
@@ -169,12 +174,7 @@ def stored_score(run_dir: Path) -> dict[str, object]:
             f"{path} cannot be read as a run's score; python -m searchrl.train resume={run_dir} "
             "writes it again from the run's progress.csv"
         ) from None
-    try:
-        own = run_score(run_dir, last)
-    except (UnicodeDecodeError, ValueError) as err:  # pandas' parser errors are ValueErrors
-        raise ValueError(
-            f"{Path(run_dir) / 'progress.csv'} cannot be read as a run's log ({type(err).__name__})"
-        ) from None
+    own = run_score(run_dir, last)
     same = recorded[1] == own["steps"] and (
         recorded[0] == own["score"] or (math.isnan(recorded[0]) and math.isnan(own["score"]))
     )

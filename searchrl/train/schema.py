@@ -36,6 +36,7 @@ from searchrl.shared_schema import (
     repository_root,
     scenario_default,
 )
+from searchrl.world.config import ConfigError
 
 
 @dataclass
@@ -158,6 +159,22 @@ def saved_config(path: str | Path) -> DictConfig:
         raise ValueError(f"{path} holds no mapping")
     import_modules(loaded.get("extensions") or [])
     return typed_parts(OmegaConf.create(upgrade_run_config(loaded)))
+
+
+def saved_run(path: Path) -> DictConfig:
+    """A run's saved config.yaml (`saved_config`) merged into TrainConfig, as resuming or continuing the run trains
+    with it; ConfigError in one line when the file cannot be read or does not fit the current schema (a damaged
+    record; a missing extension says itself)."""
+    try:
+        loaded = saved_config(path)
+        if loaded.get("model") is None or loaded.get("algo") is None:
+            raise ValueError("it names no model or algo")
+        return OmegaConf.merge(OmegaConf.structured(TrainConfig), loaded)
+    except ConfigError:
+        raise
+    except Exception as err:  # empty, not YAML, wrong types, unreadable
+        detail = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise ConfigError(f"{path} does not fit the current schema or cannot be read ({detail})") from None
 
 
 def _part_nodes() -> list[tuple[str, str, Any, Any, type]]:

@@ -8,6 +8,8 @@ with a default and a reason in docs/world.md, "Deviations and choices".
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -29,6 +31,16 @@ class ConfigError(ValueError):
 
 class MissingFile(ConfigError, FileNotFoundError):
     """A file a setting names does not exist: a refusal that a caller may also catch as FileNotFoundError."""
+
+
+@contextmanager
+def in_context(context: str) -> Iterator[None]:
+    """A refusal raised inside is said after `context` ("grid cell 3 (n=20, N=2): <refusal>"), its type kept."""
+    try:
+        yield
+    except ConfigError as err:
+        err.args = (f"{context}: {err}",)
+        raise
 
 
 def need(ok: bool, name: str, value: object, allowed: str) -> None:

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit, types
 from numba.experimental import structref
 
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 
 
 @dataclass
@@ -139,14 +139,14 @@ def allocate(config: WorldConfig, n_worlds: int) -> WorldState:
     """Zeroed arrays for `n_worlds` worlds; `reset_worlds` fills them. Memory is dominated by the beliefs:
     K · N · 2 · S² · 4 bytes (K · N · 3 · S² · 4 with `belief_age`, K · N · 4 · S² · 4 with `belief_seen` too)."""
     if n_worlds < 1:
-        raise ValueError(f"n_worlds={n_worlds!r} is not allowed: need at least 1 world")
+        raise ConfigError(f"n_worlds={n_worlds!r} is not allowed: need at least 1 world")
     k, n = n_worlds, config.n_agents
     h = config.halo
     side = config.world_size[1] + 2 * h
     layers = 2 + (config.belief_age > 0) + config.belief_seen
     need_bytes, have = k * n * layers * side * side * 4, physical_memory()
     if have and need_bytes > have:  # numpy would fail with a bare allocation error, or the machine swap to a halt
-        raise ValueError(
+        raise ConfigError(
             f"n_worlds={k}, n_agents={n}, world_size={config.world_size} is not allowed here: the agents' beliefs "
             f"alone need {need_bytes / 2**30:,.1f} GiB and this machine has {have / 2**30:,.1f} GiB; fewer worlds, "
             "agents or a smaller largest world"
