@@ -33,7 +33,6 @@ def isolated_registries(*packages: str) -> Iterator[None]:
             for name, part in list(table.items()):
                 if _ours(getattr(getattr(part, "cls", part), "__module__", ""), packages):
                     del table[name]
-        stack.enter_context(mock.patch.object(registry, "TEACHERS", registry.TEACHERS))
         for name in before:
             del sys.modules[name]
         try:

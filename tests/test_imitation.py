@@ -156,7 +156,6 @@ def test_a_teacher_is_given_the_observations_recorded(monkeypatch):
             return super().act(state, maps, vector, active)
 
     monkeypatch.setitem(registry.HEURISTICS, "spy", registry.Heuristic(Spy, ControllerConfig, "spy"))
-    monkeypatch.setattr(registry, "TEACHERS", (*registry.TEACHERS, "spy"))
     demos = collect([(WORLD, 2)], "spy", episodes=1, gamma=0.9, seed=3)
     assert len(seen) == WORLD.max_steps
     maps = np.stack([m.reshape(6, 5, 11, 11) for m, _ in seen], 1).astype(np.float16)

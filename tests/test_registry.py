@@ -21,14 +21,14 @@ from omegaconf import OmegaConf
 from searchrl.controllers import registry
 from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.greedy import FootprintGreedy
-from searchrl.controllers.registry import HEURISTICS, TEACHERS, allowed, heuristic, make_controller, make_teacher
+from searchrl.controllers.registry import HEURISTICS, allowed, heuristic, make_controller, make_teacher, teachers
 from searchrl.evaluate.app import evaluate, make_controller_factory
 from searchrl.evaluate.results import load
 from searchrl.evaluate.schema import register_configs
 from searchrl.multirun import exits
 from searchrl.shared_schema import CONF_DIR
 from searchrl.world import scenario
-from searchrl.world.config import ConfigError, WorldConfig, need
+from searchrl.world.config import ConfigError, MissingFile, WorldConfig, need
 from tests.test_evaluate import SLICE
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -132,9 +132,11 @@ def test_unknown_names_are_refused_listing_the_registry():
         heuristic("planner")
     with pytest.raises(ConfigError, match=rf"one of {names}, or checkpoint=<model.zip>"):
         make_controller_factory(OmegaConf.to_object(_compose("controller=greedy", "controller.name=planner")))
-    with pytest.raises(ConfigError, match=rf"imitation.teacher='random' is not allowed: one of {', '.join(TEACHERS)}"):
+    with pytest.raises(
+        ConfigError, match=rf"imitation.teacher='random' is not allowed: one of {', '.join(teachers())}"
+    ):
         make_teacher("random", WorldConfig(), 0)
-    assert TEACHERS == tuple(n for n in HEURISTICS if n != "random")
+    assert teachers() == tuple(n for n in HEURISTICS if n != "random")
     with pytest.raises(ConfigError, match=r"greedy takes no setting 'sweep'"):
         make_controller("greedy", WorldConfig(), settings={"sweep": 1})
 
@@ -217,8 +219,7 @@ class _Still:
 def test_a_heuristic_and_an_obstacle_generator_added_through_the_public_api_run_in_evaluate(tmp_path, capsys):
     """Adding either is its class plus one registration: `controller=still` and `scenario.obstacles.kind=stripe`
     then compose, are checked and are evaluated like the shipped ones."""
-    with (mock.patch.dict(registry.HEURISTICS), mock.patch.object(registry, "TEACHERS", registry.TEACHERS),
-          mock.patch.dict(scenario.OBSTACLES)):  # fmt: skip
+    with mock.patch.dict(registry.HEURISTICS), mock.patch.dict(scenario.OBSTACLES):
         registry.register("still", _Still, _StillConfig, teacher=False)
         scenario.register_part("obstacles", _StripeObstacles)
         register_configs()  # after registering: `controller=still` needs no conf/controller/still.yaml
@@ -242,3 +243,33 @@ def test_a_heuristic_and_an_obstacle_generator_added_through_the_public_api_run_
     )  # cells x maps x repeats
     assert rows["blocked"].gt(0).any()  # agents walking north from below row 3 run into the stripe
     assert "still" not in registry.HEURISTICS and "stripe" not in scenario.OBSTACLES  # restored for other tests
+
+
+def test_settings_given_as_a_mapping_are_typed_by_the_heuristics_dataclass():
+    """A teacher's arguments, a planner's base rule and a bench's JSON reach a heuristic as a mapping: each value is
+    checked against its field's type, as Hydra checks a `controller=` node, in one line naming it; an int where a
+    float is asked becomes that float."""
+    from searchrl.world.config import in_context
+
+    rule = make_controller("greedy", WorldConfig(), settings={"w_p": 1, "horizon": 2})
+    assert isinstance(rule.w_p, float) and rule.horizon == 2
+    for settings, message in [
+        ({"w_p": "x"}, "controller.w_p='x' is not allowed: a value of type float"),
+        ({"horizon": 2.5}, "controller.horizon=2.5 is not allowed: a value of type int"),
+        ({"horizon": True}, "controller.horizon=True is not allowed: a value of type int"),
+    ]:
+        with pytest.raises(ConfigError) as refused:
+            make_controller("greedy", WorldConfig(), settings=settings)
+        assert str(refused.value) == message
+    with pytest.raises(ConfigError) as refused:
+        make_controller("surfing", WorldConfig(), settings={"scales": [4, "a"]})
+    assert "controller.scales=[4, 'a'] is not allowed: a value of type list[int]" in str(refused.value)
+    with pytest.raises(ConfigError) as refused:
+        make_teacher("greedy", WorldConfig(), 0, {"horizon": "2"})
+    assert str(refused.value) == (
+        "imitation.teacher_args={'horizon': '2'} is not allowed for teacher 'greedy': "
+        "imitation.teacher_args.horizon='2' is not allowed: a value of type int"
+    )
+    with pytest.raises(ConfigError) as refused, in_context("grid cell 3"):  # said in its context, its type kept
+        raise MissingFile("model.zip is not there")
+    assert type(refused.value) is MissingFile and str(refused.value) == "grid cell 3: model.zip is not there"

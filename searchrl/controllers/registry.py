@@ -32,12 +32,14 @@ from searchrl.world.streams import WorldStreams
 
 @dataclass(frozen=True)
 class Heuristic:
-    """A registered controller: `cls(config, **settings[, seed=])`, its settings' dataclass, and the name its
-    results are recorded under (evaluation.yaml's and every result row's `controller`)."""
+    """A registered controller: `cls(config, **settings[, seed=])`, its settings' dataclass, the name its results
+    are recorded under (evaluation.yaml's and every result row's `controller`), and whether it may teach
+    (`imitation.teacher=`)."""
 
     cls: type
     schema: type[ControllerConfig]
     label: str
+    teacher: bool = True
 
     def settings(self) -> dict[str, Any]:
         """The schema's defaults without `name`: the keyword arguments of `cls` besides the world and the seed."""
@@ -56,7 +58,7 @@ HEURISTICS: Registry[Heuristic] = Registry(
         "switch": Heuristic(EvidenceSwitch, SwitchConfig, "switch"),
         "path_greedy": Heuristic(PathGreedy, PathGreedyConfig, "path_greedy"),
         "sweep": Heuristic(SweepCoverage, SweepConfig, "sweep"),
-        "random": Heuristic(RandomWalk, RandomConfig, "random"),
+        "random": Heuristic(RandomWalk, RandomConfig, "random", teacher=False),
         "rollout": Heuristic(Rollout, RolloutConfig, "rollout"),
     },
 )
@@ -108,7 +110,9 @@ def make_controller(
     return entry.cls(config, **values)
 
 
-TEACHERS: tuple[str, ...] = tuple(name for name in HEURISTICS if name != "random")
+def teachers() -> tuple[str, ...]:
+    """The heuristics `imitation.teacher=` may name (all but random, and those registered with `teacher=False`)."""
+    return tuple(name for name, entry in HEURISTICS.items() if entry.teacher)
 
 
 def register(name: str, cls: type, schema: type, label: str | None = None, teacher: bool = True) -> None:
@@ -116,17 +120,14 @@ def register(name: str, cls: type, schema: type, label: str | None = None, teach
     **settings[, seed])` makes it (the `Controller` protocol, searchrl/controllers/base.py); `schema` is its
     settings' dataclass (a `ControllerConfig` whose `name` is `name`); `label` is the name its results are
     recorded under (default `name`). The same registered again is accepted; ConfigError for a name another holds."""
-    global TEACHERS
-    HEURISTICS.register(name, Heuristic(cls, schema, label or name))
-    if teacher and name not in TEACHERS:
-        TEACHERS = (*TEACHERS, name)
+    HEURISTICS.register(name, Heuristic(cls, schema, label or name, teacher))
 
 
 def make_teacher(teacher: str, config: WorldConfig, seed: int | WorldStreams, args: dict | None = None) -> Controller:
     """The teacher's controller; ConfigError naming `imitation.teacher` or `imitation.teacher_args` if either is
     not allowed (an unknown teacher, an argument its controller does not take, or a value it refuses)."""
-    if teacher not in TEACHERS:
-        raise ConfigError(f"imitation.teacher={teacher!r} is not allowed: one of {', '.join(TEACHERS)}, or null")
+    if teacher not in teachers():
+        raise ConfigError(f"imitation.teacher={teacher!r} is not allowed: one of {', '.join(teachers())}, or null")
     args = dict(args or {})
     if "seed" in args:
         raise ConfigError("imitation.teacher_args.seed is not allowed: the teacher is seeded from the run's seed")

@@ -91,7 +91,7 @@ class ValidationConfig:
 class ImitationConfig:
     """Warm start by cloning a heuristic before RL (`searchrl/imitation/clone.py`); not in the paper."""
 
-    # A heuristic of searchrl/controllers/registry.py but random (registry.TEACHERS); null
+    # A heuristic of searchrl/controllers/registry.py but random (registry.teachers()); null
     # trains from scratch as the paper does
     teacher: str | None = None
     # Keyword arguments of the teacher's controller (those of controller=<teacher>), e.g. {horizon: 1} for greedy;
