@@ -54,28 +54,33 @@ def _coarse_index(n, grid):
 
 
 @njit(cache=CACHE)
+def _pool(maps, h, n, index, counts, scale, acc, dst):
+    """dst (2, grid, grid) = the mean of maps (2, ·, ·)'s n × n cells from (h, h) over each coarse cell (index,
+    counts: `_coarse_index`), times scale (2,); acc (2, grid, grid) float64 is work space."""
+    acc[:] = 0.0
+    for r in range(n):
+        gr = index[r]
+        for c in range(n):
+            gc = index[c]
+            acc[0, gr, gc] += maps[0, r + h, c + h]
+            acc[1, gr, gc] += maps[1, r + h, c + h]
+    for gr in range(acc.shape[1]):
+        for gc in range(acc.shape[2]):
+            cells = counts[gr] * counts[gc]
+            dst[0, gr, gc] = acc[0, gr, gc] / cells * scale[0] if cells else 0.0
+            dst[1, gr, gc] = acc[1, gr, gc] / cells * scale[1] if cells else 0.0
+
+
+@njit(cache=CACHE)
 def _own_map(w, grid, out, worlds):
     h, belief, pos, size, scale = w.halo, w.belief, w.pos, w.size, w.obs_scale  # each field read once (kernels.py)
-    n_agents = pos.shape[1]
     acc = np.zeros((2, grid, grid), np.float64)
     for k in worlds:
         n = size[k]
         index, counts = _coarse_index(n, grid)
-        sp, su = scale[k, 0], scale[k, 1]
-        for i in range(n_agents):
-            acc[:] = 0.0
-            for r in range(n):
-                gr = index[r]
-                for c in range(n):
-                    gc = index[c]
-                    acc[0, gr, gc] += belief[k, i, 0, r + h, c + h]
-                    acc[1, gr, gc] += belief[k, i, 1, r + h, c + h]
+        for i in range(pos.shape[1]):
+            _pool(belief[k, i], h, n, index, counts, scale[k], acc, out[k, i])
             out[k, i, 2] = 0.0
-            for gr in range(grid):
-                for gc in range(grid):
-                    cells = counts[gr] * counts[gc]
-                    out[k, i, 0, gr, gc] = acc[0, gr, gc] / cells * sp if cells else 0.0
-                    out[k, i, 1, gr, gc] = acc[1, gr, gc] / cells * su if cells else 0.0
             out[k, i, 2, pos[k, i, 0] * grid // n, pos[k, i, 1] * grid // n] = 1.0
 
 
@@ -83,11 +88,10 @@ def _own_map(w, grid, out, worlds):
 def _true_state(w, grid, max_steps, out, worlds):
     h, belief, pos, size, scale = w.halo, w.belief, w.pos, w.size, w.obs_scale  # each field read once (kernels.py)
     n_agents = pos.shape[1]
-    shared = np.zeros((5, grid, grid), np.float64)
+    shared, acc = np.zeros((5, grid, grid), np.float64), np.zeros((2, grid, grid), np.float64)
     for k in worlds:
         n = size[k]
         index, counts = _coarse_index(n, grid)
-        sp, su = scale[k, 0], scale[k, 1]
         shared[:] = 0.0
         team = belief[k, 0, :, h : h + n, h : h + n].copy()  # (2, n, n): the min over agents, agent by agent
         for i in range(1, n_agents):  # agent-major: each agent's map read in memory order
@@ -95,23 +99,13 @@ def _true_state(w, grid, max_steps, out, worlds):
                 for r in range(n):
                     for c in range(n):
                         team[layer, r, c] = min(team[layer, r, c], belief[k, i, layer, r + h, c + h])
-        for r in range(n):
-            gr = index[r]
-            for c in range(n):
-                gc = index[c]
-                shared[0, gr, gc] += team[0, r, c]
-                shared[1, gr, gc] += team[1, r, c]
+        _pool(team, 0, n, index, counts, scale[k], acc, shared)
         for j in range(w.target_pos.shape[1]):
             if w.target_valid[k, j] and not w.target_found[k, j]:
                 shared[2, w.target_pos[k, j, 0] * grid // n, w.target_pos[k, j, 1] * grid // n] += 1.0
         for i in range(n_agents):
             shared[3, pos[k, i, 0] * grid // n, pos[k, i, 1] * grid // n] += 1.0 / n_agents
         left = max(0.0, 1.0 - w.t[k] / max_steps)
-        for gr in range(grid):
-            for gc in range(grid):
-                cells = counts[gr] * counts[gc]
-                shared[0, gr, gc] = shared[0, gr, gc] / cells * sp if cells else 0.0
-                shared[1, gr, gc] = shared[1, gr, gc] / cells * su if cells else 0.0
         for i in range(n_agents):
             for gr in range(grid):
                 for gc in range(grid):

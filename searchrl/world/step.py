@@ -16,7 +16,7 @@ from searchrl.world.merge import merge_work
 from searchrl.world.parallel import agent_blocks, chunk_count, chunk_span, world_threads
 from searchrl.world.seen import update_freshness
 from searchrl.world.state import WorldState
-from searchrl.world.step_spans import MERGE_BLOCK_AGENTS, step_sharing_merges, step_span
+from searchrl.world.step_spans import MERGE_BLOCK_AGENTS, StepInputs, step_sharing_merges, step_span
 from searchrl.world.streams import WorldStreams
 
 
@@ -179,63 +179,12 @@ def step_worlds(
         c_coef[k] = sensing[0] * (sensing[1] + sensing[2] * np.float64(size[k]))
     n_chunks = chunk_count(n_worlds, scratch.claim.shape[0], threads)
     blocks = agent_blocks(n_worlds, actions.shape[1], threads, MERGE_BLOCK_AGENTS) if merge else 1
+    s = StepInputs(actions, priority, detect, moves, support, c_coef, radii, merge, reward_terms, max_steps)
     if blocks > 1:  # fewer worlds than threads: each world's merge is shared among them too
-        step_sharing_merges(
-            w,
-            actions,
-            priority,
-            detect,
-            moves,
-            support,
-            c_coef,
-            radii,
-            reward_terms,
-            max_steps,
-            scratch,
-            work,
-            out,
-            blocks,
-        )
-        return
-    if n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
-        step_span(
-            w,
-            actions,
-            priority,
-            detect,
-            moves,
-            support,
-            c_coef,
-            radii,
-            merge,
-            reward_terms,
-            max_steps,
-            scratch,
-            work,
-            out,
-            np.int64(0),
-            np.int64(0),
-            n_worlds,
-        )
-        return
-    for chunk in prange(n_chunks):
-        first, stop = chunk_span(chunk, n_chunks, 0, n_worlds)
-        step_span(
-            w,
-            actions,
-            priority,
-            detect,
-            moves,
-            support,
-            c_coef,
-            radii,
-            merge,
-            reward_terms,
-            max_steps,
-            scratch,
-            work,
-            out,
-            np.int64(chunk),
-            first,
-            stop,
-        )
+        step_sharing_merges(w, s, scratch, work, out, blocks)
+    elif n_chunks == 1:  # in this thread: waking a worker for the only chunk would just add its wake-up
+        step_span(w, s, scratch, work, out, np.int64(0), np.int64(0), n_worlds)
+    else:
+        for chunk in prange(n_chunks):
+            first, stop = chunk_span(chunk, n_chunks, 0, n_worlds)
+            step_span(w, s, scratch, work, out, np.int64(chunk), first, stop)
