@@ -22,6 +22,8 @@ class Controller(Protocol):
     `active` (K,) bool, when given, marks the worlds whose actions count; a controller may skip the others
     (an expensive policy does; the heuristics act everywhere so their random draws do not depend on it).
     Decentralised controllers read only what an agent may know: its observation, its own belief and position.
+    A rule with memory of its own may also have `copy_memory(into, index, agents)`, which a planner calls to give
+    its imagined worlds' copy of the rule that memory (searchrl/controllers/greedy.py).
     """
 
     config: WorldConfig

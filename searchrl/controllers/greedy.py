@@ -188,6 +188,17 @@ class FootprintGreedy(FallbackHeuristic):
                 self._flat, mask = np.zeros(state.n_worlds), np.ones(state.n_worlds, bool)
             self._flat[mask] = self.prior_information(state)[mask]
 
+    def copy_memory(self, into: FootprintGreedy, index: np.ndarray, agents: np.ndarray | None = None) -> None:
+        """This rule's per-world memory (reach weights, sightings, ages, rates, the prior's mean) of worlds `index`
+        (len = `into`'s batch) copied into `into`, a rule of the same settings over another batch (a planner's
+        imagined worlds), so it plays on as this one would; of the agents `agents` (len, k) only where given (the
+        per-agent arrays). An array its setting turns off (empty) is left as it is."""
+        for name in ("_weights", "_seen", "_known", "_rates", "_flat"):
+            source = getattr(self, name)
+            if source.shape[0] > int(index.max(initial=0)):
+                per_agent = name in ("_seen", "_known") and agents is not None
+                setattr(into, name, source[index[:, None], agents].copy() if per_agent else source[index].copy())
+
     def prior_information(self, state: WorldState) -> np.ndarray:
         """(K,) float64: the mean information I of the prior (p, u as the observation scales them) per free cell."""
         p_hat, u_hat = state.p * state.obs_scale[:, 0, None, None], state.u * state.obs_scale[:, 1, None, None]

@@ -9,8 +9,6 @@ probability 1 − u/max u of the prior's u, u0).
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from searchrl.world.state import WorldState
@@ -88,14 +86,3 @@ class CommonStreams(WorldStreams):
         rest = self._rows(size)
         draws = np.concatenate([g.integers(low, high, size=(self.samples, *rest)) for g in self.generators])
         return np.repeat(draws, self.candidates, axis=0)
-
-
-def copy_rule_memory(rule: Any, into: Any, index: np.ndarray, agents: np.ndarray | None = None) -> None:
-    """A rule's per-world memory (footprint-greedy's sightings and weights) of the real worlds `index` (len = the
-    imagined batch) copied into the imagined batch's rule, so the rule plays on as it would have; of the agents
-    `agents` (len, k) only where given (the per-agent arrays: sightings)."""
-    for name in ("_weights", "_seen", "_known", "_rates", "_flat"):
-        source = getattr(rule, name, None)
-        if isinstance(source, np.ndarray) and source.ndim >= 1 and source.shape[0] > int(index.max(initial=0)):
-            per_agent = name in ("_seen", "_known") and agents is not None
-            setattr(into, name, source[index[:, None], agents].copy() if per_agent else source[index].copy())

@@ -33,7 +33,6 @@ from searchrl.controllers.base import Controller, ControllerConfig
 from searchrl.controllers.posterior import (
     PER_AGENT,
     CommonStreams,
-    copy_rule_memory,
     expected_finds,
     posterior_targets,
     remember_prior_u,
@@ -240,7 +239,8 @@ class Rollout:
         world.state.target_pos[:] = np.repeat(np.concatenate(targets), n_cand, axis=0)
         world.rng = CommonStreams([[*key, 0] for key in keys], m, n_cand)
         base.rng = CommonStreams([[*key, 1] for key in keys], m, n_cand)
-        copy_rule_memory(self.base, base, source, None if whole else agents)
+        if hasattr(self.base, "copy_memory"):  # a rule that remembers (Controller's optional copy_memory)
+            self.base.copy_memory(base, source, None if whole else agents)
         # Worlds of one batch may be at different steps (an evaluation starts an episode where one ends): each
         # imagined world's score is its finds when its own horizon ends.
         end = np.full(count, self.config.max_steps)
