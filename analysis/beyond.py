@@ -38,8 +38,11 @@ from searchrl.reporting import cli
 from searchrl.reporting.stats import markdown, paired_margins
 
 ROOT = Path.cwd()
-parser = cli.parser("Policies against their teacher over a cell set, and the budget curve", "EVAL_DIR",
-                    "the teacher's evaluation folder, then the policies' (same grid and seed)")  # fmt: skip
+parser = cli.parser(
+    "Policies against their teacher over a cell set, and the budget curve",
+    "EVAL_DIR",
+    "the teacher's evaluation folder, then the policies' (same grid and seed)",
+)
 EVAL_DIRS, OUT, args = cli.eval_args(parser, ROOT / "analysis" / "out" / "beyond", default_dirs=list, min_dirs=2)
 teacher = EVAL_DIRS[0].name
 names = [d.name for d in EVAL_DIRS]
@@ -73,23 +76,38 @@ for folder in EVAL_DIRS[1:]:
     mine = folder.name
     missing = per_map[teacher].index.symmetric_difference(per_map[mine].index)
     if len(missing):
-        cli.stop(f"{folder} and {EVAL_DIRS[0]} did not play the same maps ({len(missing)} (n, N, map) differ): "
-                 "evaluate both on the same grid, seed and maps_per_cell")  # fmt: skip
+        cli.stop(
+            f"{folder} and {EVAL_DIRS[0]} did not play the same maps ({len(missing)} (n, N, map) differ): "
+            "evaluate both on the same grid, seed and maps_per_cell"
+        )
     joined = pd.concat([per_map[mine].rename("mine"), per_map[teacher].rename("base")], axis=1)
     diffs = {cell: (g["mine"] - g["base"]).to_numpy() for cell, g in joined.groupby(level=["n", "N"])}
     mean, low, high = stratified_mean_ci(diffs)
     verdicts = paired_margins(episodes.assign(model="b"), mine, teacher)["verdict"].value_counts()
     runs[mine], steps = checkpoint_of(folder)
-    rows.append({"policy": mine, "agent_steps": steps, "cells": len(diffs),
-                 "minus_teacher": mean, "ci_low": low, "ci_high": high,
-                 **{v: int(verdicts.get(v, 0)) for v in VERDICTS}})  # fmt: skip
+    rows.append(
+        {
+            "policy": mine,
+            "agent_steps": steps,
+            "cells": len(diffs),
+            "minus_teacher": mean,
+            "ci_low": low,
+            "ci_high": high,
+            **{v: int(verdicts.get(v, 0)) for v in VERDICTS},
+        }
+    )
 table = pd.DataFrame(rows).sort_values("agent_steps", na_position="first").reset_index(drop=True)
 table = table.drop(columns=[v for v in VERDICTS[3:] if not table[v].any()])  # a verdict no row has: no column
 write_atomic(OUT / "beyond.csv", lambda tmp: table.to_csv(tmp, index=False))
-text = (f"Each policy minus {teacher} over {coverage_line(EVAL_DIRS[0])}: the mean over cells of the per-cell "
-        "paired difference in found fraction, 95 % CI over maps stratified by cell, and the per-cell verdicts.\n\n"
-        + markdown(table.assign(agent_steps=[f"{s / 1e6:.2f}M" if pd.notna(s) else "–" for s in table.agent_steps])
-                   .set_index("policy")))  # fmt: skip
+text = (
+    f"Each policy minus {teacher} over {coverage_line(EVAL_DIRS[0])}: the mean over cells of the per-cell "
+    "paired difference in found fraction, 95 % CI over maps stratified by cell, and the per-cell verdicts.\n\n"
+    + markdown(
+        table.assign(agent_steps=[f"{s / 1e6:.2f}M" if pd.notna(s) else "–" for s in table.agent_steps]).set_index(
+            "policy"
+        )
+    )
+)
 curves = dict(list(table.dropna(subset=["agent_steps"]).groupby(table.policy.map(runs), sort=False)))
 for run, curve in curves.items():  # a run's checkpoints: its budget curve's least-squares line, from 3 points
     if len(curve) < 3:
@@ -117,9 +135,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 fig, ax = plt.subplots(figsize=(5, 3.2))
 ax.axhline(0, color="grey", lw=1, label=teacher)
 for run, curve in curves.items():  # one line per training run
-    ax.errorbar(curve["agent_steps"] / 1e6, curve["minus_teacher"],
-                yerr=[curve["minus_teacher"] - curve["ci_low"], curve["ci_high"] - curve["minus_teacher"]],
-                marker="o", capsize=3, label=f"{run} − teacher")  # fmt: skip
+    ax.errorbar(
+        curve["agent_steps"] / 1e6,
+        curve["minus_teacher"],
+        yerr=[curve["minus_teacher"] - curve["ci_low"], curve["ci_high"] - curve["minus_teacher"]],
+        marker="o",
+        capsize=3,
+        label=f"{run} − teacher",
+    )
 ax.set_xlabel("agent-steps of RL (millions)")
 ax.set_ylabel("found fraction − teacher's")
 ax.legend(frameon=False)

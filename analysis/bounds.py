@@ -39,8 +39,11 @@ from searchrl.reporting import cli
 from searchrl.reporting.stats import is_hard, markdown, with_bounds
 from searchrl.world.config import WorldConfig
 
-parser = cli.parser("The search bound over the grid and each controller's efficiency", dirs="TABLE_CSV",
-                    dirs_help="tables of per-cell means (table3.csv, calibration.csv) to join")  # fmt: skip
+parser = cli.parser(
+    "The search bound over the grid and each controller's efficiency",
+    dirs="TABLE_CSV",
+    dirs_help="tables of per-cell means (table3.csv, calibration.csv) to join",
+)
 parser.add_argument("--draws", type=int, default=BOUND_DRAWS, help="placements per map (>= 100)")
 parser.add_argument("--maps", type=int, default=GridConfig.maps_per_cell, help="maps per cell (>= 1)")
 parser.add_argument("--cache", default="runs/bounds", help="folder of per-map bounds (default runs/bounds)")
@@ -65,17 +68,20 @@ cells = table2_cells(grid.world_sizes, grid.n_targets, grid.n_distributions, gri
 bounds = grid_bounds(WorldConfig(), cells, args.maps, EvaluateConfig.seed, args.draws, args.cache)
 diagonal = grid_bounds(WorldConfig(diagonal=True), cells, args.maps, EvaluateConfig.seed, args.draws, args.cache)
 assert diagonal["bound"].equals(bounds["bound"])  # the same maps, reach and draws: only the detection bound differs
-both = bounds.merge(diagonal[["n", "N", "budget", "detection_bound", "detection_mc_stderr"]], on=["n", "N"],
-                    suffixes=("", "_diagonal"))  # fmt: skip
+both = bounds.merge(
+    diagonal[["n", "N", "budget", "detection_bound", "detection_mc_stderr"]], on=["n", "N"], suffixes=("", "_diagonal")
+)
 write_atomic(OUT / "bounds.csv", lambda tmp: both.to_csv(tmp, index=False))
 wide = bounds.pivot_table(index="N", columns="n", values="bound")
 largest_error = bounds["mc_stderr"].max()
-text = (f"Mean bound fraction per cell ({args.maps} maps, {args.draws} placements per map; the largest Monte Carlo "
-        f"standard error of a cell's mean is {largest_error:.4f}):\n\n{markdown(wide)}\n\n"
-        f"The detection bound (cardinal moves; largest standard error {bounds['detection_mc_stderr'].max():.4f}):"
-        f"\n\n{markdown(bounds.pivot_table(index='N', columns='n', values='detection_bound'))}\n\n"
-        f"The detection bound of diagonal moves (largest standard error {diagonal['detection_mc_stderr'].max():.4f}):"
-        f"\n\n{markdown(diagonal.pivot_table(index='N', columns='n', values='detection_bound'))}")  # fmt: skip
+text = (
+    f"Mean bound fraction per cell ({args.maps} maps, {args.draws} placements per map; the largest Monte Carlo "
+    f"standard error of a cell's mean is {largest_error:.4f}):\n\n{markdown(wide)}\n\n"
+    f"The detection bound (cardinal moves; largest standard error {bounds['detection_mc_stderr'].max():.4f}):"
+    f"\n\n{markdown(bounds.pivot_table(index='N', columns='n', values='detection_bound'))}\n\n"
+    f"The detection bound of diagonal moves (largest standard error {diagonal['detection_mc_stderr'].max():.4f}):"
+    f"\n\n{markdown(diagonal.pivot_table(index='N', columns='n', values='detection_bound'))}"
+)
 write_text_atomic(OUT / "bounds.md", text)
 print(text)
 

@@ -73,13 +73,18 @@ for world, block in summary.groupby("world", sort=False):
     surf = block[block.controller == "surfing"].set_index(["n", "N"])
     single = block[(block.n == 20) & (block.N == 1)].set_index("controller")["mean"]
     diff = surf["mean"] - surf["paper_B"]
-    rows.append({
-        "world": world, "surfing n20 N1": single.get("surfing"), "random n20 N1": single.get("random"),
-        "target-greedy n20 N1": single.get("greedy_target"),
-        "surfing < paper B": int((surf["high"] < surf["paper_B"]).sum()),
-        "surfing > paper B": int((surf["low"] > surf["paper_B"]).sum()),
-        "mean surfing − B": diff.mean(), "rms surfing − B": float(np.sqrt((diff**2).mean())),
-    })  # fmt: skip
+    rows.append(
+        {
+            "world": world,
+            "surfing n20 N1": single.get("surfing"),
+            "random n20 N1": single.get("random"),
+            "target-greedy n20 N1": single.get("greedy_target"),
+            "surfing < paper B": int((surf["high"] < surf["paper_B"]).sum()),
+            "surfing > paper B": int((surf["low"] > surf["paper_B"]).sum()),
+            "mean surfing − B": diff.mean(),
+            "rms surfing − B": float(np.sqrt((diff**2).mean())),
+        }
+    )
 measures = pd.DataFrame(rows).set_index("world")
 surfing = summary[summary.controller == "surfing"].pivot_table(index=["world", "N"], columns="n", values="mean")
 best = summary.loc[summary.groupby(["world", "n", "N"])["mean"].idxmax()]
@@ -113,8 +118,13 @@ for ax, n in zip(np.atleast_1d(axes), sizes, strict=True):
         line = block.groupby("lam_k")["mean"].mean()
         ax.plot(line.index, line.values, marker="o", label=controller)
     for model, style in (("A", ":"), ("B", "--"), ("C", "-."), ("diagonal", (0, (1, 3)))):
-        ax.axhline(paper[(paper.n == n) & (paper.model == model)].found_fraction.mean(), color="k",
-                   linestyle=style, linewidth=0.8, label=f"paper {model}")  # fmt: skip
+        ax.axhline(
+            paper[(paper.n == n) & (paper.model == model)].found_fraction.mean(),
+            color="k",
+            linestyle=style,
+            linewidth=0.8,
+            label=f"paper {model}",
+        )
     ax.set_xscale("log")
     ax.set_title(f"n = {n}")
     ax.set_xlabel("λk")

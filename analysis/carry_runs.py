@@ -74,8 +74,11 @@ def main(argv: list[str]) -> int:
     if argv[:1] == ["--to"] and len(argv) > 1:
         lab, argv = Path(argv[1]), argv[2:]
     if not argv or any(arg.startswith("--") for arg in argv):
-        print("usage: python analysis/carry_runs.py [--to DIR] [--without-moments] RUN_DIR [RUN_DIR ...]"
-              "  (into DIR/<name>, runs/lab by default)", file=sys.stderr)  # fmt: skip
+        print(
+            "usage: python analysis/carry_runs.py [--to DIR] [--without-moments] RUN_DIR [RUN_DIR ...]"
+            "  (into DIR/<name>, runs/lab by default)",
+            file=sys.stderr,
+        )
         return 2
     for run in map(Path, argv):
         dest = carry(run, lab, moments)

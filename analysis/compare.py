@@ -38,13 +38,23 @@ from searchrl.reporting.stats import markdown, paired_margins
 
 ROOT = Path.cwd()
 UNSATURATED = 0.95  # below this found fraction of the reference a cell is "unsaturated" (issue 28's line)
-parser = cli.parser("Two or more evaluations, cell by cell: the first against each other one", "EVAL_DIR",
-                    "evaluation folders, two or more (default: $SEARCHRL_EVAL_DIRS, comma-separated)")  # fmt: skip
-parser.add_argument("--unsaturated-by", metavar="NAME", help=f"split each tally at the cells where the folder "
-                    f"named NAME finds < {UNSATURATED} of the targets")  # fmt: skip
+parser = cli.parser(
+    "Two or more evaluations, cell by cell: the first against each other one",
+    "EVAL_DIR",
+    "evaluation folders, two or more (default: $SEARCHRL_EVAL_DIRS, comma-separated)",
+)
+parser.add_argument(
+    "--unsaturated-by",
+    metavar="NAME",
+    help=f"split each tally at the cells where the folder named NAME finds < {UNSATURATED} of the targets",
+)
 METRICS = ("found_fraction", "R", "F", "M_bar")  # per-episode columns of an evaluation (docs/evaluation.md)
-parser.add_argument("--metric", default="found_fraction", choices=METRICS, help="the per-episode column compared "
-                    "(default found_fraction; with another, 'better' means higher)")  # fmt: skip
+parser.add_argument(
+    "--metric",
+    default="found_fraction",
+    choices=METRICS,
+    help="the per-episode column compared (default found_fraction; with another, 'better' means higher)",
+)
 EVAL_DIRS, OUT, args = cli.eval_args(parser, ROOT / "analysis" / "out", default_dirs=list, min_dirs=2)  # no default
 names = [d.name for d in EVAL_DIRS]
 if len(set(names)) < len(names):
@@ -60,8 +70,10 @@ episodes = pd.concat([load(d).assign(controller=d.name) for d in EVAL_DIRS], ign
 # %%
 mine = EVAL_DIRS[0].name
 saturated = 0.995 if args.metric == "found_fraction" else float("inf")  # only a found fraction saturates
-margins = pd.concat([paired_margins(episodes, mine, other.name, args.metric, saturated=saturated)
-                     for other in EVAL_DIRS[1:]], ignore_index=True)  # fmt: skip
+margins = pd.concat(
+    [paired_margins(episodes, mine, other.name, args.metric, saturated=saturated) for other in EVAL_DIRS[1:]],
+    ignore_index=True,
+)
 if args.unsaturated_by is not None:  # the reference's mean over all the maps it ran in each cell
     reference = episodes[episodes.controller == args.unsaturated_by].groupby(["n", "N"]).found_fraction.mean()
     below = reference.rename("reference").reset_index().assign(unsaturated=lambda r: r.reference < UNSATURATED)
@@ -80,12 +92,18 @@ for other, block in margins.groupby("baseline", sort=False):
     lines.append(f"## {mine} − {other}\n")
     lines.append(f"{tally(block)} of {len(block)} cells\n")
     if args.unsaturated_by is not None:
-        for where, part in ((f"< {UNSATURATED}", block[block.unsaturated == True]),  # noqa: E712 (NaN: not run)
-                            (f">= {UNSATURATED}", block[block.unsaturated == False])):  # noqa: E712  # fmt: skip
+        for where, part in (
+            (f"< {UNSATURATED}", block[block.unsaturated == True]),  # noqa: E712 (NaN: not run)
+            (f">= {UNSATURATED}", block[block.unsaturated == False]),  # noqa: E712
+        ):
             lines.append(f"- where {args.unsaturated_by} finds {where}: {tally(part)} of {len(part)} cells")
         lines.append("")
-    entries = block.assign(entry=[f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
-                                  zip(block["diff"], block.low, block.high, block.verdict, strict=True)])  # fmt: skip
+    entries = block.assign(
+        entry=[
+            f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}"
+            for d, lo, hi, v in zip(block["diff"], block.low, block.high, block.verdict, strict=True)
+        ]
+    )
     lines.append(markdown(entries.pivot_table(index="N", columns="n", values="entry", aggfunc="first").fillna("–")))
     lines.append("")
 write_text_atomic(OUT / "compare.md", "\n".join(lines))

@@ -59,10 +59,22 @@ def child() -> None:
     from searchrl.world.observe import observe
     from searchrl.world.step import step
 
-    cell = ["grid.world_sizes=[20]", "grid.n_targets=[4]", "grid.n_distributions=[8]", "grid.max_agents=[2]",
-            "grid.maps_per_cell=2", "grid.repeats=1", "progress_bar=false", "threads=2"]  # fmt: skip
-    runs = (["controller=surfing"], ["controller=greedy_target"], ["controller=path_greedy", "scenario=walls"],
-            ["checkpoint=runs/reference/term/b/model.zip"])  # fmt: skip
+    cell = [
+        "grid.world_sizes=[20]",
+        "grid.n_targets=[4]",
+        "grid.n_distributions=[8]",
+        "grid.max_agents=[2]",
+        "grid.maps_per_cell=2",
+        "grid.repeats=1",
+        "progress_bar=false",
+        "threads=2",
+    ]
+    runs = (
+        ["controller=surfing"],
+        ["controller=greedy_target"],
+        ["controller=path_greedy", "scenario=walls"],
+        ["checkpoint=runs/reference/term/b/model.zip"],
+    )
     for overrides in runs:
         with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
             config = compose(config_name="evaluate", overrides=[*cell, f"out_dir={tempfile.mkdtemp()}", *overrides])
@@ -74,8 +86,16 @@ def child() -> None:
         for obj in vars(module).values() if name.startswith("searchrl") else ():
             if isinstance(obj, numba.core.registry.CPUDispatcher) and obj.py_func.__module__ == name:
                 signatures[f"{name}.{obj.py_func.__qualname__}"] = len(obj.signatures)
-    print(json.dumps({"wall_s": time.perf_counter() - began, "compile_s": sum(own.values()),
-                      "own_s": dict(own.most_common(5)), "signatures": signatures}))  # fmt: skip
+    print(
+        json.dumps(
+            {
+                "wall_s": time.perf_counter() - began,
+                "compile_s": sum(own.values()),
+                "own_s": dict(own.most_common(5)),
+                "signatures": signatures,
+            }
+        )
+    )
 
 
 # %% [markdown]
@@ -87,8 +107,9 @@ if __name__ == "__main__" and "--child" in sys.argv:
 elif __name__ == "__main__":
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-        done = subprocess.run([sys.executable, __file__, "--child"], env=env, capture_output=True, text=True,
-                              check=True)  # fmt: skip
+        done = subprocess.run(
+            [sys.executable, __file__, "--child"], env=env, capture_output=True, text=True, check=True
+        )
     report = json.loads(done.stdout.strip().splitlines()[-1])
     again = {name: n for name, n in report["signatures"].items() if n > 1}
     print(

@@ -193,8 +193,11 @@ def main(argv: list[str] | None = None) -> int:
         data = collect_shard(args.student, cells, shard, args.worlds, settings)
         write_atomic(path, lambda tmp, d=data: save_npz(tmp, d))
         steps = int(data["mask"].sum())
-        print(f"{path}: n{data['cell'][0]}_N{data['cell'][1]}, {steps} labelled agent-steps, "
-              f"{time.perf_counter() - start:.0f} s", file=sys.stderr)  # fmt: skip
+        print(
+            f"{path}: n{data['cell'][0]}_N{data['cell'][1]}, {steps} labelled agent-steps, "
+            f"{time.perf_counter() - start:.0f} s",
+            file=sys.stderr,
+        )
     return 0
 
 

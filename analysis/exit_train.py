@@ -135,8 +135,10 @@ def main(argv: list[str] | None = None) -> int:
     rest = [p for p in policy.parameters() if all(p is not q for q in branch)]
     groups = [{"params": rest}] + ([{"params": branch, "lr": args.branch_lr or args.lr}] if branch else [])
     optimizer = torch.optim.Adam(groups, lr=args.lr)
-    print(f"{len(train)} sequences to train on, {len(held)} held out; {int(data['mask'].sum())} labelled steps",
-          file=sys.stderr)  # fmt: skip
+    print(
+        f"{len(train)} sequences to train on, {len(held)} held out; {int(data['mask'].sum())} labelled steps",
+        file=sys.stderr,
+    )
     for epoch in range(args.epochs + 1):
         if epoch:  # epoch 0 only measures the initial student
             start = time.perf_counter()
@@ -149,8 +151,11 @@ def main(argv: list[str] | None = None) -> int:
             rng.shuffle(train)
         with torch.no_grad():
             ce, agree = cross_entropy(policy, data, held, args.tau, prior)
-        print(f"epoch {epoch}: held-out cross-entropy {ce.item():.4f}, agrees with the planner's best on {agree:.3f}"
-              + (f" ({time.perf_counter() - start:.0f} s)" if epoch else ""), file=sys.stderr)  # fmt: skip
+        print(
+            f"epoch {epoch}: held-out cross-entropy {ce.item():.4f}, agrees with the planner's best on {agree:.3f}"
+            + (f" ({time.perf_counter() - start:.0f} s)" if epoch else ""),
+            file=sys.stderr,
+        )
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(Path(args.init).parent / "config.yaml", out / "config.yaml")

@@ -48,8 +48,14 @@ for label, group in summary[summary.n == 160].groupby("label"):
     ax.plot(group.N, group["mean"], marker="o", label=label, color=colours[label])
     ax.fill_between(group.N, group["low"], group["high"], alpha=0.2, color=colours[label])
 for model, group in paper[paper.n == 160].groupby("model"):
-    ax.plot(group.N, group.found_fraction, linestyle="--", linewidth=1, label=f"paper {model}",
-            color=policy_colour.get(model.lower(), "grey"))  # fmt: skip
+    ax.plot(
+        group.N,
+        group.found_fraction,
+        linestyle="--",
+        linewidth=1,
+        label=f"paper {model}",
+        color=policy_colour.get(model.lower(), "grey"),
+    )
 if "bound" in summary and summary["bound"].notna().any():  # the per-map search bound: no team can expect more
     ceiling = summary[summary.n == 160].groupby("N")["bound"].mean()
     ax.plot(ceiling.index, ceiling.values, color="black", linestyle=":", linewidth=1.5, label="search bound")
@@ -68,14 +74,23 @@ sizes = sorted(summary.n.unique())
 bounded = "efficiency" in summary and summary["efficiency"].notna().any()
 rows = [("mean", "low", "high", "found fraction")]
 rows += [("efficiency", "efficiency_low", "efficiency_high", "found / search bound")] if bounded else []
-fig, axes = plt.subplots(len(rows), len(sizes), figsize=(3.2 * len(sizes), 3.2 * len(rows)), sharey="row",
-                         squeeze=False)  # fmt: skip
+fig, axes = plt.subplots(
+    len(rows), len(sizes), figsize=(3.2 * len(sizes), 3.2 * len(rows)), sharey="row", squeeze=False
+)
 for row, (value, low, high, name) in zip(axes, rows, strict=True):
     for ax, n in zip(row, sizes, strict=True):
         for label, group in summary[summary.n == n].groupby("label"):
             group = group.sort_values("N")
-            ax.errorbar(group.N, group[value], yerr=[group[value] - group[low], group[high] - group[value]],
-                        marker="o", markersize=3, capsize=2, label=label, color=colours[label])  # fmt: skip
+            ax.errorbar(
+                group.N,
+                group[value],
+                yerr=[group[value] - group[low], group[high] - group[value]],
+                marker="o",
+                markersize=3,
+                capsize=2,
+                label=label,
+                color=colours[label],
+            )
         if bounded and value == "mean":
             ceiling = summary[summary.n == n].groupby("N")["bound"].mean()
             ax.plot(ceiling.index, ceiling.values, color="black", linestyle=":", label="search bound")

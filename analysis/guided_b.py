@@ -98,8 +98,22 @@ def _guidance_span(w, params, memory, radius, floor, out, start, stop, side):
             rate = memory.rates[k] if memory.known.shape[2] > 0 else 0.0
             for q in range(1, reached):
                 r, c = queue[q, 0], queue[q, 1]
-                info = cell_information(params, w.belief, w.p, memory.flat, w.obs_scale[k, 0], w.obs_scale[k, 1],
-                                        memory.seen, memory.known, rate, w.t[k], k, i, r, c)  # fmt: skip
+                info = cell_information(
+                    params,
+                    w.belief,
+                    w.p,
+                    memory.flat,
+                    w.obs_scale[k, 0],
+                    w.obs_scale[k, 1],
+                    memory.seen,
+                    memory.known,
+                    rate,
+                    w.t[k],
+                    k,
+                    i,
+                    r,
+                    c,
+                )
                 if info > floor[k]:
                     out[k, i, n_actions - 1 + first[r, c] - 1] = 1.0
                     break
@@ -149,8 +163,9 @@ class Guidance(_RulePart):
     def fill(self, state: WorldState, config: WorldConfig, out: np.ndarray, worlds: np.ndarray) -> None:
         rule = self._for(state, config)
         values = np.zeros(out.shape, np.float32)
-        guidance_values(state.arrays(), rule._params, rule.remember(state), rule.radius, rule._floor, values,
-                        world_threads())  # fmt: skip
+        guidance_values(
+            state.arrays(), rule._params, rule.remember(state), rule.radius, rule._floor, values, world_threads()
+        )
         out[worlds] = values[worlds]
 
 
@@ -202,14 +217,16 @@ class VectorParts(SearchCNN):
     orthogonal initialisation rewrites every linear layer). Weights copied from a network without a part act as
     that network until training opens the part's gate."""
 
-    def __init__(self, observation_space: spaces.Dict, conv_channels=(32, 64, 128), vector_size: int = 32,
-                 fc_sizes=(256, 256)) -> None:  # fmt: skip
+    def __init__(
+        self, observation_space: spaces.Dict, conv_channels=(32, 64, 128), vector_size: int = 32, fc_sizes=(256, 256)
+    ) -> None:
         super().__init__(observation_space, conv_channels, vector_size, fc_sizes)
         missing = [key for key in self.parts if key not in observation_space.spaces]
         if missing:
             raise ValueError(f"the {type(self).__name__} network reads {missing[0]!r}, which the env does not observe")
-        self.extra = nn.ModuleDict({key: nn.Linear(observation_space[key].shape[0], vector_size, bias=False)
-                                    for key in self.parts})  # fmt: skip
+        self.extra = nn.ModuleDict(
+            {key: nn.Linear(observation_space[key].shape[0], vector_size, bias=False) for key in self.parts}
+        )
         self.gates = nn.ParameterDict({key: nn.Parameter(torch.zeros(())) for key in self.parts})
 
     def forward(self, observations: dict[str, torch.Tensor]) -> torch.Tensor:
@@ -258,8 +275,9 @@ class WallsOrTarget:
     def act(self, state, maps, vector, active=None) -> np.ndarray:
         h = state.halo
         walled = np.array([state.blocked[k, h : h + n, h : h + n].any() for k, n in enumerate(state.size)])
-        return np.where(walled[:, None], self.walls.act(state, maps, vector, active),
-                        self.open.act(state, maps, vector, active))  # fmt: skip
+        return np.where(
+            walled[:, None], self.walls.act(state, maps, vector, active), self.open.act(state, maps, vector, active)
+        )
 
 
 class WallsOrSwitch(WallsOrTarget):

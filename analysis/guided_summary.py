@@ -49,13 +49,16 @@ ORDER = ["path_greedy", "greedy_target", "coverage", "switch", "term_b", "walls_
 # %%
 scenarios = {}
 for scenario in sorted(p for p in Path(args.probe).iterdir() if (p / args.tag).is_dir()):
-    scenarios[scenario.name] = {c.name: load(c).set_index(KEY)["found_fraction"]
-                                for c in sorted(scenario.iterdir()) if c.is_dir()}  # fmt: skip
+    scenarios[scenario.name] = {
+        c.name: load(c).set_index(KEY)["found_fraction"] for c in sorted(scenario.iterdir()) if c.is_dir()
+    }
 if len(scenarios) > 1:
     everywhere = set.intersection(*(set(frames) for frames in scenarios.values()))
     # each map's mean over the scenarios, on the maps a controller ran under every one of them
-    scenarios["whole"] = {c: pd.concat([frames[c] for frames in scenarios.values()], axis=1).dropna().mean(axis=1)
-                          for c in sorted(everywhere)}  # fmt: skip
+    scenarios["whole"] = {
+        c: pd.concat([frames[c] for frames in scenarios.values()], axis=1).dropna().mean(axis=1)
+        for c in sorted(everywhere)
+    }
 
 
 def paired(mine: pd.Series, theirs: pd.Series) -> tuple[float, str]:
@@ -82,8 +85,10 @@ for name, frames in scenarios.items():
     row["best rule"] = f"{best[1]} {best[0]:.3f}" if best else ""
     row[f"{args.tag} − best rule"] = best[2] if best else ""
     rows.append(row)
-    tails.append({"scenario": name} | {c: f"{worst_tenth(s.rename('found_fraction').reset_index()):.3f}"
-                                       for c, s in frames.items()})  # fmt: skip
+    tails.append(
+        {"scenario": name}
+        | {c: f"{worst_tenth(s.rename('found_fraction').reset_index()):.3f}" for c, s in frames.items()}
+    )
 
 
 def ordered(frame: pd.DataFrame) -> pd.DataFrame:
@@ -93,14 +98,22 @@ def ordered(frame: pd.DataFrame) -> pd.DataFrame:
 
 
 table = pd.DataFrame(rows).fillna("")
-text = (f"Mean found fraction per scenario; beside each baseline: {args.tag} − it, paired over maps, 95 % bootstrap "
-        "CI\n\n" + markdown(ordered(table)) + "\n")  # fmt: skip
+text = (
+    f"Mean found fraction per scenario; beside each baseline: {args.tag} − it, paired over maps, 95 % bootstrap "
+    "CI\n\n" + markdown(ordered(table)) + "\n"
+)
 out.mkdir(parents=True, exist_ok=True)
 write_text_atomic(out / "summary.md", text)
 short = table[["scenario", args.tag, "best rule", f"{args.tag} − best rule"]].set_index("scenario")
-write_text_atomic(out / "best_rule.md", f"{args.tag} against the best rule of each scenario, paired over maps, 95 % "
-                                        "bootstrap CI\n\n" + markdown(short) + "\n")  # fmt: skip
+write_text_atomic(
+    out / "best_rule.md",
+    f"{args.tag} against the best rule of each scenario, paired over maps, 95 % "
+    "bootstrap CI\n\n" + markdown(short) + "\n",
+)
 tail = markdown(ordered(pd.DataFrame(tails).fillna("")))
-write_text_atomic(out / "tail.md", "Worst-10 % tail: per scenario and cell the mean of a controller's worst tenth of "
-                                   f"maps, averaged over the cells\n\n{tail}\n")  # fmt: skip
+write_text_atomic(
+    out / "tail.md",
+    "Worst-10 % tail: per scenario and cell the mean of a controller's worst tenth of "
+    f"maps, averaged over the cells\n\n{tail}\n",
+)
 print(text)

@@ -85,8 +85,7 @@ TUNING_SEED = 3_000_000  # apart from training (small), validation (10⁶) and e
 CONF = Path(__file__).resolve().parents[1] / "conf"
 
 # %%
-suite = OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(SuiteConfig),
-                                               group_option("suite", "prior_error")))  # fmt: skip
+suite = OmegaConf.to_container(OmegaConf.merge(OmegaConf.structured(SuiteConfig), group_option("suite", "prior_error")))
 suite["severities"] = [0.5, 1.0]
 scenarios = suite_scenarios(suite)
 grid = suite["grid"]
@@ -112,11 +111,28 @@ def measure(label, world, factory, needs_observation):
     rows = []
     for scenario in scenarios:
         for index, cell in cells:
-            frame = run_cell(factory, world, cell, index, args.maps, 1, TUNING_SEED,
-                             needs_observation=needs_observation, scenario=scenario)  # fmt: skip
-            rows.append({"rule": label, "scenario": scenario.label, "family": scenario.family,
-                         "severity": scenario.severity, "n": cell.n, "N": cell.n_agents,
-                         "found_fraction": frame["found_fraction"].mean()})  # fmt: skip
+            frame = run_cell(
+                factory,
+                world,
+                cell,
+                index,
+                args.maps,
+                1,
+                TUNING_SEED,
+                needs_observation=needs_observation,
+                scenario=scenario,
+            )
+            rows.append(
+                {
+                    "rule": label,
+                    "scenario": scenario.label,
+                    "family": scenario.family,
+                    "severity": scenario.severity,
+                    "n": cell.n,
+                    "N": cell.n_agents,
+                    "found_fraction": frame["found_fraction"].mean(),
+                }
+            )
     print(label, np.mean([r["found_fraction"] for r in rows]), flush=True)
     return rows
 
@@ -181,9 +197,13 @@ write_atomic(OUT / "hedging.csv", lambda tmp: table.to_csv(tmp, index=False))
 per_family = table.groupby(["rule", "family"])["found_fraction"].mean().unstack("family")
 per_family["mean"] = table.groupby("rule")["found_fraction"].mean()
 per_family = per_family.sort_values("mean", ascending=False)
-lines = [f"Mean found fraction on tuning seeds ({args.maps} maps per cell; cells {args.cells}; "
-         "severities 0.5 and 1 per family, paper = the prior right), sharp priors (variance scale 1)", "",
-         "| rule | " + " | ".join(per_family.columns) + " |", "|---" * (len(per_family.columns) + 1) + "|"]  # fmt: skip
+lines = [
+    f"Mean found fraction on tuning seeds ({args.maps} maps per cell; cells {args.cells}; "
+    "severities 0.5 and 1 per family, paper = the prior right), sharp priors (variance scale 1)",
+    "",
+    "| rule | " + " | ".join(per_family.columns) + " |",
+    "|---" * (len(per_family.columns) + 1) + "|",
+]
 lines += [f"| {rule} | " + " | ".join(f"{v:.3f}" for v in row) + " |" for rule, row in per_family.iterrows()]
 # The headroom for adapting: a selector told the scenario and the cell, taking the better of the best rule and
 # coverage there (an upper bound for any searcher that chooses between the two from what it observes).
@@ -191,8 +211,11 @@ cells_by_rule = table.pivot_table(index=["scenario", "n", "N"], columns="rule", 
 best = per_family.index[0]
 if "coverage" in cells_by_rule and best != "coverage":
     both = cells_by_rule[[best, "coverage"]].max(axis=1).mean()
-    lines += ["", f"Told the scenario and cell, the better of {best} and coverage there: {both:.3f} "
-              f"({best} alone {per_family.loc[best, 'mean']:.3f}); the best measured rule per scenario and cell: "
-              f"{cells_by_rule.max(axis=1).mean():.3f}."]  # fmt: skip
+    lines += [
+        "",
+        f"Told the scenario and cell, the better of {best} and coverage there: {both:.3f} "
+        f"({best} alone {per_family.loc[best, 'mean']:.3f}); the best measured rule per scenario and cell: "
+        f"{cells_by_rule.max(axis=1).mean():.3f}.",
+    ]
 write_text_atomic(OUT / "hedging.md", "\n".join(lines) + "\n")
 print("\n".join(lines))

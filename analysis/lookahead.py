@@ -105,9 +105,11 @@ class Lookahead:
         self.imagine_targets(world, state, k, np.random.default_rng([key, 0]))
         world.rng = WorldStreams([[key, 1, int(s)] for s in sample])
         teacher = make_controller(
-            "greedy_target", self.config, seed=WorldStreams([[key, 2, int(s)] for s in sample]),
+            "greedy_target",
+            self.config,
+            seed=WorldStreams([[key, 2, int(s)] for s in sample]),
             settings={"reach": self.reach},
-        )  # fmt: skip
+        )
         teacher.reset(world.state, np.ones(count, bool))
         actions = np.tile(base, (count, 1))
         agent, move = (

@@ -61,9 +61,11 @@ for cell in args.cells.split(","):
         cli.stop(f"--cells {cell!r} is not allowed: n x N with n one of {TABLE2_SIDES} and N >= 1, e.g. 40x1")
     CELLS.append((int(n), int(team)))
 if args.samples < 2 or args.continuations < 2 or args.continuations % 2 or args.imagined < 0 or args.seed < 0:
-    cli.stop(f"--samples {args.samples}, --continuations {args.continuations}, --imagined {args.imagined}, --seed "
-             f"{args.seed} are not allowed: samples >= 2, continuations even and >= 2 (two halves), imagined >= 0, "
-             "seed >= 0")  # fmt: skip
+    cli.stop(
+        f"--samples {args.samples}, --continuations {args.continuations}, --imagined {args.imagined}, --seed "
+        f"{args.seed} are not allowed: samples >= 2, continuations even and >= 2 (two halves), imagined >= 0, "
+        "seed >= 0"
+    )
 IMAGINED = args.imagined or args.continuations
 numba.set_num_threads(1)
 
@@ -98,8 +100,12 @@ def branch_values(n: int, n_agents: int, sample: int, m: int, imagined: int, rng
     )
     for place in range(half, k):
         state.target_pos[place, lost] = draws[(place - half) % imagined]
-    keys = [[args.seed, sample, 2, g, j] for g, count in ((0, m), (1, imagined)) for _ in range(n_actions)
-            for j in range(count)]  # fmt: skip
+    keys = [
+        [args.seed, sample, 2, g, j]
+        for g, count in ((0, m), (1, imagined))
+        for _ in range(n_actions)
+        for j in range(count)
+    ]
     world.rng.restart(range(k), keys)
     teacher_streams.restart(range(k), [[*key, 1] for key in keys])
     actions = teacher.act(world.state, None, None)
@@ -109,8 +115,12 @@ def branch_values(n: int, n_agents: int, sample: int, m: int, imagined: int, rng
     while int(world.state.t[0]) < max_steps and not (world.state.n_found == world.state.n_targets).all():
         world.step(teacher.act(world.state, None, None))
     found = world.state.n_found / world.state.n_targets
-    return {"t0": t0, "teacher": own, "q": found[:half].reshape(n_actions, m),
-            "imagined": found[half:].reshape(n_actions, imagined)}  # fmt: skip
+    return {
+        "t0": t0,
+        "teacher": own,
+        "q": found[:half].reshape(n_actions, m),
+        "imagined": found[half:].reshape(n_actions, imagined),
+    }
 
 
 def cross_fitted_gain(q: np.ndarray, own: int) -> float:
@@ -135,12 +145,22 @@ for n, n_agents in CELLS:
         q, own = got["q"], got["teacher"]
         means = q.mean(axis=1)
         planned = int(np.argmax(got["imagined"].mean(axis=1)))  # the best move by the team's posterior
-        rows.append({"n": n, "N": n_agents, "t0": got["t0"], "teacher_q": means[own], "best_q": means.max(),
-                     "teacher_is_best": bool(means[own] >= means.max() - 1e-12),
-                     "spread": float(means.max() - means.min()), "sd_within": float(q.std(axis=1, ddof=1).mean()),
-                     "sd_paired": float(np.delete(q - q[own], own, axis=0).std(axis=1, ddof=1).mean()),
-                     "gain": cross_fitted_gain(q, own), "planned_is_teacher": planned == own,
-                     "gain_planned": float(means[planned] - means[own])})  # fmt: skip
+        rows.append(
+            {
+                "n": n,
+                "N": n_agents,
+                "t0": got["t0"],
+                "teacher_q": means[own],
+                "best_q": means.max(),
+                "teacher_is_best": bool(means[own] >= means.max() - 1e-12),
+                "spread": float(means.max() - means.min()),
+                "sd_within": float(q.std(axis=1, ddof=1).mean()),
+                "sd_paired": float(np.delete(q - q[own], own, axis=0).std(axis=1, ddof=1).mean()),
+                "gain": cross_fitted_gain(q, own),
+                "planned_is_teacher": planned == own,
+                "gain_planned": float(means[planned] - means[own]),
+            }
+        )
         drawn += 1
     print(f"{n}x{n_agents}: {drawn} samples", flush=True)
 
@@ -150,13 +170,24 @@ summary = []
 for (n, n_agents), cell in table.groupby(["n", "N"]):
     gain = cell["gain"].to_numpy()
     half = 1.96 * gain.std(ddof=1) / np.sqrt(len(gain))
-    summary.append({"n": n, "N": n_agents, "samples": len(cell), "found_by_teacher": cell["teacher_q"].mean(),
-                    "gain_per_decision": gain.mean(), "ci_low": gain.mean() - half, "ci_high": gain.mean() + half,
-                    "teacher_is_best": cell["teacher_is_best"].mean(), "spread": cell["spread"].mean(),
-                    "sd_within": cell["sd_within"].mean(), "sd_paired": cell["sd_paired"].mean(),
-                    "planned_is_teacher": cell["planned_is_teacher"].mean(),
-                    "gain_planned": cell["gain_planned"].mean(),
-                    "gain_planned_ci": 1.96 * cell["gain_planned"].std(ddof=1) / np.sqrt(len(cell))})  # fmt: skip
+    summary.append(
+        {
+            "n": n,
+            "N": n_agents,
+            "samples": len(cell),
+            "found_by_teacher": cell["teacher_q"].mean(),
+            "gain_per_decision": gain.mean(),
+            "ci_low": gain.mean() - half,
+            "ci_high": gain.mean() + half,
+            "teacher_is_best": cell["teacher_is_best"].mean(),
+            "spread": cell["spread"].mean(),
+            "sd_within": cell["sd_within"].mean(),
+            "sd_paired": cell["sd_paired"].mean(),
+            "planned_is_teacher": cell["planned_is_teacher"].mean(),
+            "gain_planned": cell["gain_planned"].mean(),
+            "gain_planned_ci": 1.96 * cell["gain_planned"].std(ddof=1) / np.sqrt(len(cell)),
+        }
+    )
 summary = markdown(pd.DataFrame(summary).set_index(["n", "N"]), digits=4)
 OUT.mkdir(parents=True, exist_ok=True)
 write_text_atomic(OUT / "samples.csv", table.to_csv(index=False))

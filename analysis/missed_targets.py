@@ -42,10 +42,14 @@ from searchrl.reporting.stats import markdown
 
 ROOT = Path.cwd()
 parser = cli.parser("Which targets a controller misses, by distance to the world's edge", dirs=None)
-parser.add_argument("--cells", help="comma-separated cells of the grid, e.g. n40_N8,n80_N64 (default: "
-                    "$SEARCHRL_CELLS, then n40_N8,n80_N64,n160_N256)")  # fmt: skip
-parser.add_argument("--label", help="name of the rows and of <label>.csv (default: $SEARCHRL_LABEL, then the "
-                    "controller's folder name)")  # fmt: skip
+parser.add_argument(
+    "--cells",
+    help="comma-separated cells of the grid, e.g. n40_N8,n80_N64 (default: "
+    "$SEARCHRL_CELLS, then n40_N8,n80_N64,n160_N256)",
+)
+parser.add_argument(
+    "--label", help="name of the rows and of <label>.csv (default: $SEARCHRL_LABEL, then the controller's folder name)"
+)
 parser.usage = "missed_targets.py [-h] [--cells CELLS] [--label LABEL] [--out DIR] [OVERRIDE ...]"
 args, OVERRIDES = cli.parse(parser, rest=True)  # the rest: Hydra overrides of python -m searchrl.evaluate
 flags = [o for o in OVERRIDES if o.startswith("-")]
@@ -65,8 +69,9 @@ except (HydraException, OmegaConfBaseException, ValueError, FileNotFoundError) a
     cli.stop("\n".join(line for line in message.splitlines() if not line.endswith("_schema")) or type(err).__name__)
 # The evaluation's folder name: runs/eval/<controller=…> (greedy_target, though its rows say greedy) or policy_<run>
 LABEL = LABEL or (name if cfg.checkpoint is not None else cfg.controller.name).replace(":", "_")
-grid = table2_cells(list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions),
-                    list(cfg.grid.max_agents))  # fmt: skip
+grid = table2_cells(
+    list(cfg.grid.world_sizes), list(cfg.grid.n_targets), list(cfg.grid.n_distributions), list(cfg.grid.max_agents)
+)
 index = {cell.key: i for i, cell in enumerate(grid)}
 unknown = [c for c in CELLS if c not in index]
 if unknown:
@@ -94,15 +99,31 @@ for key in CELLS:
         tally["missed"] += edge_bins(state, first, state.target_valid & ~state.target_found)
         tally["all"] += edge_bins(state, first, state.target_valid)
 
-    frame = run_cell(factory, world, grid[index[key]], index[key], cfg.grid.maps_per_cell,
-                     cfg.grid.repeats, cfg.seed, cfg.batch_mb, needs_obs, on_done=count)  # fmt: skip
+    frame = run_cell(
+        factory,
+        world,
+        grid[index[key]],
+        index[key],
+        cfg.grid.maps_per_cell,
+        cfg.grid.repeats,
+        cfg.seed,
+        cfg.batch_mb,
+        needs_obs,
+        on_done=count,
+    )
     missed, every = tally["missed"], tally["all"]
-    rows.append({
-        "controller": LABEL, "cell": key, "episodes": len(frame), "found": frame["found_fraction"].mean(),
-        "complete": (frame["found_fraction"] == 1).mean(), "missed": int(missed.sum()),
-        **{f"missed_{b}": int(m) for b, m in zip(BINS, missed, strict=True)},
-        "share_of_targets_on_edge": every[0] / every.sum(),
-    })  # fmt: skip
+    rows.append(
+        {
+            "controller": LABEL,
+            "cell": key,
+            "episodes": len(frame),
+            "found": frame["found_fraction"].mean(),
+            "complete": (frame["found_fraction"] == 1).mean(),
+            "missed": int(missed.sum()),
+            **{f"missed_{b}": int(m) for b, m in zip(BINS, missed, strict=True)},
+            "share_of_targets_on_edge": every[0] / every.sum(),
+        }
+    )
     print(rows[-1], file=sys.stderr)
 
 # %%

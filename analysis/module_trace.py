@@ -36,8 +36,13 @@ args = parser.parse_args()
 ROOT, OUT = args.root.resolve(), args.out.resolve()
 if not (ROOT / "searchrl" / "train").is_dir():
     sys.exit(f"error: --root={args.root} is not allowed: a checkout of this repository (no searchrl/train/ there)")
-OVERRIDES = args.overrides or ["+experiment=term/b", "total_timesteps=12288", "validation.every=0",
-                               "progress_bar=false", "threads=1"]  # fmt: skip
+OVERRIDES = args.overrides or [
+    "+experiment=term/b",
+    "total_timesteps=12288",
+    "validation.every=0",
+    "progress_bar=false",
+    "threads=1",
+]
 sys.path.insert(0, str(ROOT))  # the traced checkout's searchrl first; its conf/ and runs/ from its root
 os.chdir(ROOT)
 
@@ -94,8 +99,11 @@ for name, calls in sorted(called.items()):
     rows.append({"module": name, "calls": calls, "functions": len(functions.get(name, ())), "lines": lines})
 table = pd.DataFrame(rows).sort_values("module").set_index("module")
 # the package's layer of each module (searchrl.world, envs, policies, controllers, train, the top level)
-table.insert(0, "layer", [m.split(".")[1] if (ROOT / "searchrl" / m.split(".")[1]).is_dir() else "top level"
-                           for m in table.index])  # fmt: skip
+table.insert(
+    0,
+    "layer",
+    [m.split(".")[1] if (ROOT / "searchrl" / m.split(".")[1]).is_dir() else "top level" for m in table.index],
+)
 layers = table.groupby("layer").agg(modules=("lines", "size"), lines=("lines", "sum"))
 followed = table[table.functions > 0]  # the modules a reader of the run follows: those whose own code ran
 outside = followed[followed.layer != "world"]
@@ -103,14 +111,16 @@ outside = followed[followed.layer != "world"]
 # the parts it builds (world, envs, policies, controllers, imitation)
 app = table[table.layer.isin(["train", "top level"])]
 commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-report = (f"At {commit.stdout.strip() or 'an unknown commit'}, "
-          f"`python -m searchrl.train {' '.join(OVERRIDES)}` calls into {len(table)} searchrl modules, "
-          f"{int(table.lines.sum())} lines of source ({int(layers.drop('world').modules.sum())} modules and "
-          f"{int(layers.drop('world').lines.sum())} lines outside the world). {len(followed)} of them ran a function "
-          f"of their own beyond their import ({len(outside)} modules and {int(outside.lines.sum())} lines outside "
-          f"the world). The app (searchrl/train/ and the top-level modules) is {len(app)} of them, "
-          f"{int(app.lines.sum())} lines; {int((app.functions > 0).sum())} ran a function of their own:"
-          f"\n\n{markdown(layers)}\n{markdown(table)}")  # fmt: skip
+report = (
+    f"At {commit.stdout.strip() or 'an unknown commit'}, "
+    f"`python -m searchrl.train {' '.join(OVERRIDES)}` calls into {len(table)} searchrl modules, "
+    f"{int(table.lines.sum())} lines of source ({int(layers.drop('world').modules.sum())} modules and "
+    f"{int(layers.drop('world').lines.sum())} lines outside the world). {len(followed)} of them ran a function "
+    f"of their own beyond their import ({len(outside)} modules and {int(outside.lines.sum())} lines outside "
+    f"the world). The app (searchrl/train/ and the top-level modules) is {len(app)} of them, "
+    f"{int(app.lines.sum())} lines; {int((app.functions > 0).sum())} ran a function of their own:"
+    f"\n\n{markdown(layers)}\n{markdown(table)}"
+)
 OUT.mkdir(parents=True, exist_ok=True)
 write_text_atomic(OUT / "module_trace.md", report)
 print(report)

@@ -78,5 +78,7 @@ for n, n_agents in CELLS:
             for threads in THREADS:
                 best[threads] = min(best[threads], replay_ms(config, seed, played, threads))
         one, two = best[THREADS[0]], best[THREADS[-1]]
-        print(f"n{n}_N{n_agents}, world {seed}, {len(played)} steps: {one:.2f} ms a step on 1 thread, "
-              f"{two:.2f} on {THREADS[-1]}: {one / two:.2f}x")  # fmt: skip
+        print(
+            f"n{n}_N{n_agents}, world {seed}, {len(played)} steps: {one:.2f} ms a step on 1 thread, "
+            f"{two:.2f} on {THREADS[-1]}: {one / two:.2f}x"
+        )

@@ -47,8 +47,11 @@ KINDS = {"sharper": "tempered", "flatter": "tempered"}
 
 # %%
 grid, seed = GridConfig(), EvaluateConfig().seed
-cells = [(index, c) for index, c in enumerate(table2_cells(grid.world_sizes, grid.n_targets, grid.n_distributions,
-                                                             grid.max_agents)) if c.n_agents == 1]  # fmt: skip
+cells = [
+    (index, c)
+    for index, c in enumerate(table2_cells(grid.world_sizes, grid.n_targets, grid.n_distributions, grid.max_agents))
+    if c.n_agents == 1
+]
 rows = []
 for scale in (10.0, 1.0):
     world = replace(WorldConfig(), prob_variance_scale=scale)
@@ -59,13 +62,23 @@ for scale in (10.0, 1.0):
                 placer = PLACERS[KINDS.get(family, family)](severity=severity, **settings)
                 state = allocate(config, args.maps)
                 for m in range(args.maps):  # map m of the cell: the prior every controller sees there
-                    reset_world(config, state, m, np.random.default_rng(map_seed(seed, index, m)),
-                                Scenario(targets=placer))  # fmt: skip
+                    reset_world(
+                        config, state, m, np.random.default_rng(map_seed(seed, index, m)), Scenario(targets=placer)
+                    )
                 quality = prior_qualities(state)
                 means = np.random.default_rng(0).choice(quality, (1000, len(quality))).mean(axis=1)
-                rows.append({"variance_scale": scale, "n": cell.n, "family": family, "severity": severity,
-                             "quality": quality.mean(), "low": np.quantile(means, 0.025),
-                             "high": np.quantile(means, 0.975), "maps": args.maps})  # fmt: skip
+                rows.append(
+                    {
+                        "variance_scale": scale,
+                        "n": cell.n,
+                        "family": family,
+                        "severity": severity,
+                        "quality": quality.mean(),
+                        "low": np.quantile(means, 0.025),
+                        "high": np.quantile(means, 0.975),
+                        "maps": args.maps,
+                    }
+                )
 table = pd.DataFrame(rows)
 table.head()
 
@@ -76,11 +89,14 @@ table.head()
 table["column"] = [f"{f} {s:g}" if s > 0 else "paper" for f, s in zip(table.family, table.severity, strict=True)]
 order = ["paper"] + [f"{f} {s:g}" for f in FAMILIES for s in (0.5, 1.0)]  # severity 0 of every family: the paper's
 wide = table[table.severity > 0].pivot_table(index=["variance_scale", "n"], columns="column", values="quality")
-wide["paper"] = table[table.family == "off_prior"].pivot_table(index=["variance_scale", "n"], columns="column",
-                                                               values="quality")["paper"]  # fmt: skip
+wide["paper"] = table[table.family == "off_prior"].pivot_table(
+    index=["variance_scale", "n"], columns="column", values="quality"
+)["paper"]
 wide = wide[order]
 write_atomic(OUT / "prior_quality.csv", lambda path: table.to_csv(path, index=False))
-write_text_atomic(OUT / "prior_quality.md", f"Mean prior quality over {args.maps} maps per n (95 % CIs in "
-                  "prior_quality.csv); columns family and severity, severity 0 the paper's placement\n\n"
-                  + markdown(wide) + "\n")  # fmt: skip
+write_text_atomic(
+    OUT / "prior_quality.md",
+    f"Mean prior quality over {args.maps} maps per n (95 % CIs in "
+    "prior_quality.csv); columns family and severity, severity 0 the paper's placement\n\n" + markdown(wide) + "\n",
+)
 print(f"wrote {OUT / 'prior_quality.md'}")

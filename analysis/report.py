@@ -47,10 +47,15 @@ from searchrl.reporting.aggregate import (
 from searchrl.reporting.stats import markdown
 
 ROOT = Path.cwd()
-parser = cli.parser("IQM, performance profiles and probability of improvement over cells and scenarios",
-                    "EVAL_DIR", "evaluation folders of one grid and seed (two or more)")  # fmt: skip
-parser.add_argument("--rules", help="comma-separated folder names that are rules (default: every folder whose "
-                    "controller is not a trained policy)")  # fmt: skip
+parser = cli.parser(
+    "IQM, performance profiles and probability of improvement over cells and scenarios",
+    "EVAL_DIR",
+    "evaluation folders of one grid and seed (two or more)",
+)
+parser.add_argument(
+    "--rules",
+    help="comma-separated folder names that are rules (default: every folder whose controller is not a trained policy)",
+)
 EVAL_DIRS, OUT, args = cli.eval_args(parser, ROOT / "analysis" / "out" / "report", default_dirs=list, min_dirs=2)
 names = [d.name for d in EVAL_DIRS]
 if len(set(names)) != len(names):
@@ -84,8 +89,16 @@ rows = []
 for name, controller in aligned.items():
     point, low, high = bootstrap(iqm, controller)
     mean = float(np.concatenate(list(controller.values())).mean())
-    rows.append({"controller": name, "kind": kinds[name], "iqm": float(point), "low": float(low), "high": float(high),
-                 "mean": mean})  # fmt: skip
+    rows.append(
+        {
+            "controller": name,
+            "kind": kinds[name],
+            "iqm": float(point),
+            "low": float(low),
+            "high": float(high),
+            "mean": mean,
+        }
+    )
 table = pd.DataFrame(rows).sort_values("iqm", ascending=False).reset_index(drop=True)
 write_atomic(OUT / "report.csv", lambda tmp: table.to_csv(tmp, index=False))
 
@@ -93,19 +106,22 @@ pairs = []
 for policy in [n for n in aligned if kinds[n] == "policy"]:
     for rule in [n for n in aligned if kinds[n] == "rule"]:
         point, low, high = bootstrap(probability_of_improvement, aligned[policy], aligned[rule])
-        pairs.append({"policy": policy, "rule": rule, "p_improvement": float(point), "low": float(low),
-                      "high": float(high)})  # fmt: skip
+        pairs.append(
+            {"policy": policy, "rule": rule, "p_improvement": float(point), "low": float(low), "high": float(high)}
+        )
 improvement = pd.DataFrame(pairs, columns=["policy", "rule", "p_improvement", "low", "high"])
 write_atomic(OUT / "improvement.csv", lambda tmp: improvement.to_csv(tmp, index=False))
 
 heads = "\n".join(f"- {coverage_line(d)}" for d in EVAL_DIRS)
 pair_table = markdown(improvement.set_index(["policy", "rule"])) if len(improvement) else "no policy and rule pair\n"
-report = (f"Over {len(tasks)} cells and {maps} maps common to every folder:\n{heads}\n\n"
-          f"{comparison_note(EVAL_DIRS)}\n\n"
-          f"Interquartile mean of the found fraction (95 % stratified-bootstrap interval over maps):\n\n"
-          f"{markdown(table.set_index('controller'))}\n"
-          f"Probability of improvement P(policy > rule), per cell over every pair of maps, averaged over cells:\n\n"
-          f"{pair_table}")  # fmt: skip
+report = (
+    f"Over {len(tasks)} cells and {maps} maps common to every folder:\n{heads}\n\n"
+    f"{comparison_note(EVAL_DIRS)}\n\n"
+    f"Interquartile mean of the found fraction (95 % stratified-bootstrap interval over maps):\n\n"
+    f"{markdown(table.set_index('controller'))}\n"
+    f"Probability of improvement P(policy > rule), per cell over every pair of maps, averaged over cells:\n\n"
+    f"{pair_table}"
+)
 write_text_atomic(OUT / "report.md", report)
 print(report)
 

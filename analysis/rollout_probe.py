@@ -103,12 +103,21 @@ def episodes(n: int, n_agents: int, name: str, settings: dict) -> pd.DataFrame:
             expected[int(playing[k])] = float((w * (p0 - state.p[k])).sum() / (w * p0).sum())
 
     start = time.perf_counter()
-    out = play_episodes(lambda c, s: Recorder(factory(c, s), prior), config, seeds, keys, needs_observation=False,
-                        on_done=on_done)  # fmt: skip
+    out = play_episodes(
+        lambda c, s: Recorder(factory(c, s), prior), config, seeds, keys, needs_observation=False, on_done=on_done
+    )
     seconds = time.perf_counter() - start
-    return pd.DataFrame({"n": n, "N": n_agents, "map": range(args.maps), "found": out["found_fraction"],
-                         "expected": [expected[m] for m in range(args.maps)], "L": out["L"],
-                         "seconds": seconds / args.maps})  # fmt: skip
+    return pd.DataFrame(
+        {
+            "n": n,
+            "N": n_agents,
+            "map": range(args.maps),
+            "found": out["found_fraction"],
+            "expected": [expected[m] for m in range(args.maps)],
+            "L": out["L"],
+            "seconds": seconds / args.maps,
+        }
+    )
 
 
 # %%
@@ -120,8 +129,14 @@ for n, n_agents in CELLS:
         label = f"{samples}:{horizon}"
         mine = episodes(n, n_agents, "rollout", {"samples": samples, "horizon": horizon, **EXTRA}).assign(budget=label)
         rows.append(mine)
-        entry = {"n": n, "N": n_agents, "budget": label, "maps": args.maps, "teacher_found": teacher.found.mean(),
-                 "planner_found": mine.found.mean()}  # fmt: skip
+        entry = {
+            "n": n,
+            "N": n_agents,
+            "budget": label,
+            "maps": args.maps,
+            "teacher_found": teacher.found.mean(),
+            "planner_found": mine.found.mean(),
+        }
         for score in ("found", "expected"):
             diff = mine[score].to_numpy() - teacher[score].to_numpy()
             half = stats.t.ppf(0.975, len(diff) - 1) * diff.std(ddof=1) / np.sqrt(len(diff))

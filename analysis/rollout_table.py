@@ -31,10 +31,18 @@ from searchrl.evaluate.results import load
 from searchrl.reporting import cli
 from searchrl.reporting.stats import markdown, paired_margins
 
-parser = cli.parser("The rollout planner against the teacher and the best rule, cell by cell", "PLANNER_DIR",
-                    "planner evaluation folders, one or more")  # fmt: skip
-parser.add_argument("--rules", nargs="+", required=True, metavar="RULE_DIR",
-                    help="rule evaluation folders on the same grid and seed; the first is the teacher")  # fmt: skip
+parser = cli.parser(
+    "The rollout planner against the teacher and the best rule, cell by cell",
+    "PLANNER_DIR",
+    "planner evaluation folders, one or more",
+)
+parser.add_argument(
+    "--rules",
+    nargs="+",
+    required=True,
+    metavar="RULE_DIR",
+    help="rule evaluation folders on the same grid and seed; the first is the teacher",
+)
 PLANNERS, OUT, args = cli.eval_args(parser, Path("analysis") / "out" / "rollout_planner", default_dirs=list)
 RULES = [Path(d) for d in args.rules]
 cli.check_eval_dirs(RULES, 1)
@@ -94,14 +102,26 @@ for planner, block in result.groupby("planner", sort=False):
     lines.append(f"## {planner}\n")
     lines.append(f"- − {teacher}: {tally(block.verdict)} of {len(block)} cells")
     lines.append(f"- − the best rule: {tally(block.verdict_best)} of {len(block)} cells\n")
-    shown = pd.DataFrame({
-        "n": block.n, "N": block.N, "maps": block.maps, "planner": block.mine, teacher: block.base,
-        f"− {teacher}": [f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
-                         zip(block["diff"], block.low, block.high, block.verdict, strict=True)],
-        "best rule": block.best_rule,
-        "− best rule": [f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}" for d, lo, hi, v in
-                        zip(block.diff_best, block.low_best, block.high_best, block.verdict_best, strict=True)],
-    })  # fmt: skip
+    shown = pd.DataFrame(
+        {
+            "n": block.n,
+            "N": block.N,
+            "maps": block.maps,
+            "planner": block.mine,
+            teacher: block.base,
+            f"− {teacher}": [
+                f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}"
+                for d, lo, hi, v in zip(block["diff"], block.low, block.high, block.verdict, strict=True)
+            ],
+            "best rule": block.best_rule,
+            "− best rule": [
+                f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}] {v}"
+                for d, lo, hi, v in zip(
+                    block.diff_best, block.low_best, block.high_best, block.verdict_best, strict=True
+                )
+            ],
+        }
+    )
     lines.append(markdown(shown.set_index(["n", "N"])))
 write_text_atomic(OUT / "rollout.md", "\n".join(lines))
 print("\n".join(lines))
@@ -111,10 +131,13 @@ print("\n".join(lines))
 
 # %%
 rates = result["decisions_per_s"] if "decisions_per_s" in result else pd.Series(float("nan"), index=result.index)
-entry = [f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]" + (f", {r:,.0f}/s" if r == r else "")
-         for d, lo, hi, r in zip(result["diff"], result.low, result.high, rates, strict=True)]  # fmt: skip
+entry = [
+    f"{d:+.3f} [{lo:+.3f}, {hi:+.3f}]" + (f", {r:,.0f}/s" if r == r else "")
+    for d, lo, hi, r in zip(result["diff"], result.low, result.high, rates, strict=True)
+]
 budgets = result.assign(entry=entry).pivot_table(index=["n", "N"], columns="planner", values="entry", aggfunc="first")
 budgets = budgets[[p.name for p in PLANNERS if p.name in budgets]].fillna("–")
-text = (f"# Each planner minus {teacher} (95 % CI over maps) and its decisions per second, per cell\n\n"
-        f"{markdown(budgets)}")  # fmt: skip
+text = (
+    f"# Each planner minus {teacher} (95 % CI over maps) and its decisions per second, per cell\n\n{markdown(budgets)}"
+)
 write_text_atomic(OUT / "budgets.md", text)

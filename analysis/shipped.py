@@ -45,16 +45,18 @@ for model in MODELS:
     clock = pd.read_csv(log_path).dropna(subset=["time/time_elapsed"])
     segment = clock["time/time_elapsed"].diff().lt(0).cumsum()  # runs resumed before the clock went on restarted it
     hours = clock.groupby(segment)["time/time_elapsed"].max().sum() / 3600
-    rows.append({
-        "policy": f"runs/reference/term/{model}",
-        "RL agent-steps": f"{clock['time/total_timesteps'].iloc[-1] / 1e6:.1f}M",
-        "RL hours (1 core)": f"{hours:.1f}",
-        "policy found": means[f"policy:reference/term/{model}"],
-        "paper": hard["paper"].mean(),
-        "teacher": means["greedy"],
-        "surfing": means["surfing"],
-        "coverage": means["coverage"],
-    })  # fmt: skip
+    rows.append(
+        {
+            "policy": f"runs/reference/term/{model}",
+            "RL agent-steps": f"{clock['time/total_timesteps'].iloc[-1] / 1e6:.1f}M",
+            "RL hours (1 core)": f"{hours:.1f}",
+            "policy found": means[f"policy:reference/term/{model}"],
+            "paper": hard["paper"].mean(),
+            "teacher": means["greedy"],
+            "surfing": means["surfing"],
+            "coverage": means["coverage"],
+        }
+    )
 shipped = pd.DataFrame(rows).set_index("policy")
 shipped  # noqa: B018 (the notebook shows it)
 

@@ -88,16 +88,28 @@ held = episodes.groupby(["controller", "scenario"])["map"].agg(frozenset)
 scenarios = sorted(episodes["scenario"].unique())
 absent = [(c, sc) for c in controllers for sc in scenarios if (c, sc) not in held.index]
 if absent:
-    cli.stop(f"{absent[0][0]} has no results under scenario {absent[0][1]!r} ({len(absent)} controller and scenario "
-             f"pairs missing): run it, or leave that controller's folder out")  # fmt: skip
+    cli.stop(
+        f"{absent[0][0]} has no results under scenario {absent[0][1]!r} ({len(absent)} controller and scenario "
+        f"pairs missing): run it, or leave that controller's folder out"
+    )
 # The suite's own list of scenarios (suite.yaml beside each controller's scenario folders): the tables name those
 # with no results, and call a column "whole suite" only when there are none.
-listed = {label for folder in folders for record in [folder.parent / "suite.yaml"] if record.exists()
-          for label in OmegaConf.load(record).scenarios}  # fmt: skip
+listed = {
+    label
+    for folder in folders
+    for record in [folder.parent / "suite.yaml"]
+    if record.exists()
+    for label in OmegaConf.load(record).scenarios
+}
 missing = sorted(listed - set(scenarios))
 WHOLE = "whole suite" if listed and not missing else f"the {len(scenarios)} scenarios held"
-MISSING = (f"; no results for {len(missing)} of the suite's {len(listed)} scenarios ({', '.join(missing)})"
-           if missing else "" if listed else "; the suite's list of scenarios is unknown (no suite.yaml)")  # fmt: skip
+MISSING = (
+    f"; no results for {len(missing)} of the suite's {len(listed)} scenarios ({', '.join(missing)})"
+    if missing
+    else ""
+    if listed
+    else "; the suite's list of scenarios is unknown (no suite.yaml)"
+)
 common = frozenset.intersection(*held)
 if not common:
     cli.stop("the controllers and scenarios share no map (cell and map seed): folders of different grids or seeds")
@@ -110,8 +122,10 @@ GRID = (
     + MISSING
 )
 if left_out:
-    print(f"note: {left_out} maps left out, held by some controllers or scenarios only (a run not finished?)",
-          file=sys.stderr)  # fmt: skip
+    print(
+        f"note: {left_out} maps left out, held by some controllers or scenarios only (a run not finished?)",
+        file=sys.stderr,
+    )
 OUT = cli.out_dir(args.out, Path.cwd() / "analysis" / "out" / f"suite_{roots[0].name}")
 OUT.mkdir(parents=True, exist_ok=True)
 
@@ -146,8 +160,10 @@ for c in controllers:
 held = [f"{s:g}" for s in sorted(wrong["severity"].unique())]  # a part of a suite may hold only some
 held = ", ".join(held[:-1]) + " and " + held[-1] if len(held) > 1 else "".join(held)
 note = f"a family's column averages its severities {held}" if GROUP == "family" else "a column per scenario"
-text = (f"Mean found fraction, 95 % CI over maps ({episodes['map'].nunique()} maps: cells x map seeds; {GRID}); "
-        f"{note}\n\n" + table(family_rows, "controller"))  # fmt: skip
+text = (
+    f"Mean found fraction, 95 % CI over maps ({episodes['map'].nunique()} maps: cells x map seeds; {GRID}); "
+    f"{note}\n\n" + table(family_rows, "controller")
+)
 write_text_atomic(OUT / f"{GROUP}.md", text + "\n")
 print(text)
 
@@ -164,32 +180,61 @@ if GROUP == "family":
 
 # %%
 groups = (["paper"] if (episodes[GROUP] == "paper").any() else []) + families
-tail_rows = {c: {f: f"{worst_tenth(episodes[(episodes['controller'] == c) & (episodes[GROUP] == f)]):.3f}"
-                 for f in groups} for c in controllers}  # fmt: skip
-write_text_atomic(OUT / "tail.md", f"Worst-10 % tail: per {GROUP} and cell the mean of a controller's worst tenth of "
-                  "maps, averaged over the cells\n\n" + table(tail_rows, "controller") + "\n")  # fmt: skip
+tail_rows = {
+    c: {f: f"{worst_tenth(episodes[(episodes['controller'] == c) & (episodes[GROUP] == f)]):.3f}" for f in groups}
+    for c in controllers
+}
+write_text_atomic(
+    OUT / "tail.md",
+    f"Worst-10 % tail: per {GROUP} and cell the mean of a controller's worst tenth of "
+    "maps, averaged over the cells\n\n" + table(tail_rows, "controller") + "\n",
+)
 
 # %%
-moves = {c: {f: " / ".join(f"{episodes[(episodes['controller'] == c) & (episodes[GROUP] == f)][m].mean():.3f}"
-                           if m in episodes else "–" for m in ("blocked", "stale")) for f in groups}
-         for c in controllers}  # fmt: skip
-write_text_atomic(OUT / "moves.md", f"Blocked / stale: per {GROUP}, the mean share of a team's moves a wall or agent "
-                  "stopped / of its agent-steps that swept no cell new to the team (– where the rows predate the "
-                  "column)\n\n" + table(moves, "controller") + "\n")  # fmt: skip
+moves = {
+    c: {
+        f: " / ".join(
+            f"{episodes[(episodes['controller'] == c) & (episodes[GROUP] == f)][m].mean():.3f}"
+            if m in episodes
+            else "–"
+            for m in ("blocked", "stale")
+        )
+        for f in groups
+    }
+    for c in controllers
+}
+write_text_atomic(
+    OUT / "moves.md",
+    f"Blocked / stale: per {GROUP}, the mean share of a team's moves a wall or agent "
+    "stopped / of its agent-steps that swept no cell new to the team (– where the rows predate the "
+    "column)\n\n" + table(moves, "controller") + "\n",
+)
 
 # %%
 EDGES = [-1.0, 0.0, 0.2, 0.4, 0.6, 1.0]  # prior quality: 0 no better than uniform, 1 every target on the best cell
 BINS = ["<= 0", "0 to 0.2", "0.2 to 0.4", "0.4 to 0.6", "> 0.6"]
 binned = episodes.assign(quality=pd.cut(episodes["prior_quality"], EDGES, labels=BINS, include_lowest=True))
-by_bin = binned.pivot_table(index="quality", columns="controller", values="found_fraction", aggfunc="mean",
-                            observed=True)  # fmt: skip
+by_bin = binned.pivot_table(
+    index="quality", columns="controller", values="found_fraction", aggfunc="mean", observed=True
+)
 count = binned[binned["controller"] == controllers[0]].groupby("quality", observed=True).size()
-quality_rows = {str(b): {"episodes": str(count.get(b, 0)), **{c: f"{row[c]:.3f}" for c in controllers},
-                         "best (lead)": f"{row.idxmax()} ({row.max() - row.drop(row.idxmax()).max():+.3f})"
-                         if len(row) > 1 else row.idxmax()} for b, row in by_bin.iterrows()}  # fmt: skip
-write_text_atomic(OUT / "quality.md", "Mean found fraction per bin of prior quality (the same episodes for every "
-                  "controller; 0 = the prior no better than uniform at the targets)\n\n"
-                  + table(quality_rows, "prior quality") + "\n")  # fmt: skip
+quality_rows = {
+    str(b): {
+        "episodes": str(count.get(b, 0)),
+        **{c: f"{row[c]:.3f}" for c in controllers},
+        "best (lead)": f"{row.idxmax()} ({row.max() - row.drop(row.idxmax()).max():+.3f})"
+        if len(row) > 1
+        else row.idxmax(),
+    }
+    for b, row in by_bin.iterrows()
+}
+write_text_atomic(
+    OUT / "quality.md",
+    "Mean found fraction per bin of prior quality (the same episodes for every "
+    "controller; 0 = the prior no better than uniform at the targets)\n\n"
+    + table(quality_rows, "prior quality")
+    + "\n",
+)
 
 # %%
 if args.focus:
@@ -206,9 +251,15 @@ if args.focus:
             verdicts.append("better" if low > 0 else "worse" if high < 0 else "tie")
             cells.append(f"{f}: {mean:+.3f} [{low:+.3f}, {high:+.3f}] {verdicts[-1]}")
         count = {v: verdicts.count(v) for v in ("better", "tie", "worse")}
-        lines += [f"## {args.focus} − {other}", "", f"better {count['better']}, tie {count['tie']}, worse "
-                  f"{count['worse']} of {len(verdicts)} {GROUP} groups (the open or right one included)", "", *cells,
-                  ""]  # fmt: skip
+        lines += [
+            f"## {args.focus} − {other}",
+            "",
+            f"better {count['better']}, tie {count['tie']}, worse "
+            f"{count['worse']} of {len(verdicts)} {GROUP} groups (the open or right one included)",
+            "",
+            *cells,
+            "",
+        ]
     write_text_atomic(OUT / "compare.md", "\n".join(lines))
 
 
@@ -222,8 +273,14 @@ def scenario_figure():
     for c in controllers:
         mine = episodes[episodes["controller"] == c]
         stats = np.array([bootstrap_mean_ci(per_map(mine[mine[GROUP] == g]).to_numpy()) for g in groups])
-        ax.errorbar(range(len(groups)), stats[:, 0], yerr=[stats[:, 0] - stats[:, 1], stats[:, 2] - stats[:, 0]],
-                    marker="o", capsize=3, label=c)  # fmt: skip
+        ax.errorbar(
+            range(len(groups)),
+            stats[:, 0],
+            yerr=[stats[:, 0] - stats[:, 1], stats[:, 2] - stats[:, 0]],
+            marker="o",
+            capsize=3,
+            label=c,
+        )
     ax.set_xticks(range(len(groups)), ["open" if g == "paper" else g for g in groups], rotation=30)
     ax.set_ylabel("found fraction")
     ax.legend(fontsize=7)

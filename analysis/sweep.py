@@ -32,8 +32,11 @@ from searchrl.reporting.stats import markdown
 from searchrl.reporting.sweep import load_jobs, score_table, setting_keys, validation_curves
 
 ROOT = Path.cwd()
-p = cli.parser("The score of a sweep by setting", "SWEEP_DIR",
-               "a multirun folder (default: $SEARCHRL_SWEEP_DIR, then the newest under runs/multirun/)")  # fmt: skip
+p = cli.parser(
+    "The score of a sweep by setting",
+    "SWEEP_DIR",
+    "a multirun folder (default: $SEARCHRL_SWEEP_DIR, then the newest under runs/multirun/)",
+)
 args, _ = cli.parse(p)
 given = args.dirs or [d for d in [cli.setting(None, "SEARCHRL_SWEEP_DIR")] if d]
 newest = sorted((ROOT / "runs" / "multirun").glob("*/"), key=lambda d: d.stat().st_mtime)[-1:]

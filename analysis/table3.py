@@ -66,8 +66,9 @@ print(markdown(wide))
 # %%
 policies = compared[compared.controller.str.startswith("policy:") & compared.paper.notna()]
 if len(policies):
-    entries = policies.assign(entry=[f"{o:.3f} ({p:.2f})" for o, p in zip(policies["mean"], policies.paper,
-                                                                          strict=True)])  # fmt: skip
+    entries = policies.assign(
+        entry=[f"{o:.3f} ({p:.2f})" for o, p in zip(policies["mean"], policies.paper, strict=True)]
+    )
     side_by_side = entries.pivot_table(index=["model", "N"], columns="n", values="entry", aggfunc="first")
     write_text_atomic(OUT / "table3_vs_paper.md", COVERS + markdown(side_by_side.fillna("–")))
     print(markdown(side_by_side.fillna("–")))

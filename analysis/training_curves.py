@@ -43,8 +43,13 @@ print(f"{len(RUN_DIRS)} runs, {len(curves)} points")
 # each model's validation worlds.
 
 # %%
-METRICS = [("team/R", "reward R"), ("team/L", "search time L"), ("team/F", "communications F"),
-           ("team/M_bar", "information per step M̄"), ("val/found_fraction", "validation found fraction")]  # fmt: skip
+METRICS = [
+    ("team/R", "reward R"),
+    ("team/L", "search time L"),
+    ("team/F", "communications F"),
+    ("team/M_bar", "information per step M̄"),
+    ("val/found_fraction", "validation found fraction"),
+]
 fig, axes = plt.subplots(1, len(METRICS), figsize=(3.3 * len(METRICS), 3.0))
 bands = []
 for ax, (metric, title) in zip(axes, METRICS, strict=True):
@@ -60,12 +65,21 @@ for ax, (metric, title) in zip(axes, METRICS, strict=True):
             continue
         # several seeds of one setting: their mean, and a band from the lowest to the highest seed at each step
         table = pd.concat(per_run.values()).pivot_table(index="step", columns="run", values="smooth").dropna()
-        ax.plot(table.index, table.mean(axis=1), color=color,
-                label=f"{group.model.iloc[0]} ({len(per_run)} seeds)")  # fmt: skip
+        ax.plot(table.index, table.mean(axis=1), color=color, label=f"{group.model.iloc[0]} ({len(per_run)} seeds)")
         ax.fill_between(table.index, table.min(axis=1), table.max(axis=1), color=color, alpha=0.2, linewidth=0)
-        bands.append(pd.DataFrame({"metric": metric, "setting": setting, "seeds": len(per_run), "step": table.index,
-                                   "mean": table.mean(axis=1).to_numpy(), "low": table.min(axis=1).to_numpy(),
-                                   "high": table.max(axis=1).to_numpy()}))  # fmt: skip
+        bands.append(
+            pd.DataFrame(
+                {
+                    "metric": metric,
+                    "setting": setting,
+                    "seeds": len(per_run),
+                    "step": table.index,
+                    "mean": table.mean(axis=1).to_numpy(),
+                    "low": table.min(axis=1).to_numpy(),
+                    "high": table.max(axis=1).to_numpy(),
+                }
+            )
+        )
     if metric == "val/found_fraction":  # the random walk on each model's validation worlds (its action count)
         random = curves[curves.metric == "val/random_found_fraction"]
         for model, level in random.groupby("model")["value"].mean().items():
@@ -95,8 +109,10 @@ def per_million(metric: str) -> str:
 # Meetings (val/F, neighbour pairs summed over a validation episode) show what each policy learned about staying
 # near the others: the communication reward (eq. 17) pays B and diagonal for what a meeting adds to their maps;
 # A and C gain nothing from meeting.
-report = (f"Validation found fraction:\n\n{per_million('val/found_fraction')}\n"
-          f"Validation meetings F per episode:\n\n{per_million('val/F')}")  # fmt: skip
+report = (
+    f"Validation found fraction:\n\n{per_million('val/found_fraction')}\n"
+    f"Validation meetings F per episode:\n\n{per_million('val/F')}"
+)
 write_text_atomic(OUT / "training_convergence.md", report)
 print(report)
 
@@ -131,8 +147,10 @@ def per_window(metric: str, width: int = 250_000) -> str:
 
 if (curves.metric == "train/imitation_loss").any():
     curves.loc[curves.metric == "train/entropy_loss", "value"] *= -1  # SB3 logs minus the entropy
-    report = (f"Cross-entropy toward the teacher (nats):\n\n{per_window('train/imitation_loss')}\n"
-              f"Entropy of the policy (nats):\n\n{per_window('train/entropy_loss')}\n"
-              f"Explained variance of the critic:\n\n{per_window('train/explained_variance')}")  # fmt: skip
+    report = (
+        f"Cross-entropy toward the teacher (nats):\n\n{per_window('train/imitation_loss')}\n"
+        f"Entropy of the policy (nats):\n\n{per_window('train/entropy_loss')}\n"
+        f"Explained variance of the critic:\n\n{per_window('train/explained_variance')}"
+    )
     write_text_atomic(OUT / "teacher_distance.md", report)
     print(report)

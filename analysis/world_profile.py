@@ -89,8 +89,10 @@ for run in range(3):
         wall = time.perf_counter() - begin
     kernels, maps = sum(spent.values()), spent["_densities"] + spent["_mixture_maps"]
     serial = 1 - kernels / wall
-    print(f"run {run}: {steps * n_worlds * config.n_agents / wall:,.0f} agent-steps/s; kernels {kernels / wall:.1%}, "
-          f"Python around the step's {(parts['step + observe'] - kernels + maps) / wall:.1%}, resets "
-          f"{parts['resets'] / wall:.1%} (their maps' kernels {maps / wall:.1%}), "
-          f"actions {parts['actions'] / wall:.1%}; "
-          f"outside the kernels {serial:.1%}: two threads at most {1 / (serial + (1 - serial) / 2):.2f}x")  # fmt: skip
+    print(
+        f"run {run}: {steps * n_worlds * config.n_agents / wall:,.0f} agent-steps/s; kernels {kernels / wall:.1%}, "
+        f"Python around the step's {(parts['step + observe'] - kernels + maps) / wall:.1%}, resets "
+        f"{parts['resets'] / wall:.1%} (their maps' kernels {maps / wall:.1%}), "
+        f"actions {parts['actions'] / wall:.1%}; "
+        f"outside the kernels {serial:.1%}: two threads at most {1 / (serial + (1 - serial) / 2):.2f}x"
+    )

@@ -99,7 +99,7 @@ def _true_state(w, grid, max_steps, out, worlds):
                 for r in range(n):
                     for c in range(n):
                         team[layer, r, c] = min(team[layer, r, c], belief[k, i, layer, r + h, c + h])
-        _pool(team, 0, n, index, counts, scale[k], acc, shared)
+        _pool(team, np.int64(0), n, index, counts, scale[k], acc, shared)
         for j in range(w.target_pos.shape[1]):
             if w.target_valid[k, j] and not w.target_found[k, j]:
                 shared[2, w.target_pos[k, j, 0] * grid // n, w.target_pos[k, j, 1] * grid // n] += 1.0
