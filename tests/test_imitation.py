@@ -10,7 +10,7 @@ import torch
 from sb3_contrib import RecurrentPPO
 from stable_baselines3 import PPO
 
-from searchrl.controllers.registry import make_teacher
+from searchrl.controllers.registry import make_teacher, teacher_settings
 from searchrl.controllers.surfing import InformationSurfing
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.imitation.clone import _evaluate, clone, collect, discounted_returns, lr_factor
@@ -41,7 +41,10 @@ def _replay(config: WorldConfig, n_worlds: int, teacher: str, teacher_seed: int,
             teacher_args: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float]]:  # fmt: skip
     """A fresh `teacher` playing `n_worlds` worlds of `config` seeded as collect seeds round `world_seed` = (seed, j,
     e), reset where an episode ends: (moves, rewards, dones) as (slots, T), and each ended episode's found fraction."""
-    world, rule = SearchWorld(config, n_worlds), make_teacher(teacher, config, teacher_seed, teacher_args)
+    world, rule = (
+        SearchWorld(config, n_worlds),
+        make_teacher(teacher_settings(teacher, teacher_args), config, teacher_seed),
+    )
     maps, vector = world.reset(seed=int(np.random.SeedSequence(world_seed).generate_state(1)[0]))
     rule.reset(world.state, np.ones(n_worlds, bool))
     moves, rewards, dones, found = [], [], [], []
@@ -81,14 +84,18 @@ def test_discounted_returns_accumulate_in_the_rewards_dtype():
 
 
 def test_demonstrations_are_the_teachers_and_the_same_per_seed():
-    demos = collect([(WORLD, 2), (replace(WORLD, n_agents=5), 1)], "surfing", episodes=2, gamma=0.9, seed=3)
+    demos = collect(
+        [(WORLD, 2), (replace(WORLD, n_agents=5), 1)], teacher_settings("surfing"), episodes=2, gamma=0.9, seed=3
+    )
     assert demos.maps.shape == (2 * (2 * 3 + 5), 24, 5, 11, 11) and demos.actions.shape == (22, 24)
     assert demos.starts[:, 0].sum() == 0  # every sequence starts a fresh episode: the LSTM starts from zeros
     assert (demos.maps.dtype, demos.vector.dtype, demos.actions.dtype) == (np.float16, np.float32, np.int64)
-    again = collect([(WORLD, 2), (replace(WORLD, n_agents=5), 1)], "surfing", episodes=2, gamma=0.9, seed=3)
+    again = collect(
+        [(WORLD, 2), (replace(WORLD, n_agents=5), 1)], teacher_settings("surfing"), episodes=2, gamma=0.9, seed=3
+    )
     for name in ("maps", "vector", "actions", "starts", "returns"):
         np.testing.assert_array_equal(getattr(demos, name), getattr(again, name))
-    other = collect([(WORLD, 2)], "surfing", episodes=1, gamma=0.9, seed=4)
+    other = collect([(WORLD, 2)], teacher_settings("surfing"), episodes=1, gamma=0.9, seed=4)
     assert not np.array_equal(other.maps, demos.maps[: len(other)])
     # Replaying round 0 of group 0 with a fresh teacher gives the recorded first step.
     world = SearchWorld(WORLD, 2)
@@ -103,7 +110,7 @@ def test_demonstrations_are_played_in_the_scenario_given():
     from searchrl.world.scenario import Scenario
 
     walls = Scenario(IidObstacles(0.3, connected=True))
-    demos = collect([(WORLD, 2)], "surfing", episodes=1, gamma=0.9, seed=3, scenario=walls)
+    demos = collect([(WORLD, 2)], teacher_settings("surfing"), episodes=1, gamma=0.9, seed=3, scenario=walls)
     world, open_grid = SearchWorld(WORLD, 2, scenario=walls), SearchWorld(WORLD, 2)
     seed = int(np.random.SeedSequence([3, 0, 0]).generate_state(1)[0])
     (maps, _), (open_maps, _) = world.reset(seed=seed), open_grid.reset(seed=seed)
@@ -116,7 +123,7 @@ def test_a_later_groups_demonstration_is_its_teachers_whole_episode_replayed():
     reset where an episode ends: the moves, the episode starts and the returns of its rewards are the replay's, and
     the found fraction is the mean over both groups' ended episodes."""
     groups = [(WORLD, 2), (replace(WORLD, n_agents=5), 1)]
-    demos = collect(groups, "surfing", episodes=1, gamma=0.9, seed=3)
+    demos = collect(groups, teacher_settings("surfing"), episodes=1, gamma=0.9, seed=3)
     moves, rewards, dones, found = _replay(*groups[1], "surfing", 3 + 1, [3, 1, 0])
     np.testing.assert_array_equal(moves, demos.actions[6:])
     np.testing.assert_array_equal(discounted_returns(rewards, dones, 0.9), demos.returns[6:])
@@ -130,14 +137,14 @@ def test_an_episode_that_ends_on_a_rounds_second_last_step_marks_a_start_on_its_
     """World 0 of this round finds its targets at step 38 of 0-39 and starts anew at 39, where its agents' LSTMs
     reset."""
     small = replace(WORLD, world_size=(12, 12), n_targets=(1, 2), max_steps=40)
-    demos = collect([(small, 2)], "surfing", episodes=1, gamma=0.9, seed=0)
+    demos = collect([(small, 2)], teacher_settings("surfing"), episodes=1, gamma=0.9, seed=0)
     assert demos.starts[:3, -1].tolist() == [1.0] * 3 and not demos.starts[3:, -1].any()
 
 
 def test_each_round_starts_its_teacher_afresh():
     """Round 1 of a teacher with memory (B's teacher: target-greedy with reach 2 keeps per-world reach weights) is
     what a new teacher plays in that round's world: collect resets it with a boolean mask of all worlds."""
-    demos = collect([(WORLD, 2)], "greedy_target", episodes=2, gamma=0.9, seed=3, teacher_args={"reach": 2})
+    demos = collect([(WORLD, 2)], teacher_settings("greedy_target", {"reach": 2}), episodes=2, gamma=0.9, seed=3)
     moves = _replay(WORLD, 2, "greedy_target", 3, [3, 0, 1], {"reach": 2})[0]
     np.testing.assert_array_equal(moves, demos.actions[6:])
 
@@ -156,7 +163,7 @@ def test_a_teacher_is_given_the_observations_recorded(monkeypatch):
             return super().act(state, maps, vector, active)
 
     monkeypatch.setitem(registry.HEURISTICS, "spy", registry.Heuristic(Spy, ControllerConfig, "spy"))
-    demos = collect([(WORLD, 2)], "spy", episodes=1, gamma=0.9, seed=3)
+    demos = collect([(WORLD, 2)], teacher_settings("spy"), episodes=1, gamma=0.9, seed=3)
     assert len(seen) == WORLD.max_steps
     maps = np.stack([m.reshape(6, 5, 11, 11) for m, _ in seen], 1).astype(np.float16)
     np.testing.assert_array_equal(maps, demos.maps)
@@ -165,27 +172,27 @@ def test_a_teacher_is_given_the_observations_recorded(monkeypatch):
 
 def test_unknown_teacher_is_named():
     with pytest.raises(ValueError, match=r"imitation\.teacher='planner'"):
-        collect([(WORLD, 1)], "planner", episodes=1, gamma=0.9, seed=0)
+        collect([(WORLD, 1)], teacher_settings("planner"), episodes=1, gamma=0.9, seed=0)
 
 
 def test_teacher_args_build_the_teacher_and_bad_ones_are_named():
     args = {"horizon": 1, "contested": 0.5}
-    demos = collect([(WORLD, 2)], "greedy", episodes=1, gamma=0.9, seed=3, teacher_args=args)
+    demos = collect([(WORLD, 2)], teacher_settings("greedy", args), episodes=1, gamma=0.9, seed=3)
     world = SearchWorld(WORLD, 2)
     maps, vector = world.reset(seed=int(np.random.SeedSequence([3, 0, 0]).generate_state(1)[0]))
-    teacher = make_teacher("greedy", WORLD, 3, args)
+    teacher = make_teacher(teacher_settings("greedy", args), WORLD, 3)
     assert (teacher.horizon, teacher.contested) == (1, 0.5)
     np.testing.assert_array_equal(teacher.act(world.state, maps, vector).reshape(-1), demos.actions[:6, 0])
     for bad, message in [({"sweep": 2}, "sweep"), ({"horizon": 0}, "horizon=0"), ({"seed": 1}, "seed")]:
         with pytest.raises(ValueError, match=rf"imitation\.teacher_args.*{message}"):
-            make_teacher("greedy", WORLD, 0, bad)
+            make_teacher(teacher_settings("greedy", bad), WORLD, 0)
 
 
 @pytest.mark.parametrize("algo", [RecurrentPPO, PPO])
 def test_cloning_fits_the_teacher(algo):
     """A few epochs on the demonstrations raise the accuracy on the teacher's actions well above chance (1/5)."""
     torch.manual_seed(0)
-    demos = collect([(WORLD, 4)], "surfing", episodes=2, gamma=0.9, seed=0)
+    demos = collect([(WORLD, 4)], teacher_settings("surfing"), episodes=2, gamma=0.9, seed=0)
     model = _tiny_model(algo)
     history = clone(model.policy, demos, epochs=12, value_epochs=4, batch_sequences=4, learning_rate=1e-3, seed=0)
     assert [r["phase"] for r in history] == ["policy"] * 12 + ["value"] * 4
@@ -200,7 +207,7 @@ def test_an_epochs_metrics_are_the_means_over_its_minibatches(monkeypatch):
     """At learning rate 0 nothing moves, so an epoch's imitation loss, value loss and accuracy (means over equal
     minibatches) are the policy's over all the demonstrations, phase by phase; each minibatch's gradient is clipped
     at norm 10 over the phase's parameters."""
-    demos = collect([(WORLD, 4)], "surfing", episodes=1, gamma=0.9, seed=0)
+    demos = collect([(WORLD, 4)], teacher_settings("surfing"), episodes=1, gamma=0.9, seed=0)
     model = _tiny_model(PPO)
     assert len(demos) == 12  # 4 minibatches of 3 sequences
     clips, clip = [], torch.nn.utils.clip_grad_norm_
@@ -226,7 +233,7 @@ def test_linear_schedule_takes_each_phase_down_to_zero():
     """lr_schedule="linear": each phase starts at learning_rate and its last minibatch runs at learning_rate/steps;
     an unknown schedule is refused by name."""
     torch.manual_seed(0)
-    demos = collect([(WORLD, 4)], "surfing", episodes=1, gamma=0.9, seed=0)
+    demos = collect([(WORLD, 4)], teacher_settings("surfing"), episodes=1, gamma=0.9, seed=0)
     n = -(-len(demos) // 2)  # minibatches of 2 sequences per epoch
     model = _tiny_model(PPO)
     history = clone(model.policy, demos, 2, 1, 2, 2e-3, seed=0, lr_schedule="linear")  # not Adam's default 1e-3
@@ -249,7 +256,7 @@ def test_linear_rate_reaches_zero_where_a_phase_ends():
 def test_clone_redraws_the_head_at_unit_gain_and_its_minibatch_order_follows_the_seed():
     """The action head is re-drawn orthogonal with gain 1 and zero bias before fitting (the docstring's reason: SB3's
     gain 0.01 starves the extractor); two clones from the same weights and seed end equal, another seed apart."""
-    demos = collect([(WORLD, 4)], "surfing", episodes=1, gamma=0.9, seed=0)
+    demos = collect([(WORLD, 4)], teacher_settings("surfing"), episodes=1, gamma=0.9, seed=0)
     model = _tiny_model(PPO)
     start = {k: v.clone() for k, v in model.policy.state_dict().items()}
     clone(model.policy, demos, 0, 0, 2, 1e-3, seed=0)  # no epochs: only the head's re-draw

@@ -165,7 +165,7 @@ def test_the_teachers_memory_is_reset_exactly_in_the_worlds_whose_episode_ended(
 
 def _check_teacher_resets() -> None:
     groups = [SearchVecEnv(AGED, n_worlds=3, seed=1), SearchVecEnv(replace(AGED, n_agents=2), n_worlds=2, seed=2)]
-    env = TeacherLabels(TeamMixVecEnv(groups), "greedy", {"seen": True, "age": 0.5}, seed=0)
+    env = TeacherLabels(TeamMixVecEnv(groups), registry.teacher_settings("greedy", {"seen": True, "age": 0.5}), seed=0)
     calls: list[list] = [[] for _ in groups]
     for j, teacher in enumerate(env.teachers):
         original = teacher.reset
@@ -181,7 +181,9 @@ def _check_teacher_resets() -> None:
             assert np.array_equal(calls[j][-1], ended) if ended.any() else len(calls[j]) >= 1
             if ended.any() and not ended.all():
                 restarted += 1
-                fresh = registry.make_teacher("greedy", group.config, 0, {"seen": True, "age": 0.5})
+                fresh = registry.make_teacher(
+                    registry.teacher_settings("greedy", {"seen": True, "age": 0.5}), group.config, 0
+                )
                 k, n, state = group.world.n_worlds, group.n_agents, group.world.state
                 fresh.reset(state, np.ones(k, bool))
                 part = slice(lo, lo + k * n)  # its labels' act: what the wrapper's teacher did since its reset
@@ -221,7 +223,7 @@ def _collect(monkeypatch, skip_partial: bool = False) -> tuple[list[np.ndarray],
 
     monkeypatch.setattr(cls, "reset", reset)
     monkeypatch.setattr(imitation, "SearchWorld", Recorded)
-    demos = imitation.collect([(CONFIG, 3)], "coverage", episodes=2, gamma=0.99, seed=0)
+    demos = imitation.collect([(CONFIG, 3)], registry.teacher_settings("coverage"), episodes=2, gamma=0.99, seed=0)
     return resets, dones, demos
 
 
@@ -325,7 +327,7 @@ def test_each_groups_teacher_draws_from_its_own_seed_and_a_rule_with_memory_labe
 
     def labels(teacher: str, args: dict, seed: int) -> np.ndarray:
         groups = [SearchVecEnv(tiny, 2, seed=1), SearchVecEnv(replace(tiny, n_agents=3), 1, seed=2)]
-        env = TeacherLabels(TeamMixVecEnv(groups), teacher, args, seed=seed)
+        env = TeacherLabels(TeamMixVecEnv(groups), registry.teacher_settings(teacher, args), seed=seed)
         env.reset()
         rng = np.random.default_rng(0)
         for _ in range(50):  # past the first episode's end
@@ -372,7 +374,7 @@ def test_a_teacher_reads_the_observations_of_its_own_slots():
     with isolated_registries():
         registry.register("observer", _Observer, ObserverConfig)
         groups = [SearchVecEnv(CONFIG, 2, seed=1), SearchVecEnv(replace(CONFIG, n_agents=2), 3, seed=2)]
-        env = TeacherLabels(TeamMixVecEnv(groups), "observer", {}, seed=0)
+        env = TeacherLabels(TeamMixVecEnv(groups), registry.teacher_settings("observer"), seed=0)
         with pytest.raises(RuntimeError, match=r"^TeacherLabels: reset\(\) before the first step$"):
             env.step_async(np.zeros(env.num_envs, np.int64))
         obs, rng = env.reset(), np.random.default_rng(0)

@@ -14,7 +14,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from searchrl.controllers.policy import PolicyController
-from searchrl.controllers.registry import make_teacher
+from searchrl.controllers.registry import make_teacher, teacher_settings
 from searchrl.evaluate.grid import Cell
 from searchrl.evaluate.results import load
 from searchrl.evaluate.runner import cell_config
@@ -53,7 +53,7 @@ def test_shipped_policy_is_complete_and_acts(model):
         # The recorded teacher rebuilds; that its recipe (conf/experiment) composes to this config is
         # tests/test_experiments.py's job.
         args = OmegaConf.to_container(saved.imitation.teacher_args) if "teacher_args" in saved.imitation else {}
-        make_teacher(saved.imitation.teacher, WorldConfig.from_dict(world_dict), 0, args)
+        make_teacher(teacher_settings(saved.imitation.teacher, args), WorldConfig.from_dict(world_dict), 0)
     else:
         rows = list(csv.DictReader(open(folder / "progress.csv")))
         assert int(rows[-1]["time/total_timesteps"]) == trained

@@ -21,7 +21,15 @@ from omegaconf import OmegaConf
 from searchrl.controllers import registry
 from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.greedy import FootprintGreedy
-from searchrl.controllers.registry import HEURISTICS, allowed, heuristic, make_controller, make_teacher, teachers
+from searchrl.controllers.registry import (
+    HEURISTICS,
+    allowed,
+    heuristic,
+    make_controller,
+    make_teacher,
+    teacher_settings,
+    teachers,
+)
 from searchrl.evaluate.app import evaluate, make_controller_factory
 from searchrl.evaluate.results import load
 from searchrl.evaluate.schema import register_configs
@@ -135,7 +143,7 @@ def test_unknown_names_are_refused_listing_the_registry():
     with pytest.raises(
         ConfigError, match=rf"imitation.teacher='random' is not allowed: one of {', '.join(teachers())}"
     ):
-        make_teacher("random", WorldConfig(), 0)
+        teacher_settings("random")
     assert teachers() == tuple(n for n in HEURISTICS if n != "random")
     with pytest.raises(ConfigError, match=r"greedy takes no setting 'sweep'"):
         make_controller("greedy", WorldConfig(), settings={"sweep": 1})
@@ -160,11 +168,11 @@ def test_greedy_target_composes_to_the_spelled_out_greedy_settings():
 
 def test_imitation_takes_greedy_target_and_greedy_with_teacher_args_alike():
     world = WorldConfig(world_size=20, n_agents=2)
-    named = make_teacher("greedy_target", world, 0)
-    spelled = make_teacher("greedy", world, 0, {"horizon": 3, "w_p": 0, "w_u": 0, "w_t": 1})
+    named = make_teacher(teacher_settings("greedy_target"), world, 0)
+    spelled = make_teacher(teacher_settings("greedy", {"horizon": 3, "w_p": 0, "w_u": 0, "w_t": 1}), world, 0)
     keys = [k for k in asdict(HEURISTICS["greedy"].schema()) if k != "name"]
     assert {k: getattr(named, k) for k in keys} == {k: getattr(spelled, k) for k in keys}
-    assert make_teacher("greedy_target", world, 0, {"reach": 2}).reach == 2.0
+    assert make_teacher(teacher_settings("greedy_target", {"reach": 2}), world, 0).reach == 2.0
 
 
 def test_the_library_never_reads_the_tests_folder():
@@ -265,7 +273,7 @@ def test_settings_given_as_a_mapping_are_typed_by_the_heuristics_dataclass():
         make_controller("surfing", WorldConfig(), settings={"scales": [4, "a"]})
     assert "controller.scales=[4, 'a'] is not allowed: a value of type list[int]" in str(refused.value)
     with pytest.raises(ConfigError) as refused:
-        make_teacher("greedy", WorldConfig(), 0, {"horizon": "2"})
+        teacher_settings("greedy", {"horizon": "2"})
     assert str(refused.value) == (
         "imitation.teacher_args={'horizon': '2'} is not allowed for teacher 'greedy': "
         "imitation.teacher_args.horizon='2' is not allowed: a value of type int"

@@ -12,7 +12,7 @@ import torch
 from sb3_contrib import RecurrentPPO
 from stable_baselines3.common.utils import set_random_seed
 
-from searchrl.controllers.registry import make_teacher
+from searchrl.controllers.registry import make_teacher, teacher_settings
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
 from searchrl.imitation.teacher_labels import TeacherLabels
@@ -42,7 +42,7 @@ def _model(cls, env, **kwargs):
 
 
 def _labelled(seed: int = 0) -> TeacherLabels:
-    return TeacherLabels(SearchVecEnv(WORLD, n_worlds=2, seed=seed), TEACHER[0], TEACHER[1], seed=0)
+    return TeacherLabels(SearchVecEnv(WORLD, n_worlds=2, seed=seed), teacher_settings(*TEACHER), seed=0)
 
 
 @pytest.fixture
@@ -104,7 +104,7 @@ def test_labels_are_the_teachers_actions_on_the_states_acted_in():
 
     world = SearchWorld(WORLD, 2, seed=0)
     maps, vector = world.reset()
-    teacher = make_teacher(TEACHER[0], WORLD, 0, TEACHER[1])
+    teacher = make_teacher(teacher_settings(*TEACHER), WORLD, 0)
     teacher.reset(world.state, np.ones(2, bool))
     for t in range(30):
         actions = teacher.act(world.state, maps, vector)
@@ -117,7 +117,7 @@ def test_labels_are_the_teachers_actions_on_the_states_acted_in():
 
 def test_labels_cover_every_group_of_a_team_mix():
     mix = TeamMixVecEnv([SearchVecEnv(WORLD, 2, seed=0), SearchVecEnv(replace(WORLD, n_agents=5), 1, seed=1)])
-    env = TeacherLabels(mix, TEACHER[0], TEACHER[1], seed=0)
+    env = TeacherLabels(mix, teacher_settings(*TEACHER), seed=0)
     env.reset()
     for _ in range(3):
         env.step(env._current)

@@ -15,7 +15,7 @@ made with `controller=greedy_target` hold the same record and take each other's 
 from __future__ import annotations
 
 import inspect
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from typing import Any, get_type_hints
 
 from searchrl.controllers.base import Controller, ControllerConfig, RandomConfig, RandomWalk
@@ -92,16 +92,31 @@ def make_controller(
     settings: dict[str, Any] | None = None,
     key: str = "controller",
 ) -> Controller:
-    """The controller `name` in the world `config`: its schema's defaults, overridden by `settings` (plain values
-    without `name`), seeded with `seed` where it draws random moves; a controller that plays other rules (the
-    rollout planner's base) gets this factory as `rules`. ConfigError for an unknown name (naming `key`), an
-    unknown setting, a value of another type than its field's (`typed_settings`) or one the class refuses."""
+    """The controller `name` in the world `config` with `settings` (`controller_settings`), seeded with `seed` where
+    it draws random moves (`build_controller`). ConfigError for an unknown name (naming `key`), an unknown setting,
+    a value of another type than its field's, or one the class refuses."""
+    return build_controller(controller_settings(name, settings, key), config, seed)
+
+
+def controller_settings(name: str, settings: dict[str, Any] | None = None, key: str = "controller") -> Any:
+    """The settings dataclass of heuristic `name` (a `ControllerConfig`): its defaults, overridden by `settings`
+    (plain values without `name`, each checked against its field's type: `typed_settings`). ConfigError for an
+    unknown name (naming `key`), an unknown setting or a value of another type."""
     entry = heuristic(name, key)
     values = entry.settings()
     unknown = sorted(set(settings or {}) - set(values))
     if unknown:
         raise ConfigError(f"{name} takes no setting {unknown[0]!r}; its settings are {sorted(values)}")
     values.update(typed_settings(entry.schema, dict(settings or {}), key))
+    return entry.schema(**{**values, "name": name})
+
+
+def build_controller(chosen: ControllerConfig, config: WorldConfig, seed: int | WorldStreams = 0) -> Controller:
+    """The heuristic `chosen` names, built from those settings in the world `config`, seeded with `seed` where it
+    draws random moves; a controller that plays other rules (the rollout planner's base) gets `make_controller`
+    as `rules`. ConfigError for a value its class refuses."""
+    entry = heuristic(chosen.name)
+    values = {f.name: getattr(chosen, f.name) for f in fields(chosen) if f.name != "name"}
     parameters = inspect.signature(entry.cls).parameters
     if "seed" in parameters:
         values["seed"] = seed
@@ -123,13 +138,21 @@ def register(name: str, cls: type, schema: type, label: str | None = None, teach
     HEURISTICS.register(name, Heuristic(cls, schema, label or name, teacher))
 
 
-def make_teacher(teacher: str, config: WorldConfig, seed: int | WorldStreams, args: dict | None = None) -> Controller:
-    """The teacher's controller; ConfigError naming `imitation.teacher` or `imitation.teacher_args` if either is
-    not allowed (an unknown teacher, an argument its controller does not take, or a value it refuses)."""
+def teacher_settings(teacher: str, args: dict[str, Any] | None = None) -> ControllerConfig:
+    """The settings dataclass of `imitation.teacher` with `imitation.teacher_args` (`controller_settings`), what
+    the imitation layer builds its teachers from; ConfigError naming either if it is not allowed (an unknown or
+    random teacher, an argument its controller does not take or of another type, a seed)."""
     if teacher not in teachers():
         raise ConfigError(f"imitation.teacher={teacher!r} is not allowed: one of {', '.join(teachers())}, or null")
     args = dict(args or {})
     if "seed" in args:
         raise ConfigError("imitation.teacher_args.seed is not allowed: the teacher is seeded from the run's seed")
     with in_context(f"imitation.teacher_args={args} is not allowed for teacher {teacher!r}"):
-        return make_controller(teacher, config, seed=seed, settings=args, key="imitation.teacher_args")
+        return controller_settings(teacher, args, "imitation.teacher_args")
+
+
+def make_teacher(teacher: ControllerConfig, config: WorldConfig, seed: int | WorldStreams) -> Controller:
+    """The teacher's controller (`teacher_settings`) in the world `config`, seeded with `seed`; ConfigError naming
+    `imitation.teacher_args` for a value its class refuses."""
+    with in_context(f"imitation.teacher_args of teacher {teacher.name!r}"):
+        return build_controller(teacher, config, seed)

@@ -30,6 +30,7 @@ import torch
 from sb3_contrib.common.recurrent.policies import RecurrentActorCriticPolicy
 from stable_baselines3.common.policies import ActorCriticPolicy
 
+from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.registry import make_teacher
 from searchrl.imitation.teacher_term import value_parameters
 from searchrl.world.config import ConfigError, WorldConfig
@@ -66,19 +67,18 @@ def discounted_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> 
 
 def collect(
     groups: list[tuple[WorldConfig, int]],
-    teacher: str,
+    teacher: ControllerConfig,
     episodes: int,
     gamma: float,
     seed: int,
-    teacher_args: dict | None = None,
     scenario: Scenario = PAPER,
 ) -> Demonstrations:
-    """Let `teacher` (built with `teacher_args`) play `episodes` rounds in each (world config, K) group; round e
-    of group j is seeded (seed, j, e), so the same seed gives the same demonstrations."""
+    """Let `teacher` (a heuristic's settings: `registry.teacher_settings`) play `episodes` rounds in each (world
+    config, K) group; round e of group j is seeded (seed, j, e), so the same seed gives the same demonstrations."""
     parts, found = [], []
     for j, (config, n_worlds) in enumerate(groups):
         world = SearchWorld(config, n_worlds, scenario=scenario)
-        controller = make_teacher(teacher, config, seed + j, teacher_args)
+        controller = make_teacher(teacher, config, seed + j)
         steps, slots = config.max_steps, n_worlds * config.n_agents
         for e in range(episodes):
             maps, vector = world.reset(seed=int(np.random.SeedSequence([seed, j, e]).generate_state(1)[0]))

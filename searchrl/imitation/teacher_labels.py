@@ -16,6 +16,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnvWrapper
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
+from searchrl.controllers.base import ControllerConfig
 from searchrl.controllers.registry import make_teacher
 from searchrl.envs.team_mix import TeamMixVecEnv
 from searchrl.envs.vec_env import SearchVecEnv
@@ -24,10 +25,11 @@ from searchrl.envs.vec_env import SearchVecEnv
 class TeacherLabels(VecEnvWrapper):
     """Wraps a SearchVecEnv or TeamMixVecEnv; group j's teacher is seeded with `seed + j`."""
 
-    def __init__(self, venv: SearchVecEnv | TeamMixVecEnv, teacher: str, teacher_args: dict, seed: int) -> None:
+    def __init__(self, venv: SearchVecEnv | TeamMixVecEnv, teacher: ControllerConfig, seed: int) -> None:
+        """`teacher`: a heuristic's settings (`registry.teacher_settings`)."""
         super().__init__(venv)
         self.groups: list[SearchVecEnv] = list(venv.envs) if isinstance(venv, TeamMixVecEnv) else [venv]
-        self.teachers = [make_teacher(teacher, env.config, seed + j, teacher_args) for j, env in enumerate(self.groups)]
+        self.teachers = [make_teacher(teacher, env.config, seed + j) for j, env in enumerate(self.groups)]
         self._bounds = np.cumsum([0] + [env.num_envs for env in self.groups])  # group j owns slots [b_j, b_j+1)
         self._current: np.ndarray | None = None  # (n_envs,) labels of the latest observation
         self._acted: list[np.ndarray] = []  # labels of each observation acted on since the last rollout_labels

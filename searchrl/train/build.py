@@ -75,8 +75,8 @@ def make_vec_env(plan: Plan, seed: int | None = None) -> VecEnv:
         for j, (world, k) in enumerate(plan.groups)
     ]
     env = envs[0] if len(envs) == 1 else TeamMixVecEnv(envs)
-    if plan.teacher_term and plan.teacher is not None:
-        return TeacherLabels(env, plan.teacher, plan.teacher_args, plan.settings.seed)
+    if plan.teacher_term and plan.teacher_settings is not None:
+        return TeacherLabels(env, plan.teacher_settings, plan.settings.seed)
     return env
 
 
@@ -211,11 +211,10 @@ def warm_start(plan: Plan, model: BaseAlgorithm, run_dir: Path) -> None:
     im, seed = plan.settings.imitation, plan.settings.seed
     demos = collect(
         list(plan.groups),
-        str(plan.teacher),
+        plan.teacher_settings,
         im.episodes,
         plan.settings.algo.gamma,
         seed,
-        plan.teacher_args,
         plan.scenario,
     )
     print(

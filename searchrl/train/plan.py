@@ -15,7 +15,6 @@ import zipfile
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
@@ -23,7 +22,8 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.utils import get_device
 
 from searchrl.command_line import import_modules
-from searchrl.controllers.registry import make_teacher
+from searchrl.controllers.base import ControllerConfig
+from searchrl.controllers.registry import make_teacher, teacher_settings
 from searchrl.envs.rewards import make_reward
 from searchrl.imitation.clone import lr_factor
 from searchrl.imitation.teacher_term import TEACHER_ALGORITHMS, check_settings
@@ -55,6 +55,7 @@ class Plan:
     teacher_term: bool  # RL with the teacher term or critic warm-up
     rollout: int  # agent-steps of one rollout: algo.n_steps × every group's K·N
     notes: tuple[str, ...]  # what the run will not use, or rounds, said before it starts
+    teacher_settings: ControllerConfig | None = None  # imitation.teacher with its teacher_args, typed
 
     @property
     def world(self) -> WorldConfig:
@@ -64,11 +65,6 @@ class Plan:
     def teacher(self) -> str | None:
         """imitation.teacher: a heuristic of the registry, or None."""
         return self.settings.imitation.teacher
-
-    @property
-    def teacher_args(self) -> dict[str, Any]:
-        """A copy of its settings (imitation.teacher_args)."""
-        return dict(self.settings.imitation.teacher_args)
 
     @property
     def clones(self) -> bool:
@@ -118,8 +114,10 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     )
     check_init(s)
     im = s.imitation
+    teacher = None
     if im.teacher is not None:
-        make_teacher(im.teacher, groups[0][0], 0, dict(im.teacher_args))  # an unknown teacher or a bad argument, named
+        teacher = teacher_settings(im.teacher, im.teacher_args)  # an unknown teacher or argument, or a mistyped one
+        make_teacher(teacher, groups[0][0], 0)  # a value it refuses
         check_imitation(im)
     teacher_term = im.rl_weight != 0 or im.critic_warmup != 0
     check_teacher_term(s, teacher_term)
@@ -129,7 +127,7 @@ def make_plan(cfg: DictConfig, overrides: list[str] | tuple[str, ...] = ()) -> P
     notes = unused_settings(s, list(overrides), groups) + round_to_rollouts(s, rollout)
     algorithm = TEACHER_ALGORITHMS.get(s.algo.name, algorithm)  # the term off (w = 0) where a recipe has none
     s.device = str(get_device(s.device))  # recorded as used (device=auto becomes cpu or cuda)
-    return Plan(s, groups, scenario, algorithm, teacher_term, rollout, tuple(notes))
+    return Plan(s, groups, scenario, algorithm, teacher_term, rollout, tuple(notes), teacher)
 
 
 def draw_walls(scenario: Scenario | ScenarioMix, groups: Sequence[tuple[WorldConfig, int]], draws: int = 4) -> None:
