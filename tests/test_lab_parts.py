@@ -189,3 +189,36 @@ def test_the_lookahead_evaluates_through_extensions_and_repeats_its_episodes(tmp
     first, again = runs
     assert (first.controller == "lookahead").all() and len(first) == 2  # cells (20, 1), (20, 2)
     assert first.found_fraction.tolist() == again.found_fraction.tolist() and first.L.tolist() == again.L.tolist()
+
+
+@pytest.fixture
+def rollout_own():
+    """analysis/rollout_own.py, its controller registered for this test only."""
+    with isolated_registries("analysis"):
+        yield importlib.import_module("analysis.rollout_own")
+
+
+def test_the_decentralised_planner_is_the_shipped_one_for_a_lone_agent_and_imagines_each_agent_alone(rollout_own):
+    """With one agent its own belief is the team's map and it is the whole team: the same episodes as the shipped
+    planner's, move for move. With two, each agent's imagined worlds hold it alone, on its own belief."""
+    from searchrl.controllers.episodes import play_episodes
+    from searchrl.controllers.factory import heuristic_factory
+
+    lone = WorldConfig(world_size=(20, 20), n_targets=(4, 4), n_distributions=(8, 8), n_agents=1, max_steps=30)
+    seeds, keys = [31, 32], [[0, 1], [0, 2]]
+    played = {
+        name: play_episodes(heuristic_factory(name, {"horizon": 6}), lone, seeds, keys, needs_observation=False)
+        for name in ("rollout_own", "rollout")
+    }
+    assert all(np.array_equal(played["rollout_own"][k], played["rollout"][k]) for k in played["rollout"])
+    pair = WorldConfig(world_size=(20, 20), n_targets=(4, 4), n_distributions=(8, 8), n_agents=2, max_steps=30)
+    world = SearchWorld(pair, 2, seed=3, observe=False)
+    world.reset()
+    planner = make_controller("rollout_own", pair, seed=0, settings={"horizon": 4})
+    planner.reset(world.state, np.ones(2, bool))
+    seen = []
+    original = planner.score
+    planner.score = lambda own, *args: (seen.append(own.p), original(own, *args))[1]
+    moves = planner.act(world.state, None, None)
+    assert moves.shape == (2, 2) and planner.work["agents"] == 1
+    assert len(seen) == 2 and all(np.shares_memory(p, world.state.belief) for p in seen)  # each agent's own map
