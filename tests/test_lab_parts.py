@@ -18,7 +18,7 @@ import pytest
 from searchrl.controllers.registry import make_controller
 from searchrl.envs.rewards import RewardConfig, make_reward
 from searchrl.policies.slim import ROLLOUT_STATE, is_slim, weights_sha256
-from searchrl.world.config import WorldConfig
+from searchrl.world.config import ConfigError, WorldConfig
 from searchrl.world.engine import SearchWorld
 from searchrl.world.step import StepResult
 from searchrl.world.streams import WorldStreams
@@ -222,3 +222,5 @@ def test_the_decentralised_planner_is_the_shipped_one_for_a_lone_agent_and_imagi
     moves = planner.act(world.state, None, None)
     assert moves.shape == (2, 2) and planner.work["agents"] == 1
     assert len(seen) == 2 and all(np.shares_memory(p, world.state.belief) for p in seen)  # each agent's own map
+    with pytest.raises(ConfigError, match=r"^controller\.team=0 is not allowed: 1 \(each agent imagined alone\)$"):
+        make_controller("rollout_own", pair, settings={"team": 0})
