@@ -3,15 +3,15 @@ over B's teacher survives when each agent plans on what it knows alone.
 
 The shipped planner is centralised: agent i's moves are played out in imagined copies of the whole world (every
 teammate's position, belief and rule) and scored under the team's posterior, the map of everything any agent has
-sensed. Here agent i imagines itself alone (`team=1`: no teammate in its copies) on its own belief: the copy's map
-and the posterior its targets are drawn from and its moves scored under are agent i's (p, u), what its own sensing
-and the merges it took part in gave it. It still reads which cells hold found targets (a small effect, as the
-probe's note says) and decides after the agents before it (whose choices it no longer imagines). Everything else is
-the shipped planner's: the base rule, one sample, the expected finds, the horizon. The agent alone, because every
-agent's belief is refreshed in Φ from the world's map: a teammate imagined in a world whose map is another agent's
-belief would forget there what it sensed itself (tried: 0.206 below the teacher at 40 x 2, the teammates searching
-again what they had searched). The shipped planner with `controller.team=1` (alone, on the team's map) separates
-the two: the map, and the teammates.
+sensed. Here agent i plans on its own belief: the copy's map and the posterior its targets are drawn from and its
+moves scored under are agent i's (p, u), what its own sensing, its Φ refreshes and the merges it took part in gave it.
+With `team=1` it imagines itself alone; with `team=0` every teammate too, at its true position (positions are a few
+bytes to share; maps are not), each imagined to know what agent i knows (its belief is agent i's): every agent's
+belief is refreshed in Φ from the world's map, so a teammate kept with its own belief in a world whose map is agent
+i's would forget there what it sensed itself (tried: 0.206 below the teacher at 40 x 2). It still reads which cells
+hold found targets (a small effect, as the probe's note says) and decides after the agents before it. Everything
+else is the shipped planner's: the base rule, one sample, the expected finds, the horizon. The shipped planner with
+`controller.team=1` (alone, on the team's map) separates the map from the teammates.
 
     python -m searchrl.evaluate controller=rollout_own extensions=[analysis.rollout_own] +model=b \
         controller.horizon=0 grid.world_sizes=[40,80,160] grid.n_targets=[8,16,32] grid.n_distributions=[16,32,64] \
@@ -39,15 +39,20 @@ from searchrl.world.streams import WorldStreams
 @dataclass
 class RolloutOwnConfig(RolloutConfig):
     name: str = "rollout_own"
-    team: int = 1  # the deciding agent alone in its imagined worlds (the only value: module docstring)
+    # 1: the deciding agent alone in its imagined worlds; 0: every teammate too (their positions known), each
+    # imagined with the deciding agent's own belief (what it would take the teammates to know)
+    team: int = 1
 
 
 class OwnBeliefRollout(Rollout):
     """`Rollout` with each agent imagining itself alone on its own belief (module docstring)."""
 
     def __init__(self, config: WorldConfig, seed: int | WorldStreams = 0, *, rules: RuleFactory, **settings: Any):
-        if settings.get("team", 1) != 1:
-            raise ConfigError(f"controller.team={settings['team']!r} is not allowed: 1 (each agent imagined alone)")
+        if settings.get("team", 1) not in (0, 1):
+            raise ConfigError(
+                f"controller.team={settings['team']!r} is not allowed: 1 (each agent imagined alone) or 0 (with "
+                "every teammate, each on the agent's own belief)"
+            )
         super().__init__(config, seed, rules=rules, **settings)
 
     def plan(self, state: WorldState, worlds: np.ndarray, base: np.ndarray, keys: np.ndarray) -> np.ndarray:
@@ -55,14 +60,29 @@ class OwnBeliefRollout(Rollout):
         if worlds.size == 0:
             return chosen
         for agent in range(state.n_agents):
-            # The world as agent i knows it: its own (p, u) as the map (the same arrays, not copies)
-            own = replace(state, p=state.belief[:, agent, 0], u=state.belief[:, agent, 1])
+            own = known_to(state, agent)
             targets = self.imagine(own, worlds, keys)
-            members = self.members(state, worlds, agent)  # (W, 1): the agent alone
+            members = self.members(state, worlds, agent)  # (W, 1): the agent alone; or the whole team
             first = self.first(chosen, worlds, np.full(worlds.size, agent), members)
             scores = self.score(own, worlds, first, targets, [[int(keys[w])] for w in worlds], members)
             chosen[worlds, agent] = choose(scores, base[worlds, agent], 0.0)
         return chosen
+
+
+# The per-agent arrays of what an agent knows, each teammate's replaced by the deciding agent's when imagined with it
+KNOWLEDGE = ("belief", "belief_box", "belief_news", "belief_time", "belief_seen")
+
+
+def known_to(state: WorldState, agent: int) -> WorldState:
+    """The world as `agent` knows it (views of `state`'s arrays, no copies): its own (p, u) as the world's map, and
+    its own belief as every agent's, so that each teammate's Φ refresh (from the map) and merges (of equal beliefs)
+    agree with what it is imagined to know; `merged` false, as after beliefs edited by hand."""
+    mine = {
+        name: np.broadcast_to(getattr(state, name)[:, agent : agent + 1], getattr(state, name).shape)
+        for name in KNOWLEDGE
+    }
+    belief = state.belief[:, agent]
+    return replace(state, p=belief[:, 0], u=belief[:, 1], merged=np.zeros_like(state.merged), **mine)
 
 
 register("rollout_own", OwnBeliefRollout, RolloutOwnConfig, teacher=False)

@@ -222,5 +222,13 @@ def test_the_decentralised_planner_is_the_shipped_one_for_a_lone_agent_and_imagi
     moves = planner.act(world.state, None, None)
     assert moves.shape == (2, 2) and planner.work["agents"] == 1
     assert len(seen) == 2 and all(np.shares_memory(p, world.state.belief) for p in seen)  # each agent's own map
-    with pytest.raises(ConfigError, match=r"^controller\.team=0 is not allowed: 1 \(each agent imagined alone\)$"):
-        make_controller("rollout_own", pair, settings={"team": 0})
+    with pytest.raises(ConfigError, match=r"^controller\.team=2 is not allowed: 1 \(each agent imagined alone\) or 0"):
+        make_controller("rollout_own", pair, settings={"team": 2})
+    known = rollout_own.known_to(world.state, 1)  # what agent 1 knows: its map is the world's and every agent's
+    assert np.array_equal(known.p, world.state.belief[:, 1, 0]) and np.array_equal(known.u, world.state.belief[:, 1, 1])
+    assert (
+        all(np.array_equal(known.belief[:, j], world.state.belief[:, 1]) for j in range(2)) and not known.merged.any()
+    )
+    with_team = make_controller("rollout_own", pair, seed=0, settings={"horizon": 4, "team": 0})
+    with_team.reset(world.state, np.ones(2, bool))
+    assert with_team.act(world.state, None, None).shape == (2, 2) and with_team.work["agents"] == 2
