@@ -8,16 +8,18 @@ moves scored under are agent i's (p, u), what its own sensing, its Φ refreshes 
 With `team=1` it imagines itself alone; with `team=0` every teammate too, at its true position (positions are a few
 bytes to share; maps are not), each imagined to know what agent i knows (its belief is agent i's): every agent's
 belief is refreshed in Φ from the world's map, so a teammate kept with its own belief in a world whose map is agent
-i's would forget there what it sensed itself (tried: 0.206 below the teacher at 40 x 2). It still reads which cells
-hold found targets (a small effect, as the probe's note says) and decides after the agents before it. Everything
-else is the shipped planner's: the base rule, one sample, the expected finds, the horizon. The shipped planner with
-`controller.team=1` (alone, on the team's map) separates the map from the teammates.
+i's would forget there what it sensed itself. It still reads which cells hold found targets (a small effect, as the
+probe's note says) and decides after the agents before it. Everything else is the shipped planner's: the base rule,
+one sample, the expected finds, the horizon. The shipped planner with `controller.team=1` (alone, on the team's
+map) separates the map from the teammates. docs/lab/research.md ("Centralised, and what its gain needs") has the
+commands and the measurements; in short:
 
     python -m searchrl.evaluate controller=rollout_own extensions=[analysis.rollout_own] +model=b \
         controller.horizon=0 grid.world_sizes=[40,80,160] grid.n_targets=[8,16,32] grid.n_distributions=[16,32,64] \
         grid.max_agents=[2,8,64] grid.repeats=1 grid.maps_per_cell=100 threads=1 cell=n40_N2 \
         out_dir=runs/eval/roll100/rollout_own_h0
-    python analysis/rollout_table.py runs/eval/roll100/rollout_m1_h0 runs/eval/roll100/rollout_own_h0 \
+    python analysis/rollout_table.py runs/eval/roll100/rollout_m1_h0 runs/eval/roll100/rollout_m1_h0_t1 \
+        runs/eval/roll100/rollout_own_h0 runs/eval/roll100/rollout_own_team_h0 \
         --rules runs/eval/roll100/teacher_b runs/eval/roll100/coverage runs/eval/roll100/surfing \
         --out analysis/out/rollout_own
 """
