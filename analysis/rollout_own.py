@@ -9,10 +9,11 @@ With `team=1` it imagines itself alone; with `team=0` every teammate too, at its
 bytes to share; maps are not), each imagined to know what agent i knows (its belief is agent i's): every agent's
 belief is refreshed in Φ from the world's map, so a teammate kept with its own belief in a world whose map is agent
 i's would forget there what it sensed itself. It still reads which cells hold found targets (a small effect, as the
-probe's note says) and decides after the agents before it. Everything else is the shipped planner's: the base rule,
-one sample, the expected finds, the horizon. The shipped planner with `controller.team=1` (alone, on the team's
-map) separates the map from the teammates. docs/lab/research.md ("Centralised, and what its gain needs") has the
-commands and the measurements; in short:
+probe's note says) and decides after the agents before it; a base rule's own memory (footprint-greedy's sightings,
+with `seen` or `age`) stays each teammate's, which B's teacher keeps none of. Everything else is the shipped
+planner's: the base rule, one sample, the expected finds, the horizon. The shipped planner with `controller.team=1`
+(alone, on the team's map) separates the map from the teammates. docs/lab/research.md ("Centralised, and what its gain
+needs") has the commands and the measurements; in short:
 
     python -m searchrl.evaluate controller=rollout_own extensions=[analysis.rollout_own] +model=b \
         controller.horizon=0 grid.world_sizes=[40,80,160] grid.n_targets=[8,16,32] grid.n_distributions=[16,32,64] \

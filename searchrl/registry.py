@@ -175,11 +175,22 @@ def _fits(value: Any, hint: Any) -> tuple[bool, Any]:
         return number, float(value) if number else value
     if hint is int:
         return is_int(value), int(value) if is_int(value) else value
+    if hint is bool:
+        return isinstance(value, (bool, np.bool_)), bool(value) if isinstance(value, (bool, np.bool_)) else value
+    if origin is typing.Literal:
+        return value in args, value
     if origin in (list, tuple) and isinstance(value, (list, tuple)):
-        items = [_fits(item, args[0] if args else Any) for item in value]
+        fixed = origin is tuple and args and args[-1] is not Ellipsis  # tuple[int, str]: one type per position
+        if fixed and len(value) != len(args):
+            return False, value
+        items = [_fits(item, args[i] if fixed else (args[0] if args else Any)) for i, item in enumerate(value)]
         return all(ok for ok, _ in items), origin(item for _, item in items)
     if origin is dict:
-        return isinstance(value, dict), value
+        if not isinstance(value, dict):
+            return False, value
+        key, item = args if args else (Any, Any)
+        pairs = [(_fits(k, key), _fits(v, item)) for k, v in value.items()]
+        return all(k[0] and v[0] for k, v in pairs), {k[1]: v[1] for k, v in pairs}
     return isinstance(value, origin or hint), value
 
 

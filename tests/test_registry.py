@@ -278,6 +278,36 @@ def test_settings_given_as_a_mapping_are_typed_by_the_heuristics_dataclass():
         "imitation.teacher_args={'horizon': '2'} is not allowed for teacher 'greedy': "
         "imitation.teacher_args.horizon='2' is not allowed: a value of type int"
     )
+    from dataclasses import dataclass
+
+    from searchrl.registry import typed_settings
+
+    @dataclass
+    class Shapes:
+        pair: tuple[int, str] = (1, "a")
+        flag: bool = False
+        weights: dict[str, float] = None
+
+    good = typed_settings(Shapes, {"pair": [2, "b"], "flag": np.bool_(True), "weights": {"w": 1}}, "x")
+    assert good == {"pair": (2, "b"), "flag": True, "weights": {"w": 1.0}}
+    for bad in ({"pair": (1, 2)}, {"pair": (1, "a", 3)}, {"flag": 1}, {"weights": {"w": "heavy"}}):
+        with pytest.raises(ConfigError, match=r"^x\.[a-z]+=.* is not allowed: a value of type "):
+            typed_settings(Shapes, bad, "x")
+
+    @dataclass
+    class PickyConfig(ControllerConfig):
+        name: str = "picky"
+        level: int = 0
+
+    class Picky:  # a user's rule that refuses a value with a plain ValueError: said as a refusal all the same
+        def __init__(self, config, level: int = 0) -> None:
+            if level > 1:
+                raise ValueError(f"level={level} is not allowed: 0 or 1")
+
+    with mock.patch.dict(registry.HEURISTICS):
+        registry.register("picky", Picky, PickyConfig)
+        with pytest.raises(ConfigError, match=r"^picky: level=2 is not allowed: 0 or 1$"):
+            make_controller("picky", WorldConfig(), settings={"level": 2})
     with pytest.raises(ConfigError) as refused, in_context("grid cell 3"):  # said in its context, its type kept
         raise MissingFile("model.zip is not there")
     assert type(refused.value) is MissingFile and str(refused.value) == "grid cell 3: model.zip is not there"

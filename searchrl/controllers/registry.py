@@ -114,7 +114,7 @@ def controller_settings(name: str, settings: dict[str, Any] | None = None, key: 
 def build_controller(chosen: ControllerConfig, config: WorldConfig, seed: int | WorldStreams = 0) -> Controller:
     """The heuristic `chosen` names, built from those settings in the world `config`, seeded with `seed` where it
     draws random moves; a controller that plays other rules (the rollout planner's base) gets `make_controller`
-    as `rules`. ConfigError for a value its class refuses."""
+    as `rules`. ConfigError for a value its class refuses (a user's class saying so with a ValueError too)."""
     entry = heuristic(chosen.name)
     values = {f.name: getattr(chosen, f.name) for f in fields(chosen) if f.name != "name"}
     parameters = inspect.signature(entry.cls).parameters
@@ -122,7 +122,12 @@ def build_controller(chosen: ControllerConfig, config: WorldConfig, seed: int | 
         values["seed"] = seed
     if "rules" in parameters:
         values["rules"] = make_controller
-    return entry.cls(config, **values)
+    try:
+        return entry.cls(config, **values)
+    except ConfigError:
+        raise
+    except ValueError as err:  # a user's rule refusing a value its own way: said as the refusal it is
+        raise ConfigError(f"{chosen.name}: {err}") from None
 
 
 def teachers() -> tuple[str, ...]:

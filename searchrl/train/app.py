@@ -190,7 +190,7 @@ def score_again(run_dir: Path, score_last: int, why: ValueError) -> dict[str, ob
     """Write a finished run's score.json again from its progress.csv, the mean of its last `score_last`
     validations (`why`: what was wrong with it), saying so; refused in one line when the log cannot be read
     either."""
-    with in_context(f"{why}; writing it again"):
+    with in_context(f"{run_dir / 'score.json'} cannot be written again"):
         score = write_score(run_dir, score_last)
     print(f"score.json written again from {run_dir / 'progress.csv'} ({str(why).split(';')[0]})", file=sys.stderr)
     return score
