@@ -1,30 +1,38 @@
-"""A decentralised rollout planner (an experiment, outside the library): how much of `controller=rollout`'s gain
-over B's teacher survives when each agent plans on what it knows alone.
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+# ---
 
-The shipped planner is centralised: agent i's moves are played out in imagined copies of the whole world (every
-teammate's position, belief and rule) and scored under the team's posterior, the map of everything any agent has
-sensed. Here agent i plans on its own belief: the copy's map and the posterior its targets are drawn from and its
-moves scored under are agent i's (p, u), what its own sensing, its Φ refreshes and the merges it took part in gave it.
-With `team=1` it imagines itself alone; with `team=0` every teammate too, at its true position (positions are a few
-bytes to share; maps are not), each imagined to know what agent i knows (its belief is agent i's): every agent's
-belief is refreshed in Φ from the world's map, so a teammate kept with its own belief in a world whose map is agent
-i's would forget there what it sensed itself. It still reads which cells hold found targets (a small effect, as the
-probe's note says) and decides after the agents before it; a base rule's own memory (footprint-greedy's sightings,
-with `seen` or `age`) stays each teammate's, which B's teacher keeps none of. Everything else is the shipped
-planner's: the base rule, one sample, the expected finds, the horizon. The shipped planner with `controller.team=1`
-(alone, on the team's map) separates the map from the teammates. docs/lab/research.md ("Centralised, and what its gain
-needs") has the commands and the measurements; in short:
+# %% [markdown]
+# # A decentralised rollout planner (an experiment, outside the library)
+#
+# How much of `controller=rollout`'s gain over B's teacher survives when each agent plans on what it knows alone.
+#
+# The shipped planner is centralised: agent i's moves are played out in imagined copies of the whole world (every
+# teammate's position, belief and rule) and scored under the team's posterior, the map of everything any agent has
+# sensed. Here agent i plans on its own belief: the copy's map and the posterior its targets are drawn from and its
+# moves scored under are agent i's (p, u), what its own sensing, its Φ refreshes and the merges it took part in gave
+# it. With `team=1` it imagines itself alone; with `team=0` every teammate too, at its true position (positions are a
+# few bytes to share; maps are not), each imagined to know what agent i knows (its belief is agent i's): every agent's
+# belief is refreshed in Φ from the world's map, so a teammate kept with its own belief in a world whose map is agent
+# i's would forget there what it sensed itself. It still reads which cells hold found targets (a small effect, as the
+# probe's note says) and decides after the agents before it; a base rule's own memory (footprint-greedy's sightings,
+# with `seen` or `age`) stays each teammate's, which B's teacher keeps none of. Everything else is the shipped
+# planner's: the base rule, one sample, the expected finds, the horizon. The shipped planner with `controller.team=1`
+# (alone, on the team's map) separates the map from the teammates. docs/lab/research.md ("Centralised, and what its
+# gain needs") has the commands and the measurements; in short:
+#
+#     python -m searchrl.evaluate controller=rollout_own extensions=[analysis.rollout_own] +model=b \
+#         controller.horizon=0 grid.world_sizes=[40,80,160] grid.n_targets=[8,16,32] grid.n_distributions=[16,32,64] \
+#         grid.max_agents=[2,8,64] grid.repeats=1 grid.maps_per_cell=100 threads=1 cell=n40_N2 \
+#         out_dir=runs/eval/roll100/rollout_own_h0
+#     python analysis/rollout_table.py runs/eval/roll100/rollout_m1_h0 runs/eval/roll100/rollout_m1_h0_t1 \
+#         runs/eval/roll100/rollout_own_h0 runs/eval/roll100/rollout_own_team_h0 \
+#         --rules runs/eval/roll100/teacher_b runs/eval/roll100/coverage runs/eval/roll100/surfing \
+#         --out analysis/out/rollout_own
 
-    python -m searchrl.evaluate controller=rollout_own extensions=[analysis.rollout_own] +model=b \
-        controller.horizon=0 grid.world_sizes=[40,80,160] grid.n_targets=[8,16,32] grid.n_distributions=[16,32,64] \
-        grid.max_agents=[2,8,64] grid.repeats=1 grid.maps_per_cell=100 threads=1 cell=n40_N2 \
-        out_dir=runs/eval/roll100/rollout_own_h0
-    python analysis/rollout_table.py runs/eval/roll100/rollout_m1_h0 runs/eval/roll100/rollout_m1_h0_t1 \
-        runs/eval/roll100/rollout_own_h0 runs/eval/roll100/rollout_own_team_h0 \
-        --rules runs/eval/roll100/teacher_b runs/eval/roll100/coverage runs/eval/roll100/surfing \
-        --out analysis/out/rollout_own
-"""
-
+# %%
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -39,6 +47,7 @@ from searchrl.world.state import WorldState
 from searchrl.world.streams import WorldStreams
 
 
+# %%
 @dataclass
 class RolloutOwnConfig(RolloutConfig):
     name: str = "rollout_own"
@@ -47,6 +56,7 @@ class RolloutOwnConfig(RolloutConfig):
     team: int = 1
 
 
+# %%
 class OwnBeliefRollout(Rollout):
     """`Rollout` with each agent imagining itself alone on its own belief (module docstring)."""
 
@@ -72,6 +82,7 @@ class OwnBeliefRollout(Rollout):
         return chosen
 
 
+# %%
 # The per-agent arrays of what an agent knows, each teammate's replaced by the deciding agent's when imagined with it
 KNOWLEDGE = ("belief", "belief_box", "belief_news", "belief_time", "belief_seen")
 
@@ -88,4 +99,5 @@ def known_to(state: WorldState, agent: int) -> WorldState:
     return replace(state, p=belief[:, 0], u=belief[:, 1], merged=np.zeros_like(state.merged), **mine)
 
 
+# %% The controller joins the registry for this process only: `controller=rollout_own`
 register("rollout_own", OwnBeliefRollout, RolloutOwnConfig, teacher=False)

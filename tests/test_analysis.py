@@ -35,11 +35,11 @@ NOTEBOOKS = sorted((ROOT / "analysis").glob("*.py"))
 # label_speed.py, module_trace.py, one_world.py and world_profile.py are benchmarks and traces, run by hand like
 # `python -m searchrl.bench` (their kernels' results are the golden slice's and tests/test_threads.py's;
 # compile_time.py's one signature a function is tests/test_structure.py's; int8_probe.py times inference paths);
-# carry_runs.py and team_reward.py (the lab's long trainings: a carry and a reward) and lookahead.py (an extension
-# module: a planner) by tests/test_lab_parts.py
+# carry_runs.py and team_reward.py (the lab's long trainings: a carry and a reward), lookahead.py and rollout_own.py
+# (extension modules: planners) by tests/test_lab_parts.py
 EXPERIMENTS = ("carry_runs.py", "compile_time.py", "context_probe.py", "exit_labels.py", "exit_train.py",
                "guided_b.py", "int8_probe.py", "label_speed.py", "lookahead.py", "module_trace.py", "one_world.py",
-               "team_reward.py", "world_profile.py")  # fmt: skip
+               "rollout_own.py", "team_reward.py", "world_profile.py")  # fmt: skip
 
 
 @pytest.fixture(scope="module")
