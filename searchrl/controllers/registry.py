@@ -15,8 +15,8 @@ made with `controller=greedy_target` hold the same record and take each other's 
 from __future__ import annotations
 
 import inspect
-from dataclasses import asdict, dataclass, fields
-from typing import Any, get_type_hints
+from dataclasses import dataclass, fields
+from typing import Any
 
 from searchrl.controllers.base import Controller, ControllerConfig, RandomConfig, RandomWalk
 from searchrl.controllers.coverage import CoverageConfig, GeometricCoverage
@@ -43,9 +43,7 @@ class Heuristic:
 
     def settings(self) -> dict[str, Any]:
         """The schema's defaults without `name`: the keyword arguments of `cls` besides the world and the seed."""
-        values = asdict(self.schema())
-        values.pop("name")
-        return values
+        return keyword_settings(self.schema())
 
 
 HEURISTICS: Registry[Heuristic] = Registry(
@@ -68,10 +66,7 @@ def resolved(name: str, settings: dict[str, Any] | None = None) -> tuple[str, di
     """(the name results are recorded under, every setting) of controller `name` with `settings`: a preset and the
     same settings spelled out give the same pair (`greedy_target` with reach 2 is `greedy` with horizon 3, w_p 0,
     w_u 0, w_t 1 and reach 2); numbers take their field's type (a YAML's 0 is the float 0.0 of w_p)."""
-    entry = heuristic(name)
-    types = get_type_hints(entry.schema)
-    values = {**entry.settings(), **(settings or {})}
-    return entry.label, {k: float(v) if types.get(k) is float else v for k, v in values.items()}
+    return heuristic(name).label, keyword_settings(controller_settings(name, settings))
 
 
 def allowed() -> str:
@@ -116,7 +111,7 @@ def build_controller(chosen: ControllerConfig, config: WorldConfig, seed: int | 
     draws random moves; a controller that plays other rules (the rollout planner's base) gets `make_controller`
     as `rules`. ConfigError for a value its class refuses (a user's class saying so with a ValueError too)."""
     entry = heuristic(chosen.name)
-    values = {f.name: getattr(chosen, f.name) for f in fields(chosen) if f.name != "name"}
+    values = keyword_settings(chosen)
     parameters = inspect.signature(entry.cls).parameters
     if "seed" in parameters:
         values["seed"] = seed
@@ -128,6 +123,11 @@ def build_controller(chosen: ControllerConfig, config: WorldConfig, seed: int | 
         raise
     except ValueError as err:  # a user's rule refusing a value its own way: said as the refusal it is
         raise ConfigError(f"{chosen.name}: {err}") from None
+
+
+def keyword_settings(chosen: ControllerConfig) -> dict[str, Any]:
+    """A heuristic's settings dataclass as its class's keyword arguments: every field but `name`."""
+    return {f.name: getattr(chosen, f.name) for f in fields(chosen) if f.name != "name"}
 
 
 def teachers() -> tuple[str, ...]:
