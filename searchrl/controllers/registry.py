@@ -93,7 +93,7 @@ def make_controller(
     return build_controller(controller_settings(name, settings, key), config, seed)
 
 
-def controller_settings(name: str, settings: dict[str, Any] | None = None, key: str = "controller") -> Any:
+def controller_settings(name: str, settings: dict[str, Any] | None = None, key: str = "controller") -> ControllerConfig:
     """The settings dataclass of heuristic `name` (a `ControllerConfig`): its defaults, overridden by `settings`
     (plain values without `name`, each checked against its field's type: `typed_settings`). ConfigError for an
     unknown name (naming `key`), an unknown setting or a value of another type."""
